@@ -1,0 +1,106 @@
+"""Frame tracking and malformed-stream recovery, shared by every unit.
+
+A :class:`FrameTracker` watches the transfers of a unit's input stream and tells the unit, for
+the beat being transferred, its coordinates and whether it belongs to a well-formed frame.
+
+Rules (identical for every unit, see also ``sim/streams.py`` for the test side):
+
+* A frame starts at a beat with ``sof``. Before the first ``sof`` (after reset, or after an
+  error) beats are *dropped*: consumed (``ready`` stays up, nothing deadlocks) but not processed.
+* Line length is learned from the first ``eol`` of the frame (at most ``max_width``); every later
+  line must have the same length. The frame ends at the beat with ``eof``, which must also carry
+  ``eol``; at most ``max_height`` lines.
+* The first beat that breaks a rule (line too long, ``eol`` too early, ``eof`` without ``eol``,
+  too many lines) is dropped with everything after it up to the next ``sof``. A ``sof`` that cuts
+  a frame short starts the new frame normally. Each such event adds one to ``errors``; every
+  dropped beat adds one to ``dropped``. Both counters saturate and are cleared only by reset.
+"""
+from amaranth.hdl import Elaboratable, Module, Signal, Mux
+from amaranth.utils import bits_for
+
+__all__ = ["FrameTracker"]
+
+
+class FrameTracker(Elaboratable):
+    """Coordinates and well-formedness of the beats of one stream.
+
+    Inputs (drive them from the unit): ``beat`` (a transfer happens this cycle), ``sof``,
+    ``eol``, ``eof`` (the payload flags of that beat).
+
+    Combinational outputs, valid in the cycle of the beat: ``x``, ``y`` (its coordinates),
+    ``accept`` (the beat is part of a well-formed frame: process it), ``frame_end`` (accepted
+    beat with ``eof``), ``abandon`` (this beat ends the current frame abnormally: a rule was
+    broken, or a ``sof`` arrived before the ``eof``).
+
+    Registered outputs: ``in_frame`` (between an accepted ``sof`` and the end of that frame),
+    ``width`` (learned line length of the current frame, 0 until its first ``eol``),
+    ``errors`` (16-bit) and ``dropped`` (32-bit) saturating counters.
+    """
+
+    def __init__(self, *, max_width=1024, max_height=1024):
+        if max_width < 1 or max_height < 1:
+            raise ValueError(f"max_width and max_height must be at least 1, "
+                             f"not {max_width} and {max_height}")
+        self.max_width = max_width
+        self.max_height = max_height
+        self.beat = Signal()
+        self.sof = Signal()
+        self.eol = Signal()
+        self.eof = Signal()
+
+        self.x = Signal(range(max_width))
+        self.y = Signal(range(max_height))
+        self.accept = Signal()
+        self.frame_end = Signal()
+        self.abandon = Signal()
+
+        self.in_frame = Signal()
+        self.width = Signal(range(max_width + 1))
+        self.errors = Signal(16)
+        self.dropped = Signal(32)
+
+    def elaborate(self, platform):
+        m = Module()
+        next_x = Signal(bits_for(self.max_width))
+        next_y = Signal(bits_for(self.max_height))
+        dropping = Signal()     # the previous beat was dropped (one error per run of drops)
+
+        width_known = Signal()
+        too_long = Signal()
+        bad = Signal()
+        m.d.comb += [
+            self.x.eq(Mux(self.sof, 0, next_x)),
+            self.y.eq(Mux(self.sof, 0, next_y)),
+            width_known.eq((self.width != 0) & ~self.sof),
+            too_long.eq(~self.sof & ((next_x >= self.max_width) |
+                                     (next_y >= self.max_height) |
+                                     (width_known & (next_x >= self.width)))),
+            bad.eq(too_long |
+                   (width_known & self.eol & (self.x != self.width - 1)) |
+                   (self.eof & ~self.eol)),
+            self.accept.eq(self.beat & (self.sof | self.in_frame) & ~bad),
+            self.frame_end.eq(self.accept & self.eof),
+            self.abandon.eq(self.beat & self.in_frame & (self.sof | bad)),
+        ]
+
+        def saturating_inc(counter):
+            return counter.eq(Mux(counter == (1 << len(counter)) - 1, counter, counter + 1))
+
+        with m.If(self.beat):
+            with m.If(self.accept):
+                m.d.sync += [dropping.eq(0), self.in_frame.eq(~self.eof)]
+                with m.If(self.eol):
+                    m.d.sync += [next_x.eq(0), next_y.eq(self.y + 1)]
+                    with m.If(~width_known):
+                        m.d.sync += self.width.eq(self.x + 1)
+                with m.Else():
+                    m.d.sync += [next_x.eq(self.x + 1), next_y.eq(self.y)]
+                    with m.If(self.sof):
+                        m.d.sync += self.width.eq(0)
+                with m.If(self.sof & self.in_frame):
+                    m.d.sync += saturating_inc(self.errors)
+            with m.Else():
+                m.d.sync += [dropping.eq(1), self.in_frame.eq(0), saturating_inc(self.dropped)]
+                with m.If(~dropping | self.in_frame):
+                    m.d.sync += saturating_inc(self.errors)
+        return m
