@@ -1,0 +1,317 @@
+"""Whole frames in and out of `amaranth.lib.stream` ports, with seeded random stalls.
+
+The bridge between the golden models (whole frames as NumPy arrays) and the RTL (one beat per
+transfer). A *frame* is a dict ``{field: 2-D integer array}`` with every array of the same shape;
+a *beat* is the payload packed into one integer exactly as the RTL's ``data.Struct`` packs it
+(fields from the low bits in declaration order), so the same words drive the Amaranth simulator,
+the Verilator harness and cocotb.
+
+Simulation helpers (Amaranth async testbenches):
+
+* :func:`stream_put` offers words with seeded random idle cycles on ``valid``;
+* :func:`stream_get` takes words with seeded random backpressure on ``ready`` and fails with
+  :class:`Deadlock` when nothing moves for ``timeout`` cycles;
+* :func:`run_stream_unit` runs a unit end to end and writes a VCD when asked for (``vcd=`` or the
+  environment variable ``WAVES=1``).
+"""
+import os
+import random
+from dataclasses import dataclass, field
+
+import numpy as np
+from amaranth.hdl import ClockDomain, Module, ResetInserter, Shape, Signal
+from amaranth.lib import data
+from amaranth.sim import Simulator
+
+from hdl.types import FRAMING
+
+__all__ = ["Packer", "frame_words", "frames_words", "words_to_frames", "Reset", "Deadlock",
+           "malformed_cases",
+           "stream_put", "stream_get", "run_stream_unit", "StreamRun"]
+
+
+class Packer:
+    """Packs and unpacks the fields of a :class:`data.StructLayout` to and from integers,
+    element-wise over NumPy arrays."""
+
+    def __init__(self, layout):
+        self.layout = data.StructLayout(dict(layout)) if not isinstance(layout, data.Layout) else layout
+        self.fields = {name: (fld.offset, Shape.cast(fld.shape).width)
+                       for name, fld in self.layout}
+        self.width = self.layout.size
+
+    def pack(self, **values):
+        word = np.zeros(np.broadcast(*values.values()).shape, dtype=np.uint64) if values else 0
+        for name, value in values.items():
+            offset, width = self.fields[name]
+            word = word | ((np.asarray(value, dtype=np.uint64) & np.uint64((1 << width) - 1))
+                           << np.uint64(offset))
+        return word
+
+    def unpack(self, words):
+        words = np.asarray(words, dtype=np.uint64)
+        return {name: ((words >> np.uint64(offset)) & np.uint64((1 << width) - 1)).astype(np.int64)
+                for name, (offset, width) in self.fields.items()}
+
+
+def frame_words(packer, frame):
+    """The beats of one frame in raster order, with ``sof``, ``eol`` and ``eof`` set."""
+    shape = next(iter(frame.values())).shape
+    for name, arr in frame.items():
+        if arr.shape != shape:
+            raise ValueError(f"field {name!r} has shape {arr.shape}, expected {shape}")
+    h, w = shape
+    sof = np.zeros(shape, dtype=np.uint64); sof[0, 0] = 1
+    eol = np.zeros(shape, dtype=np.uint64); eol[:, w - 1] = 1
+    eof = np.zeros(shape, dtype=np.uint64); eof[h - 1, w - 1] = 1
+    return packer.pack(**frame, sof=sof, eol=eol, eof=eof).reshape(-1)
+
+
+def frames_words(packer, frames):
+    """All beats of a list of frames, as a list of Python ints."""
+    return [int(v) for f in frames for v in frame_words(packer, f)]
+
+
+def words_to_frames(packer, words, *, strict=True):
+    """Cut a sequence of output words into frames (dicts of 2-D arrays, without the flags).
+
+    With ``strict`` (the default) a frame must start with ``sof``, have lines of equal length
+    ending in ``eol`` and end at ``eof``; anything else raises :class:`ValueError`, which a test
+    reports as a framing mismatch."""
+    if len(words) == 0:
+        return []
+    f = packer.unpack(np.array(words, dtype=np.uint64))
+    frames, start = [], 0
+    ends = np.flatnonzero(f["eof"])
+    starts = np.flatnonzero(f["sof"])
+    if strict and (len(starts) != len(ends) or ends[-1] != len(words) - 1):
+        raise ValueError(f"{len(starts)} sof and {len(ends)} eof flags in {len(words)} words, "
+                         f"last eof at {ends[-1] if len(ends) else None}")
+    for end in ends:
+        sl = slice(start, end + 1)
+        if strict and (not f["sof"][start] or f["sof"][start + 1:end + 1].any()):
+            raise ValueError(f"frame at word {start} is not framed by exactly one sof")
+        eols = np.flatnonzero(f["eol"][sl])
+        width = int(eols[0]) + 1
+        n = end + 1 - start
+        if strict and (n % width or not np.array_equal(eols, np.arange(width - 1, n, width))):
+            raise ValueError(f"frame at word {start}: lines of unequal length (eol at {eols[:8]}...)")
+        frames.append({name: f[name][sl].reshape(-1, width) for name in f if name not in FRAMING})
+        start = end + 1
+    return frames
+
+
+class Reset:
+    """In a word list given to :func:`stream_put`: hold the unit's reset for ``cycles`` cycles."""
+
+    def __init__(self, cycles=1):
+        self.cycles = cycles
+
+
+class Deadlock(AssertionError):
+    pass
+
+
+async def stream_put(ctx, port, words, *, rng=None, idle=0.0, reset=None):
+    """Offer ``words`` on a stream sink ``port`` (drives valid/payload, waits for ready), with a
+    random idle cycle before a word with probability ``idle``. :class:`Reset` items pulse
+    ``reset`` (a reset signal) instead."""
+    payload = port.payload.as_value() if hasattr(port.payload, "as_value") else port.payload
+    for word in words:
+        if isinstance(word, Reset):
+            ctx.set(port.valid, 0)
+            ctx.set(reset, 1)
+            await ctx.tick().repeat(word.cycles)
+            ctx.set(reset, 0)
+            continue
+        while idle and rng.random() < idle:
+            ctx.set(port.valid, 0)
+            await ctx.tick()
+        ctx.set(payload, word)
+        ctx.set(port.valid, 1)
+        await ctx.tick().until(port.ready)
+    ctx.set(port.valid, 0)
+
+
+async def stream_get(ctx, port, *, count=None, until_eof=None, eof_bit=None, rng=None,
+                     stall=0.0, timeout=10000):
+    """Take words from a stream source ``port`` until ``count`` words or ``until_eof`` frames
+    (words with the ``eof`` bit, whose position is ``eof_bit``) have arrived. ``ready`` is held low
+    with probability ``stall`` each cycle. Raises :class:`Deadlock` after ``timeout`` cycles
+    without a transfer."""
+    payload = port.payload.as_value() if hasattr(port.payload, "as_value") else port.payload
+    words, frames, quiet = [], 0, 0
+    while (count is None or len(words) < count) and (until_eof is None or frames < until_eof):
+        ready = not (stall and rng.random() < stall)
+        ctx.set(port.ready, ready)
+        _, _, valid, word = await ctx.tick().sample(port.valid, payload)
+        if valid and ready:
+            words.append(word)
+            quiet = 0
+            if eof_bit is not None and (word >> eof_bit) & 1:
+                frames += 1
+        else:
+            quiet += 1
+            if quiet > timeout:
+                raise Deadlock(f"no output for {timeout} cycles after {len(words)} words")
+    ctx.set(port.ready, 0)
+    return words
+
+
+@dataclass
+class StreamRun:
+    words: list = field(default_factory=list)   # output words
+    cycles: int = 0          # from the first word offered to the last word taken
+    first_in: int = 0        # cycle of the first offer
+    last_out: int = 0        # cycle of the last output transfer
+    probes: dict = field(default_factory=dict)   # values of the probed ports at the end
+
+
+def run_stream_unit(dut, words, *, out_frames=None, out_count=None, seed=0, idle=0.0, stall=0.0,
+                    setup=None, vcd=None, timeout=10000, settle=20, out_port="o", in_port="i",
+                    probes=("errors", "dropped")):
+    """Simulate ``dut`` (a component with stream ports ``i`` and ``o``) under Amaranth's simulator.
+
+    ``setup(ctx)`` (optional, async) sets configuration inputs before the first word; the ports
+    named in ``probes`` are read ``settle`` cycles after the last output. The input
+    and the output have independent seeded random generators, so a failure is reproducible from
+    ``seed``. Returns a :class:`StreamRun`."""
+    m = Module()
+    m.domains.sync = ClockDomain("sync")
+    # The unit's reset is a separate signal: asserting the domain's own reset would stop the
+    # testbenches (Amaranth raises DomainReset in them).
+    unit_reset = Signal()
+    m.submodules.dut = ResetInserter(unit_reset)(dut)
+    sim = Simulator(m)
+    sim.add_clock(1e-8, domain="sync")
+    result = StreamRun()
+    o = getattr(dut, out_port)
+    eof_bit = None
+    if hasattr(o.payload, "shape") and "eof" in dict(o.payload.shape()):
+        eof_bit = o.payload.shape()["eof"].offset
+    state = {"cycle": 0, "start": None, "last": 0}
+
+    async def clock_counter(ctx):
+        async for _ in ctx.tick():
+            state["cycle"] += 1
+
+    async def producer(ctx):
+        if setup is not None:
+            await setup(ctx)
+        await ctx.tick()
+        state["start"] = state["cycle"]
+        await stream_put(ctx, getattr(dut, in_port), words, rng=random.Random(seed * 2 + 1),
+                         idle=idle, reset=unit_reset)
+
+    async def consumer(ctx):
+        await ctx.tick()
+        result.words = await stream_get(ctx, o, count=out_count, until_eof=out_frames,
+                                        eof_bit=eof_bit, rng=random.Random(seed * 2 + 2),
+                                        stall=stall, timeout=timeout)
+        state["last"] = state["cycle"]
+        await ctx.tick().repeat(settle)
+        for name in probes:
+            if hasattr(dut, name):
+                result.probes[name] = ctx.get(getattr(dut, name))
+
+    sim.add_process(clock_counter)
+    sim.add_testbench(producer, background=True)
+    sim.add_testbench(consumer)
+    if vcd is None and os.environ.get("WAVES") == "1":
+        vcd = f"build/waves/{type(dut).__name__}.vcd"
+    if vcd:
+        os.makedirs(os.path.dirname(vcd) or ".", exist_ok=True)
+        with sim.write_vcd(vcd):
+            sim.run()
+    else:
+        sim.run()
+    result.first_in = state["start"] or 0
+    result.last_out = state["last"]
+    result.cycles = state["last"] - result.first_in
+    return result
+
+
+def _with_flags(packer, word, **flags):
+    f = {name: int(v[0]) for name, v in packer.unpack(np.array([word], dtype=np.uint64)).items()}
+    f.update(flags)
+    return int(packer.pack(**f))
+
+
+def malformed_cases(packer, frame):
+    """Malformed versions of one good ``frame`` (H >= 3, W >= 4), each as
+    ``(words, errors, dropped)``: the words to send and the ``errors``/``dropped`` counts that the
+    rules of :mod:`hdl.framing` give for a unit that receives them first after reset.
+
+    * ``missing_sof``: the frame without its ``sof`` (every beat dropped);
+    * ``short_line``: row 1 two pixels short (its early ``eol`` is the first bad beat);
+    * ``long_line``: row 1 two pixels long (the pixel at x = W is the first bad beat);
+    * ``eof_without_eol``: the last beat has ``eof`` but not ``eol``;
+    * ``cut_short``: the first rows only, no ``eof``: the next ``sof`` cuts the frame;
+    * ``reset``: reset after the first rows, then the rest of the frame (dropped: no ``sof``).
+    """
+    h, w = next(iter(frame.values())).shape
+    if h < 3 or w < 4:
+        raise ValueError(f"malformed cases need a frame of at least 4x3, not {w}x{h}")
+    good = [int(v) for v in frame_words(packer, frame)]
+    n = len(good)
+    cases = {}
+    cases["missing_sof"] = ([_with_flags(packer, good[0], sof=0)] + good[1:], 1, n)
+    row1 = good[w:2 * w - 2]
+    row1[-1] = _with_flags(packer, row1[-1], eol=1)
+    short = good[:w] + row1 + good[2 * w:]
+    cases["short_line"] = (short, 1, len(short) - (2 * w - 3))
+    row1 = good[w:2 * w - 1] + [_with_flags(packer, good[2 * w - 1], eol=0)] * 2 + [good[2 * w - 1]]
+    long = good[:w] + row1 + good[2 * w:]
+    cases["long_line"] = (long, 1, len(long) - 2 * w)
+    cases["eof_without_eol"] = (good[:-1] + [_with_flags(packer, good[-1], eol=0)], 1, 1)
+    cases["cut_short"] = (good[:(h // 2) * w], 1, 0)
+    half = (h // 2) * w + 1
+    cases["reset"] = (good[:half] + [Reset(2)] + good[half:], 1, n - half)
+    return cases
+
+
+def check_unit(make_dut, in_packer, out_packer, in_frames, expected, *, name, seed=0, idle=0.0,
+               stall=0.0, setup=None, extra_words=(), **kwargs):
+    """Run a fresh unit from ``make_dut()`` on ``extra_words`` (e.g. a malformed frame) followed
+    by ``in_frames``; assert that the output's last ``len(expected)`` frames equal ``expected``
+    (dicts of arrays, compared with ``np.array_equal`` field by field). On a mismatch the run is
+    repeated with a VCD written to ``build/waves/<name>.vcd``, named in the assertion message.
+    Returns the :class:`StreamRun`."""
+    words = list(extra_words) + frames_words(in_packer, in_frames)
+    n_out = sum(next(iter(f.values())).size for f in expected)
+
+    def run(vcd=None):
+        dut = make_dut()
+        return run_stream_unit(dut, words, out_frames=len(expected), seed=seed, idle=idle,
+                               stall=stall, setup=(lambda ctx: setup(ctx, dut)) if setup else None,
+                               vcd=vcd, **kwargs)
+
+    def problem(result):
+        try:
+            got = words_to_frames(out_packer, result.words[len(result.words) - n_out:])
+        except ValueError as e:
+            return f"bad framing: {e}"
+        if len(got) != len(expected):
+            return f"{len(got)} frames out, {len(expected)} expected"
+        for k, (g, e) in enumerate(zip(got, expected)):
+            for field_name, arr in e.items():
+                if not np.array_equal(g[field_name], arr):
+                    bad = np.argwhere(g[field_name] != arr)
+                    y, x = bad[0]
+                    return (f"frame {k} field {field_name!r}: {len(bad)} mismatches, first at "
+                            f"(x={x}, y={y}): rtl {g[field_name][y, x]} != golden {arr[y, x]}")
+        return None
+
+    try:
+        result = run()
+        msg = problem(result)
+    except Deadlock as e:
+        msg = f"deadlock: {e}"
+    if msg:
+        vcd = f"build/waves/{name}.vcd"
+        try:
+            run(vcd)
+        except Deadlock:
+            pass
+        raise AssertionError(f"{name}: {msg} (waveform: {vcd})")
+    return result

@@ -1,0 +1,166 @@
+"""Ground model and classifier: golden rules, and RTL bit-exactness over consecutive frames
+(the band learned on frame n is applied on frame n+1) under stalls and malformed streams."""
+import numpy as np
+import pytest
+
+from golden.color import rgb_to_yhs
+from golden.ground import (GroundMode, GroundParams, ground_frames, classify, learn_centres,
+                           hue_distance, HIST_MAX, histograms)
+from hdl.ground import GroundClassifier, SEARCH_CYCLES
+from hdl.types import YHSPixel, GroundPixel
+from sim.data import motorcycle, crop
+from sim.streams import Packer, check_unit, malformed_cases
+
+PIN, POUT = Packer(YHSPixel), Packer(GroundPixel)
+
+
+def floor_image(rng, h, w, rgb, brightness=1.0):
+    """Random clutter on top, a noisy floor of colour ``rgb`` on the bottom half."""
+    img = rng.integers(0, 256, (h, w, 3)).astype(np.float64)
+    img[h // 2:] = np.array(rgb) + rng.normal(0, 6, (h - h // 2, w, 3))
+    return np.clip(img * brightness, 0, 255).astype(np.uint8)
+
+
+def yhs(img):
+    y, h, s = rgb_to_yhs(img)
+    return dict(y=y, h=h, s=s)
+
+
+def expected(frames, params):
+    masks, _ = ground_frames([(f["y"], f["h"], f["s"]) for f in frames], params)
+    return [dict(y=f["y"], ground=m) for f, m in zip(frames, masks)]
+
+
+def configure(params):
+    async def setup(ctx, dut):
+        for name, _ in GroundParams.FIELDS:
+            ctx.set(getattr(dut.config, name), int(getattr(params, name)))
+    return setup
+
+
+def run(frames, params, *, name, max_width=64, **kw):
+    return check_unit(lambda: GroundClassifier(max_width=max_width, max_height=32), PIN, POUT,
+                      frames, expected(frames, params), name=name, setup=configure(params), **kw)
+
+
+# --- golden ----------------------------------------------------------------------------------
+
+def test_hue_distance_wraps():
+    assert hue_distance(np.array([0, 191, 96, 100]), 0).tolist() == [0, 1, 96, 92]
+    assert hue_distance(np.array([5]), 190).tolist() == [7]
+
+
+def test_classify_modes():
+    y = np.array([[100, 100, 140, 100]], dtype=np.uint8)
+    h = np.array([[64, 70, 64, 120]], dtype=np.uint8)
+    s = np.array([[200, 200, 10, 200]], dtype=np.uint8)
+    p = GroundParams(k=2, jnd_hue=2, jnd_luma=3, s_min=48)
+    assert classify(y, h, s, p, 64, 100).tolist() == [[1, 0, 0, 0]]      # hue band +-4
+    p_l = GroundParams(mode=GroundMode.LUMA, k=2, jnd_luma=3)
+    assert classify(y, h, s, p_l, 64, 100).tolist() == [[1, 1, 0, 1]]
+    p_off = GroundParams(mode=GroundMode.OFF)
+    assert classify(y, h, s, p_off, 64, 100).sum() == 0
+    # a grey pixel (s < s_min) falls back to the luminance band in hue mode
+    assert classify(y, h, s, p, 64, 140).tolist() == [[1, 0, 1, 0]]
+
+
+def test_learning_peak_ties_empty_and_saturation():
+    p = GroundParams(ref_x=0, ref_y=0, ref_w=4, ref_h=1, s_min=10)
+    y = np.array([[7, 7, 3, 3]], dtype=np.uint8)
+    h = np.array([[50, 40, 40, 50]], dtype=np.uint8)
+    s = np.array([[20, 20, 20, 5]], dtype=np.uint8)
+    assert learn_centres(y, h, s, p, 1, 2) == (40, 3)          # ties -> lowest bin; s_min gate
+    s0 = np.zeros_like(s)
+    assert learn_centres(y, h, s0, p, 1, 2) == (1, 3)          # empty hue histogram keeps centre
+    big = np.full((600, 600), 9, dtype=np.uint8)
+    hh, yy = histograms(big, big, big, GroundParams(ref_w=600, ref_h=600, s_min=0))
+    assert yy[9] == HIST_MAX and hh[9] == HIST_MAX
+
+
+def test_band_learned_on_frame_n_applies_from_n_plus_1():
+    rng = np.random.default_rng(0)
+    f = [yhs(floor_image(rng, 8, 16, (40, 160, 60))) for _ in range(2)]
+    p = GroundParams.bottom_centre(16, 8, ref_w=8, ref_h=2, hue_centre0=150)
+    masks, centres = ground_frames([(x["y"], x["h"], x["s"]) for x in f], p)
+    assert centres[0] == (150, 128)
+    assert centres[1] != centres[0]
+    assert masks[1][4:].mean() > 0.9 and masks[0][4:].mean() < 0.1
+
+
+def test_params_validation():
+    with pytest.raises(ValueError, match="k=16"):
+        GroundParams(k=16).validate()
+    with pytest.raises(ValueError, match="hue_centre0"):
+        GroundParams(hue_centre0=200).validate()
+    with pytest.raises(ValueError, match="empty"):
+        GroundParams(ref_w=0).validate()
+    p = GroundParams.bottom_centre(100, 80)
+    assert (p.ref_x, p.ref_y, p.ref_w, p.ref_h) == (25, 70, 50, 10)
+
+
+# --- RTL -------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_rtl_hue_mode_three_frames_with_stalls(seed):
+    rng = np.random.default_rng(seed)
+    frames = [yhs(floor_image(rng, 8, 20, (40 + 10 * k, 160, 60), 1.0 - 0.15 * k))
+              for k in range(4)]
+    p = GroundParams.bottom_centre(20, 8, ref_w=10, ref_h=3, hue_centre0=150)
+    run(frames, p, name=f"ground_hue_{seed}", seed=seed, idle=0.3, stall=0.3)
+
+
+@pytest.mark.parametrize("width", [8, 27, 64])
+def test_rtl_widths_luma_mode(width):
+    rng = np.random.default_rng(width)
+    frames = [yhs(floor_image(rng, 6, width, (90, 90, 90))) for _ in range(3)]
+    p = GroundParams.bottom_centre(width, 6, mode=GroundMode.LUMA)
+    run(frames, p, name=f"ground_luma_{width}", seed=width, idle=0.2, stall=0.2)
+
+
+@pytest.mark.parametrize("corner", ["top_left", "bottom_right", "past_the_edge", "whole_frame"])
+def test_rtl_reference_region_at_the_border(corner):
+    rng = np.random.default_rng(4)
+    frames = [yhs(floor_image(rng, 6, 12, (160, 60, 40))) for _ in range(3)]
+    region = {"top_left": (0, 0, 4, 2), "bottom_right": (8, 4, 4, 2),
+              "past_the_edge": (9, 4, 20, 20), "whole_frame": (0, 0, 12, 6)}[corner]
+    p = GroundParams(ref_x=region[0], ref_y=region[1], ref_w=region[2], ref_h=region[3],
+                     mode=GroundMode.HUE, s_min=30)
+    run(frames, p, name=f"ground_border_{corner}", seed=5, idle=0.2, stall=0.3)
+
+
+def test_rtl_motorcycle_crops_and_size_change():
+    left, right, _ = motorcycle()
+    frames = [yhs(crop(left, 24, 8, 350, 420)), yhs(crop(right, 24, 8, 350, 420)),
+              yhs(crop(left, 16, 6, 100, 480)), yhs(crop(left, 24, 8, 360, 430))]
+    p = GroundParams(ref_x=4, ref_y=3, ref_w=12, ref_h=3, s_min=20)
+    run(frames, p, name="ground_motorcycle", seed=9, idle=0.25, stall=0.25)
+
+
+def test_rtl_throughput_and_search_cycles():
+    """Region away from the bottom: the search overlaps the frame, one pixel per clock; region
+    at the bottom: each frame ends with SEARCH_CYCLES of blanking the unit waits for."""
+    rng = np.random.default_rng(6)
+    # 13 rows of 32 pixels after the region: more than the search needs
+    frames = [yhs(floor_image(rng, 16, 32, (40, 160, 60))) for _ in range(3)]
+    pixels = 3 * 16 * 32
+    mid = GroundParams(ref_x=8, ref_y=1, ref_w=16, ref_h=2)
+    r = run(frames, mid, name="ground_rate_mid")
+    assert r.cycles == pixels + SEARCH_CYCLES   # clear pass after reset, then 1 px/clock
+    frames = [f for f in frames for f in [{k: v[:8] for k, v in f.items()}]]
+    pixels = 3 * 8 * 32
+    bottom = GroundParams(ref_x=8, ref_y=6, ref_w=16, ref_h=2)
+    r = run(frames, bottom, name="ground_rate_bottom")
+    assert r.cycles == pixels + 3 * SEARCH_CYCLES
+
+
+@pytest.mark.parametrize("case", ["missing_sof", "short_line", "long_line", "eof_without_eol",
+                                  "cut_short", "reset"])
+def test_malformed_stream_recovers(case):
+    rng = np.random.default_rng(12)
+    bad = yhs(floor_image(rng, 6, 10, (40, 160, 60)))
+    good = [yhs(floor_image(rng, 6, 10, (160, 60, 40))) for _ in range(2)]
+    words, errors, dropped = malformed_cases(PIN, bad)[case]
+    p = GroundParams(ref_x=2, ref_y=4, ref_w=6, ref_h=2, hue_centre0=100)
+    r = run(good, p, name=f"ground_bad_{case}", extra_words=words, seed=2, idle=0.2, stall=0.2,
+            max_width=16)
+    assert r.probes == {"errors": errors, "dropped": dropped}
