@@ -26,7 +26,7 @@ from amaranth.sim import Simulator
 from hdl.types import FRAMING
 
 __all__ = ["Packer", "frame_words", "frames_words", "words_to_frames", "Reset", "Deadlock",
-           "malformed_cases",
+           "malformed_cases", "run_streams",
            "stream_put", "stream_get", "run_stream_unit", "StreamRun"]
 
 
@@ -160,22 +160,31 @@ async def stream_get(ctx, port, *, count=None, until_eof=None, eof_bit=None, rng
 
 @dataclass
 class StreamRun:
-    words: list = field(default_factory=list)   # output words
+    words: object = field(default_factory=list)   # output words (a dict per port for run_streams)
     cycles: int = 0          # from the first word offered to the last word taken
     first_in: int = 0        # cycle of the first offer
     last_out: int = 0        # cycle of the last output transfer
     probes: dict = field(default_factory=dict)   # values of the probed ports at the end
 
 
-def run_stream_unit(dut, words, *, out_frames=None, out_count=None, seed=0, idle=0.0, stall=0.0,
-                    setup=None, vcd=None, timeout=10000, settle=20, out_port="o", in_port="i",
-                    probes=("errors", "dropped")):
-    """Simulate ``dut`` (a component with stream ports ``i`` and ``o``) under Amaranth's simulator.
+def _eof_bit(port):
+    shape = port.payload.shape() if hasattr(port.payload, "shape") else None
+    if isinstance(shape, data.StructLayout) and "eof" in dict(shape):
+        return shape["eof"].offset
+    return None
 
-    ``setup(ctx)`` (optional, async) sets configuration inputs before the first word; the ports
-    named in ``probes`` are read ``settle`` cycles after the last output. The input
-    and the output have independent seeded random generators, so a failure is reproducible from
-    ``seed``. Returns a :class:`StreamRun`."""
+
+def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None, vcd=None,
+                timeout=10000, settle=20, probes=("errors", "dropped")):
+    """Simulate ``dut`` under Amaranth's simulator with several stream ports.
+
+    ``inputs`` maps input port names to word lists (which may hold :class:`Reset` items);
+    ``outputs`` maps output port names to the number of frames (words with ``eof``) to collect,
+    or to ``("count", n)`` for a fixed number of words. Every port has its own seeded random
+    generator, so a failure is reproducible from ``seed``. ``setup(ctx)`` (optional, async) sets
+    configuration inputs before the first word; the ports named in ``probes`` are read ``settle``
+    cycles after the last output. Returns a :class:`StreamRun` whose ``words`` maps output names
+    to word lists."""
     m = Module()
     m.domains.sync = ClockDomain("sync")
     # The unit's reset is a separate signal: asserting the domain's own reset would stop the
@@ -184,39 +193,52 @@ def run_stream_unit(dut, words, *, out_frames=None, out_count=None, seed=0, idle
     m.submodules.dut = ResetInserter(unit_reset)(dut)
     sim = Simulator(m)
     sim.add_clock(1e-8, domain="sync")
-    result = StreamRun()
-    o = getattr(dut, out_port)
-    eof_bit = None
-    if hasattr(o.payload, "shape") and "eof" in dict(o.payload.shape()):
-        eof_bit = o.payload.shape()["eof"].offset
-    state = {"cycle": 0, "start": None, "last": 0}
+    result = StreamRun(words={})
+    state = {"cycle": 0, "start": None, "last": 0, "done": 0}
 
     async def clock_counter(ctx):
         async for _ in ctx.tick():
             state["cycle"] += 1
 
-    async def producer(ctx):
+    async def configure(ctx):
         if setup is not None:
             await setup(ctx)
         await ctx.tick()
         state["start"] = state["cycle"]
-        await stream_put(ctx, getattr(dut, in_port), words, rng=random.Random(seed * 2 + 1),
-                         idle=idle, reset=unit_reset)
 
-    async def consumer(ctx):
-        await ctx.tick()
-        result.words = await stream_get(ctx, o, count=out_count, until_eof=out_frames,
-                                        eof_bit=eof_bit, rng=random.Random(seed * 2 + 2),
-                                        stall=stall, timeout=timeout)
-        state["last"] = state["cycle"]
-        await ctx.tick().repeat(settle)
-        for name in probes:
-            if hasattr(dut, name):
-                result.probes[name] = ctx.get(getattr(dut, name))
+    def producer(k, name, words):
+        async def run(ctx):
+            if k == 0:
+                await configure(ctx)
+            else:
+                while state["start"] is None:
+                    await ctx.tick()
+            await stream_put(ctx, getattr(dut, name), words,
+                             rng=random.Random(seed * 16 + 1 + k), idle=idle, reset=unit_reset)
+        return run
+
+    def consumer(k, name, want):
+        async def run(ctx):
+            await ctx.tick()
+            port = getattr(dut, name)
+            count, frames = (want[1], None) if isinstance(want, tuple) else (None, want)
+            result.words[name] = await stream_get(
+                ctx, port, count=count, until_eof=frames, eof_bit=_eof_bit(port),
+                rng=random.Random(seed * 16 + 9 + k), stall=stall, timeout=timeout)
+            state["last"] = max(state["last"], state["cycle"])
+            state["done"] += 1
+            if state["done"] == len(outputs):
+                await ctx.tick().repeat(settle)
+                for probe in probes:
+                    if hasattr(dut, probe):
+                        result.probes[probe] = ctx.get(getattr(dut, probe))
+        return run
 
     sim.add_process(clock_counter)
-    sim.add_testbench(producer, background=True)
-    sim.add_testbench(consumer)
+    for k, (name, words) in enumerate(inputs.items()):
+        sim.add_testbench(producer(k, name, words), background=True)
+    for k, (name, want) in enumerate(outputs.items()):
+        sim.add_testbench(consumer(k, name, want))
     if vcd is None and os.environ.get("WAVES") == "1":
         vcd = f"build/waves/{type(dut).__name__}.vcd"
     if vcd:
@@ -228,6 +250,16 @@ def run_stream_unit(dut, words, *, out_frames=None, out_count=None, seed=0, idle
     result.first_in = state["start"] or 0
     result.last_out = state["last"]
     result.cycles = state["last"] - result.first_in
+    return result
+
+
+def run_stream_unit(dut, words, *, out_frames=None, out_count=None, out_port="o", in_port="i",
+                    **kwargs):
+    """:func:`run_streams` for a unit with one input ``i`` and one output ``o``; the result's
+    ``words`` is the output word list."""
+    want = out_frames if out_count is None else ("count", out_count)
+    result = run_streams(dut, {in_port: words}, {out_port: want}, **kwargs)
+    result.words = result.words[out_port]
     return result
 
 
