@@ -164,3 +164,51 @@ def test_malformed_stream_recovers(case):
     r = run(good, p, name=f"ground_bad_{case}", extra_words=words, seed=2, idle=0.2, stall=0.2,
             max_width=16)
     assert r.probes == {"errors": errors, "dropped": dropped}
+
+
+# --- accuracy on synthetic scenes (golden), and RTL on synthetic crops ------------------------
+
+def mono_world(world):
+    """A scene for a mono camera: dark grey floor, light obstacles and walls. Luminance mode can
+    only separate what differs in brightness; in the colour scenes the red and blue obstacles
+    have the floor's luminance."""
+    import dataclasses
+    light = [(230, 200, 170), (200, 220, 240), (240, 240, 180), (210, 210, 210), (250, 200, 220)]
+    obstacles = tuple(dataclasses.replace(o, color=light[i % len(light)])
+                      for i, o in enumerate(world.obstacles))
+    return dataclasses.replace(world, obstacles=obstacles, ground_color=(70, 70, 70),
+                               wall_color=(200, 200, 200), sky_color=(230, 230, 230))
+
+
+def agreement(frames, rgbs, params):
+    masks, _ = ground_frames([rgb_to_yhs(img) for img in rgbs], params)
+    # frame 0 uses the configured default band; the learned band applies from frame 1
+    return [float((m.astype(bool) == f.ground).mean()) for m, f in zip(masks[1:], frames[1:])]
+
+
+@pytest.mark.parametrize("scene", ["boxes", "poles", "mixed", "empty"])
+def test_hue_mode_agreement_with_brightness_changes(scene):
+    from sim.scenes import make_scene
+    frames = [make_scene(scene, 320, 240, brightness=b) for b in (1.0, 1.0, 0.7, 1.0, 1.3)]
+    p = GroundParams.bottom_centre(320, 240, mode=GroundMode.HUE)
+    acc = agreement(frames, [f.left for f in frames], p)
+    assert min(acc) >= 0.98, acc
+
+
+@pytest.mark.parametrize("scene", ["boxes", "poles", "mixed", "empty"])
+def test_luma_mode_agreement_on_mono_scenes(scene):
+    from sim.scenes import SCENES, Rig, render
+    from golden.color import luma
+    world = mono_world(SCENES[scene])
+    frames = [render(world, Rig.scaled(320, 240), seed=s) for s in (0, 1, 2)]
+    grey = [np.repeat(luma(f.left)[..., None], 3, axis=2) for f in frames]
+    acc = agreement(frames, grey, GroundParams.bottom_centre(320, 240, mode=GroundMode.LUMA))
+    assert min(acc) >= 0.98, acc
+
+
+def test_rtl_synthetic_scene_crop_with_brightness_change():
+    from sim.scenes import make_scene
+    frames = [make_scene("mixed", 160, 120, brightness=b) for b in (1.0, 0.7, 1.3)]
+    crops = [yhs(np.ascontiguousarray(f.left[88:108, 40:88])) for f in frames]
+    p = GroundParams.bottom_centre(48, 20, ref_h=4)
+    run(crops, p, name="ground_scene", seed=8, idle=0.2, stall=0.2)
