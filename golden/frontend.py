@@ -1,0 +1,65 @@
+"""Per-camera front end: colour conversion -> ground model and classifier -> Sobel vertical
+edges. The chain of the unit models, frame after frame (the ground band learned on frame n is
+used on frame n+1)."""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .color import rgb_to_yhs
+from .ground import GroundMode, GroundParams, ground_frames
+from .sobel import SobelParams, sobel_edges
+
+__all__ = ["FrontEndParams", "FrontEndFrame", "frontend_frames", "as_rgb"]
+
+
+@dataclass(frozen=True)
+class FrontEndParams:
+    ground: GroundParams = field(default_factory=GroundParams)
+    sobel: SobelParams = field(default_factory=SobelParams)
+
+    def validate(self):
+        self.ground.validate()
+        self.sobel.validate()
+        return self
+
+
+@dataclass
+class FrontEndFrame:
+    y: np.ndarray        # luminance (uint8)
+    h: np.ndarray        # hue
+    s: np.ndarray        # saturation
+    ground: np.ndarray   # ground mask (uint8 0/1)
+    edge: np.ndarray     # vertical obstacle edge (uint8 0/1)
+    neg: np.ndarray      # sign of Gx at edges (uint8 0/1)
+    centres: tuple       # (hue, luma) band centres this frame was classified with
+
+    def output(self):
+        """The front end's output stream fields."""
+        return dict(y=self.y, edge=self.edge, neg=self.neg)
+
+
+def as_rgb(image):
+    """An (H, W, 3) uint8 RGB view of an image; grayscale (H, W) becomes R = G = B. Returns
+    ``(rgb, was_grey)``."""
+    image = np.asarray(image)
+    if image.dtype != np.uint8:
+        raise ValueError(f"expected 8-bit images, got {image.dtype}")
+    if image.ndim == 2:
+        return np.repeat(image[..., None], 3, axis=2), True
+    if image.ndim == 3 and image.shape[2] == 4:
+        image = image[..., :3]
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"expected a grey or RGB image, got shape {image.shape}")
+    return np.ascontiguousarray(image), False
+
+
+def frontend_frames(rgb_frames, params):
+    """Run one camera's front end over consecutive RGB frames from reset."""
+    params.validate()
+    yhs = [rgb_to_yhs(f) for f in rgb_frames]
+    masks, centres = ground_frames(yhs, params.ground)
+    out = []
+    for (y, h, s), mask, c in zip(yhs, masks, centres):
+        edge, neg = sobel_edges(y, mask, params.sobel)
+        out.append(FrontEndFrame(y, h, s, mask, edge, neg, c))
+    return out

@@ -1,0 +1,69 @@
+"""Per-camera front end: colour conversion -> ground classifier -> Sobel vertical edges
+(specification: ``golden/frontend.py``)."""
+from amaranth.hdl import Module
+from amaranth.lib import wiring, stream
+from amaranth.lib.wiring import In, Out
+
+from golden.sobel import THRESHOLD_BITS, RATIO_BITS
+from .color import ColorConvert
+from .ground import GroundClassifier, GroundConfig
+from .sobel import SobelEdges
+from .types import RGBPixel, EdgePixel
+
+__all__ = ["FrontEnd"]
+
+
+class FrontEnd(wiring.Component):
+    """One camera's front end, one pixel per clock.
+
+    Ports
+    -----
+    i : In(stream of :data:`RGBPixel`)
+        Camera pixels; backpressure from ``o`` propagates through every stage.
+    o : Out(stream of :data:`EdgePixel`)
+        Luminance, vertical obstacle edge bit and Gx sign, one per input pixel. Latency: the
+        colour converter's 4 cycles + the classifier's 1 + the Sobel unit's one line and 6 cycles.
+    ground : In(:data:`GroundConfig`)
+        Ground model parameters.
+    threshold, ratio, nms : In
+        Sobel parameters.
+    centre_h, centre_y : Out(8)
+        The ground band centres of the current frame.
+    errors, dropped : Out(16), Out(32)
+        Malformed-stream counters of the first stage, which sees the camera stream; the later
+        stages only see frames the first stage already cut, and resynchronise with it.
+    """
+
+    i: In(stream.Signature(RGBPixel))
+    o: Out(stream.Signature(EdgePixel))
+    ground: In(GroundConfig)
+    threshold: In(THRESHOLD_BITS)
+    ratio: In(RATIO_BITS)
+    nms: In(1)
+    centre_h: Out(8)
+    centre_y: Out(8)
+    errors: Out(16)
+    dropped: Out(32)
+
+    def __init__(self, *, max_width=1024, max_height=1024):
+        self._max_width = max_width
+        self._max_height = max_height
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        size = dict(max_width=self._max_width, max_height=self._max_height)
+        m.submodules.color = color = ColorConvert(**size)
+        m.submodules.ground = ground = GroundClassifier(**size)
+        m.submodules.sobel = sobel = SobelEdges(**size)
+        wiring.connect(m, wiring.flipped(self.i), color.i)
+        wiring.connect(m, color.o, ground.i)
+        wiring.connect(m, ground.o, sobel.i)
+        wiring.connect(m, sobel.o, wiring.flipped(self.o))
+        m.d.comb += [
+            ground.config.eq(self.ground),
+            sobel.threshold.eq(self.threshold), sobel.ratio.eq(self.ratio), sobel.nms.eq(self.nms),
+            self.centre_h.eq(ground.centre_h), self.centre_y.eq(ground.centre_y),
+            self.errors.eq(color.errors), self.dropped.eq(color.dropped),
+        ]
+        return m

