@@ -1,0 +1,51 @@
+/**
+ * @file app.h
+ * Firmware application: start-up (decoders, pipeline) and the per-period radio report.
+ * Host builds export these for the co-simulation (build/firmware/libfirmware.so).
+ */
+#ifndef APP_H
+#define APP_H
+
+#include <stdint.h>
+#include "adv7180.h"
+#include "iic.h"
+#include "pipeline.h"
+#include "radio.h"
+
+#define APP_N_DECODERS 2u
+#define APP_RADIO_DEST 0x0001u /**< base station's 16-bit XBee address */
+
+typedef struct {
+    uint32_t regs_base;
+    iic_dev_t iic;
+    adv7180_t dec[APP_N_DECODERS];
+    fw_status_t dec_status[APP_N_DECODERS]; /**< result of each decoder's start-up */
+    pipeline_config_t cfg;
+    uint8_t seq;
+    uint8_t n_bands;
+    uint8_t min_support;
+    uint16_t width;
+    uint32_t results_read;  /**< results summarised into the last report */
+    uint8_t summary_open;   /**< summary holds results collected since the last report */
+    radio_summary_t summary;
+} app_t;
+
+/** Reset the IIC controller and start both decoders (0x20 then 0x21; the second is set up
+ *  even if the first fails). Returns the first error, FW_OK if both started. */
+fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls);
+
+/** Check the register block's ID and write the default configuration. */
+fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base);
+
+/** Drain the result FIFO into the running per-band summary (at most 4096 results per call).
+ *  Call it often: at 60 frames/s a report period spans 6 frames, more results than the
+ *  FIFO holds. Returns the number of results read. */
+uint32_t app_collect(app_t *app);
+
+/** Collect, close the summary of everything collected since the last report, build the API
+ *  frame into buf (at least RADIO_MAX_FRAME bytes), send it with hal_uart_write, start a new
+ *  summary. Returns the frame length, 0 on error. */
+uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint8_t *buf,
+                    uint32_t cap);
+
+#endif /* APP_H */

@@ -1,0 +1,47 @@
+/**
+ * @file hal.h
+ * Hardware abstraction: the only place that touches addresses.
+ *
+ * On the target (HAL_TARGET defined) Xil_In32/Xil_Out32 are volatile 32-bit accesses to the
+ * MicroBlaze MCS I/O bus. On the host they go through a bus hook (function pointers) that the
+ * unit tests and the co-simulation install with hal_set_bus_hook(); with no hook installed,
+ * reads return 0xFFFFFFFF and writes are dropped (an empty bus).
+ */
+#ifndef HAL_H
+#define HAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/** Bus hook for host builds. ctx is passed back unchanged. */
+typedef uint32_t (*hal_read32_fn)(void *ctx, uint32_t addr);
+typedef void (*hal_write32_fn)(void *ctx, uint32_t addr, uint32_t value);
+typedef void (*hal_delay_us_fn)(void *ctx, uint32_t us);
+typedef void (*hal_uart_write_fn)(void *ctx, const uint8_t *data, uint32_t len);
+
+/** Install (or, with NULL functions, remove) the host bus hook. Any of the pointers may be
+ *  NULL: delays then return at once, UART writes are dropped. */
+void hal_set_bus_hook(hal_read32_fn rd, hal_write32_fn wr, hal_delay_us_fn delay,
+                      hal_uart_write_fn uart, void *ctx);
+
+uint32_t Xil_In32(uint32_t addr);
+void Xil_Out32(uint32_t addr, uint32_t value);
+
+/** Busy-wait at least `us` microseconds (target: calibrated loop at HAL_CPU_HZ). */
+void hal_delay_us(uint32_t us);
+
+/** Send bytes to the radio UART (target: MCS UART transmit, blocking). */
+void hal_uart_write(const uint8_t *data, uint32_t len);
+
+#ifndef HAL_CPU_HZ
+#define HAL_CPU_HZ 50000000u /**< MicroBlaze MCS clock */
+#endif
+
+/** Register access for the generated stereo_regs.h map. */
+#define STEREO_ReadReg(BaseAddress, RegOffset) Xil_In32((BaseAddress) + (RegOffset))
+#define STEREO_WriteReg(BaseAddress, RegOffset, Data) \
+    Xil_Out32((BaseAddress) + (RegOffset), (uint32_t)(Data))
+
+#define ARRAY_SIZE(a) (sizeof(a) / sizeof((a)[0]))
+
+#endif /* HAL_H */

@@ -1,0 +1,67 @@
+/**
+ * @file pipeline.h
+ * Stereo pipeline configuration and per-frame readout, through the generated stereo_regs.h.
+ */
+#ifndef PIPELINE_H
+#define PIPELINE_H
+
+#include <stdint.h>
+#include "fw_status.h"
+
+/** Every run-time parameter of the pipeline (field meanings: docs/registers.md). */
+typedef struct {
+    uint8_t mode;            /**< GROUND.mode: 0 off, 1 luma, 2 hue */
+    uint8_t k;               /**< GROUND.k */
+    uint8_t jnd_hue;         /**< GROUND.jnd_hue */
+    uint8_t jnd_luma;        /**< GROUND.jnd_luma */
+    uint8_t s_min;           /**< GROUND.s_min */
+    uint16_t ref_x;          /**< GROUND_REF_POS.ref_x */
+    uint16_t ref_y;          /**< GROUND_REF_POS.ref_y */
+    uint16_t ref_w;          /**< GROUND_REF_SIZE.ref_w */
+    uint16_t ref_h;          /**< GROUND_REF_SIZE.ref_h */
+    uint8_t hue_centre0;     /**< GROUND_INIT.hue_centre0 (0..191) */
+    uint8_t luma_centre0;    /**< GROUND_INIT.luma_centre0 */
+    uint16_t edge_threshold; /**< SOBEL.edge_threshold */
+    uint8_t ratio; /**< SOBEL.ratio */
+    uint8_t nms;             /**< SOBEL.nms */
+    uint8_t d_min;           /**< MATCH.d_min */
+    uint8_t d_max;           /**< MATCH.d_max */
+    uint8_t uniqueness;      /**< MATCH.uniqueness (u = value/256) */
+    uint8_t candidate_mode;  /**< MATCH.candidate_mode: 0 adaptive, 1 full */
+    uint8_t widen;           /**< MATCH.widen */
+    uint8_t camera_mode_drop;/**< MATCH.camera_mode_drop */
+} pipeline_config_t;
+
+/** One matched obstacle-edge pixel. */
+typedef struct {
+    uint16_t x;
+    uint16_t y;
+    uint8_t d;
+} pipeline_match_t;
+
+/** Status snapshot. */
+typedef struct {
+    uint32_t frames;
+    uint16_t left_errors, left_dropped;
+    uint16_t right_errors, right_dropped;
+    uint16_t match_errors, match_dropped;
+    uint32_t edges, sad_evals, matches, rejects, drops;
+    uint16_t fifo_level, fifo_overflow;
+} pipeline_status_t;
+
+/** The register block's reset values (from the generated header). */
+void pipeline_default_config(pipeline_config_t *cfg);
+/** Check the ID register (magic and map version). */
+fw_status_t pipeline_check_id(uint32_t base);
+/** Validate and write every parameter; reads each register back (FW_ERR_PARAM on a range
+ *  error, nothing written; FW_ERR_ID if a read-back differs). */
+fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *cfg);
+/** Read every parameter register back into cfg. */
+void pipeline_read_config(uint32_t base, pipeline_config_t *cfg);
+void pipeline_read_status(uint32_t base, pipeline_status_t *st);
+/** Pop up to `max` results; returns how many were stored. Stops at an empty FIFO. */
+uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t max);
+void pipeline_clear_errors(uint32_t base);
+void pipeline_flush_results(uint32_t base);
+
+#endif /* PIPELINE_H */

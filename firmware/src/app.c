@@ -1,0 +1,136 @@
+/**
+ * @file app.c
+ * Start-up and the periodic radio report.
+ */
+#include "app.h"
+#include "hal.h"
+#include "stereo_regs.h"
+
+fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls)
+{
+    static const uint8_t addrs[APP_N_DECODERS] = { ADV7180_ADDR_ALSB_LOW, ADV7180_ADDR_ALSB_HIGH };
+    fw_status_t first = FW_OK;
+    uint32_t i;
+    fw_status_t st;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    app->seq = 0u;
+    app->summary_open = 0u;
+    app->n_bands = RADIO_DEFAULT_BANDS;
+    app->min_support = RADIO_DEFAULT_MIN_SUPPORT;
+    app->width = 752u;
+    st = iic_init(&app->iic, iic_base, iic_timeout_polls);
+    if (st != FW_OK) {
+        return st;
+    }
+    for (i = 0u; i < APP_N_DECODERS; i++) {
+        st = adv7180_bind(&app->dec[i], &app->iic, addrs[i]);
+        if (st == FW_OK) {
+            st = adv7180_init(&app->dec[i]);
+        }
+        app->dec_status[i] = st;
+        if (st != FW_OK && first == FW_OK) {
+            first = st;
+        }
+    }
+    return first;
+}
+
+fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base)
+{
+    fw_status_t st;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    app->regs_base = regs_base;
+    st = pipeline_check_id(regs_base);
+    if (st != FW_OK) {
+        return st;
+    }
+    pipeline_default_config(&app->cfg);
+    st = pipeline_configure(regs_base, &app->cfg);
+    if (st != FW_OK) {
+        return st;
+    }
+    pipeline_clear_errors(regs_base);
+    pipeline_flush_results(regs_base);
+    return FW_OK;
+}
+
+static fw_status_t app_open_summary(app_t *app)
+{
+    fw_status_t st = FW_OK;
+    if (!app->summary_open) {
+        st = radio_summary_init(&app->summary, app->width, app->n_bands, app->min_support);
+        app->summary_open = (uint8_t)(st == FW_OK);
+        app->results_read = 0u;
+    }
+    return st;
+}
+
+uint32_t app_collect(app_t *app)
+{
+    static pipeline_match_t chunk[64];
+    uint32_t total = 0u;
+    uint32_t rounds;
+    if (app == NULL || app_open_summary(app) != FW_OK) {
+        return 0u;
+    }
+    /* bounded: at most 64 chunks (4096 results) per call, the rest waits for the next */
+    for (rounds = 0u; rounds < 64u; rounds++) {
+        uint32_t i;
+        uint32_t n = pipeline_read_results(app->regs_base, chunk, ARRAY_SIZE(chunk));
+        for (i = 0u; i < n; i++) {
+            radio_summary_add(&app->summary, chunk[i].x, chunk[i].d);
+        }
+        total += n;
+        if (n < ARRAY_SIZE(chunk)) {
+            break;
+        }
+    }
+    app->results_read += total;
+    return total;
+}
+
+uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint8_t *buf,
+                    uint32_t cap)
+{
+    radio_packet_t pkt;
+    uint8_t rf[RADIO_MAX_RF_DATA];
+    uint32_t rf_len;
+    uint32_t len;
+    if (app == NULL || buf == NULL) {
+        return 0u;
+    }
+    (void)app_collect(app);
+    if (!app->summary_open) {
+        return 0u;
+    }
+    pkt.seq = app->seq;
+    pkt.frame = (uint16_t)(STEREO_ReadReg(app->regs_base, STEREO_FRAME_COUNT_OFFSET) & 0xFFFFu);
+    pkt.x_mm = x_mm;
+    pkt.y_mm = y_mm;
+    pkt.theta = theta;
+    pkt.width = app->width;
+    pkt.n_bands = app->n_bands;
+    radio_summary_finish(&app->summary, pkt.bands);
+    app->summary_open = 0u;   /* the next collect starts a new summary */
+    rf_len = radio_encode_payload(&pkt, rf, sizeof rf);
+    len = radio_encode_api_frame(rf, rf_len, APP_RADIO_DEST, (uint8_t)(app->seq % 255u + 1u), buf, cap);
+    if (rf_len == 0u || len == 0u) {
+        return 0u;
+    }
+    hal_uart_write(buf, len);
+    app->seq = (uint8_t)(app->seq + 1u);
+    return len;
+}
+
+#ifndef HAL_TARGET
+/** Host builds only: sizeof(app_t), for the co-simulation's ctypes mirror. */
+uint32_t app_sizeof(void);
+uint32_t app_sizeof(void)
+{
+    return (uint32_t)sizeof(app_t);
+}
+#endif

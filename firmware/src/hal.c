@@ -1,0 +1,106 @@
+/**
+ * @file hal.c
+ * Xil_In32/Xil_Out32 and friends: volatile accesses on the target, a bus hook on the host.
+ */
+#include "hal.h"
+#include "fw_status.h"
+
+#ifdef HAL_TARGET
+
+uint32_t Xil_In32(uint32_t addr)
+{
+    return *(volatile uint32_t *)(uintptr_t)addr;
+}
+
+void Xil_Out32(uint32_t addr, uint32_t value)
+{
+    *(volatile uint32_t *)(uintptr_t)addr = value;
+}
+
+void hal_delay_us(uint32_t us)
+{
+    /* about 4 cycles per iteration on a MicroBlaze without caches */
+    volatile uint32_t n = us * (HAL_CPU_HZ / 4000000u);
+    while (n != 0u) {
+        n--;
+    }
+}
+
+/* MCS I/O Module UART (Xilinx PG116): UART_TX at 0x80000004, UART_STATUS at 0x80000008,
+ * status bit 3 = TX used (a byte is being sent). Not yet checked on hardware. */
+#define MCS_UART_TX_OFFSET     0x80000004u
+#define MCS_UART_STATUS_OFFSET 0x80000008u
+#define MCS_UART_TX_USED_MASK  0x08u
+
+void hal_uart_write(const uint8_t *data, uint32_t len)
+{
+    uint32_t i;
+    for (i = 0; i < len; i++) {
+        while ((Xil_In32(MCS_UART_STATUS_OFFSET) & MCS_UART_TX_USED_MASK) != 0u) {
+            /* the UART drains one byte per 87 us at 115200 baud: never stuck */
+        }
+        Xil_Out32(MCS_UART_TX_OFFSET, data[i]);
+    }
+}
+
+#else /* host build */
+
+static hal_read32_fn hook_rd;
+static hal_write32_fn hook_wr;
+static hal_delay_us_fn hook_delay;
+static hal_uart_write_fn hook_uart;
+static void *hook_ctx;
+
+void hal_set_bus_hook(hal_read32_fn rd, hal_write32_fn wr, hal_delay_us_fn delay,
+                      hal_uart_write_fn uart, void *ctx)
+{
+    hook_rd = rd;
+    hook_wr = wr;
+    hook_delay = delay;
+    hook_uart = uart;
+    hook_ctx = ctx;
+}
+
+uint32_t Xil_In32(uint32_t addr)
+{
+    return hook_rd != NULL ? hook_rd(hook_ctx, addr) : 0xFFFFFFFFu;
+}
+
+void Xil_Out32(uint32_t addr, uint32_t value)
+{
+    if (hook_wr != NULL) {
+        hook_wr(hook_ctx, addr, value);
+    }
+}
+
+void hal_delay_us(uint32_t us)
+{
+    if (hook_delay != NULL) {
+        hook_delay(hook_ctx, us);
+    }
+}
+
+void hal_uart_write(const uint8_t *data, uint32_t len)
+{
+    if (hook_uart != NULL) {
+        hook_uart(hook_ctx, data, len);
+    }
+}
+
+#endif
+
+const char *fw_status_str(fw_status_t st)
+{
+    switch (st) {
+    case FW_OK: return "OK";
+    case FW_ERR_NACK: return "NACK";
+    case FW_ERR_TIMEOUT: return "TIMEOUT";
+    case FW_ERR_BUS_BUSY: return "BUS_BUSY";
+    case FW_ERR_ARBITRATION: return "ARBITRATION";
+    case FW_ERR_PARAM: return "PARAM";
+    case FW_ERR_ID: return "ID";
+    case FW_ERR_NO_LOCK: return "NO_LOCK";
+    case FW_ERR_RX: return "RX";
+    default: return "UNKNOWN";
+    }
+}

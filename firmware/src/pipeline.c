@@ -1,0 +1,187 @@
+/**
+ * @file pipeline.c
+ * Pipeline configuration and readout. Every offset, shift and mask comes from the generated
+ * stereo_regs.h: nothing here knows a bit position.
+ */
+#include "pipeline.h"
+#include "hal.h"
+#include "stereo_regs.h"
+
+#define FIELD_MAX(R, F) (STEREO_##R##_##F##_MASK >> STEREO_##R##_##F##_SHIFT)
+
+void pipeline_default_config(pipeline_config_t *cfg)
+{
+    cfg->mode = STEREO_GROUND_MODE_RESET;
+    cfg->k = STEREO_GROUND_K_RESET;
+    cfg->jnd_hue = STEREO_GROUND_JND_HUE_RESET;
+    cfg->jnd_luma = STEREO_GROUND_JND_LUMA_RESET;
+    cfg->s_min = STEREO_GROUND_S_MIN_RESET;
+    cfg->ref_x = STEREO_GROUND_REF_POS_REF_X_RESET;
+    cfg->ref_y = STEREO_GROUND_REF_POS_REF_Y_RESET;
+    cfg->ref_w = STEREO_GROUND_REF_SIZE_REF_W_RESET;
+    cfg->ref_h = STEREO_GROUND_REF_SIZE_REF_H_RESET;
+    cfg->hue_centre0 = STEREO_GROUND_INIT_HUE_CENTRE0_RESET;
+    cfg->luma_centre0 = STEREO_GROUND_INIT_LUMA_CENTRE0_RESET;
+    cfg->edge_threshold = STEREO_SOBEL_EDGE_THRESHOLD_RESET;
+    cfg->ratio = STEREO_SOBEL_RATIO_RESET;
+    cfg->nms = STEREO_SOBEL_NMS_RESET;
+    cfg->d_min = STEREO_MATCH_D_MIN_RESET;
+    cfg->d_max = STEREO_MATCH_D_MAX_RESET;
+    cfg->uniqueness = STEREO_MATCH_UNIQUENESS_RESET;
+    cfg->candidate_mode = STEREO_MATCH_CANDIDATE_MODE_RESET;
+    cfg->widen = STEREO_MATCH_WIDEN_RESET;
+    cfg->camera_mode_drop = STEREO_MATCH_CAMERA_MODE_DROP_RESET;
+}
+
+fw_status_t pipeline_check_id(uint32_t base)
+{
+    uint32_t id = STEREO_ReadReg(base, STEREO_ID_OFFSET);
+    if (STEREO_GET(ID, MAGIC, id) != STEREO_ID_MAGIC ||
+        STEREO_GET(ID, VERSION, id) != STEREO_MAP_VERSION) {
+        return FW_ERR_ID;
+    }
+    return FW_OK;
+}
+
+static int config_valid(const pipeline_config_t *c)
+{
+    return c->mode <= 2u && c->k <= FIELD_MAX(GROUND, K) && c->jnd_hue <= FIELD_MAX(GROUND, JND_HUE) &&
+           c->jnd_luma <= FIELD_MAX(GROUND, JND_LUMA) &&
+           c->ref_x <= FIELD_MAX(GROUND_REF_POS, REF_X) && c->ref_y <= FIELD_MAX(GROUND_REF_POS, REF_Y) &&
+           c->ref_w <= FIELD_MAX(GROUND_REF_SIZE, REF_W) && c->ref_h <= FIELD_MAX(GROUND_REF_SIZE, REF_H) &&
+           c->hue_centre0 <= 191u &&
+           c->edge_threshold <= FIELD_MAX(SOBEL, EDGE_THRESHOLD) &&
+           c->ratio <= FIELD_MAX(SOBEL, RATIO) && c->nms <= 1u &&
+           c->d_min <= FIELD_MAX(MATCH, D_MIN) && c->d_max <= FIELD_MAX(MATCH, D_MAX) &&
+           c->d_min <= c->d_max && c->candidate_mode <= 1u && c->widen <= 1u &&
+           c->camera_mode_drop <= 1u;
+}
+
+typedef struct {
+    uint32_t offset;
+    uint32_t value;
+} reg_write_t;
+
+fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
+{
+    reg_write_t w[6];
+    uint32_t i;
+    if (c == NULL || !config_valid(c)) {
+        return FW_ERR_PARAM;
+    }
+    w[0].offset = STEREO_GROUND_OFFSET;
+    w[0].value = STEREO_SET(GROUND, MODE, c->mode) | STEREO_SET(GROUND, K, c->k) |
+                 STEREO_SET(GROUND, JND_HUE, c->jnd_hue) | STEREO_SET(GROUND, JND_LUMA, c->jnd_luma) |
+                 STEREO_SET(GROUND, S_MIN, c->s_min);
+    w[1].offset = STEREO_GROUND_REF_POS_OFFSET;
+    w[1].value = STEREO_SET(GROUND_REF_POS, REF_X, c->ref_x) | STEREO_SET(GROUND_REF_POS, REF_Y, c->ref_y);
+    w[2].offset = STEREO_GROUND_REF_SIZE_OFFSET;
+    w[2].value = STEREO_SET(GROUND_REF_SIZE, REF_W, c->ref_w) | STEREO_SET(GROUND_REF_SIZE, REF_H, c->ref_h);
+    w[3].offset = STEREO_GROUND_INIT_OFFSET;
+    w[3].value = STEREO_SET(GROUND_INIT, HUE_CENTRE0, c->hue_centre0) |
+                 STEREO_SET(GROUND_INIT, LUMA_CENTRE0, c->luma_centre0);
+    w[4].offset = STEREO_SOBEL_OFFSET;
+    w[4].value = STEREO_SET(SOBEL, EDGE_THRESHOLD, c->edge_threshold) |
+                 STEREO_SET(SOBEL, RATIO, c->ratio) | STEREO_SET(SOBEL, NMS, c->nms);
+    w[5].offset = STEREO_MATCH_OFFSET;
+    w[5].value = STEREO_SET(MATCH, D_MIN, c->d_min) | STEREO_SET(MATCH, D_MAX, c->d_max) |
+                 STEREO_SET(MATCH, UNIQUENESS, c->uniqueness) |
+                 STEREO_SET(MATCH, CANDIDATE_MODE, c->candidate_mode) |
+                 STEREO_SET(MATCH, WIDEN, c->widen) |
+                 STEREO_SET(MATCH, CAMERA_MODE_DROP, c->camera_mode_drop);
+    for (i = 0u; i < ARRAY_SIZE(w); i++) {
+        STEREO_WriteReg(base, w[i].offset, w[i].value);
+    }
+    for (i = 0u; i < ARRAY_SIZE(w); i++) {
+        if (STEREO_ReadReg(base, w[i].offset) != w[i].value) {
+            return FW_ERR_ID;
+        }
+    }
+    return FW_OK;
+}
+
+void pipeline_read_config(uint32_t base, pipeline_config_t *c)
+{
+    uint32_t v = STEREO_ReadReg(base, STEREO_GROUND_OFFSET);
+    c->mode = (uint8_t)STEREO_GET(GROUND, MODE, v);
+    c->k = (uint8_t)STEREO_GET(GROUND, K, v);
+    c->jnd_hue = (uint8_t)STEREO_GET(GROUND, JND_HUE, v);
+    c->jnd_luma = (uint8_t)STEREO_GET(GROUND, JND_LUMA, v);
+    c->s_min = (uint8_t)STEREO_GET(GROUND, S_MIN, v);
+    v = STEREO_ReadReg(base, STEREO_GROUND_REF_POS_OFFSET);
+    c->ref_x = (uint16_t)STEREO_GET(GROUND_REF_POS, REF_X, v);
+    c->ref_y = (uint16_t)STEREO_GET(GROUND_REF_POS, REF_Y, v);
+    v = STEREO_ReadReg(base, STEREO_GROUND_REF_SIZE_OFFSET);
+    c->ref_w = (uint16_t)STEREO_GET(GROUND_REF_SIZE, REF_W, v);
+    c->ref_h = (uint16_t)STEREO_GET(GROUND_REF_SIZE, REF_H, v);
+    v = STEREO_ReadReg(base, STEREO_GROUND_INIT_OFFSET);
+    c->hue_centre0 = (uint8_t)STEREO_GET(GROUND_INIT, HUE_CENTRE0, v);
+    c->luma_centre0 = (uint8_t)STEREO_GET(GROUND_INIT, LUMA_CENTRE0, v);
+    v = STEREO_ReadReg(base, STEREO_SOBEL_OFFSET);
+    c->edge_threshold = (uint16_t)STEREO_GET(SOBEL, EDGE_THRESHOLD, v);
+    c->ratio = (uint8_t)STEREO_GET(SOBEL, RATIO, v);
+    c->nms = (uint8_t)STEREO_GET(SOBEL, NMS, v);
+    v = STEREO_ReadReg(base, STEREO_MATCH_OFFSET);
+    c->d_min = (uint8_t)STEREO_GET(MATCH, D_MIN, v);
+    c->d_max = (uint8_t)STEREO_GET(MATCH, D_MAX, v);
+    c->uniqueness = (uint8_t)STEREO_GET(MATCH, UNIQUENESS, v);
+    c->candidate_mode = (uint8_t)STEREO_GET(MATCH, CANDIDATE_MODE, v);
+    c->widen = (uint8_t)STEREO_GET(MATCH, WIDEN, v);
+    c->camera_mode_drop = (uint8_t)STEREO_GET(MATCH, CAMERA_MODE_DROP, v);
+}
+
+void pipeline_read_status(uint32_t base, pipeline_status_t *s)
+{
+    uint32_t v;
+    s->frames = STEREO_ReadReg(base, STEREO_FRAME_COUNT_OFFSET);
+    v = STEREO_ReadReg(base, STEREO_ERR_LEFT_OFFSET);
+    s->left_errors = (uint16_t)STEREO_GET(ERR_LEFT, ERRORS, v);
+    s->left_dropped = (uint16_t)STEREO_GET(ERR_LEFT, DROPPED, v);
+    v = STEREO_ReadReg(base, STEREO_ERR_RIGHT_OFFSET);
+    s->right_errors = (uint16_t)STEREO_GET(ERR_RIGHT, ERRORS, v);
+    s->right_dropped = (uint16_t)STEREO_GET(ERR_RIGHT, DROPPED, v);
+    v = STEREO_ReadReg(base, STEREO_ERR_MATCH_OFFSET);
+    s->match_errors = (uint16_t)STEREO_GET(ERR_MATCH, ERRORS, v);
+    s->match_dropped = (uint16_t)STEREO_GET(ERR_MATCH, DROPPED, v);
+    s->edges = STEREO_ReadReg(base, STEREO_STAT_EDGES_OFFSET);
+    s->sad_evals = STEREO_ReadReg(base, STEREO_STAT_SAD_OFFSET);
+    s->matches = STEREO_ReadReg(base, STEREO_STAT_MATCHES_OFFSET);
+    s->rejects = STEREO_ReadReg(base, STEREO_STAT_REJECTS_OFFSET);
+    s->drops = STEREO_ReadReg(base, STEREO_STAT_DROPS_OFFSET);
+    v = STEREO_ReadReg(base, STEREO_RESULT_LEVEL_OFFSET);
+    s->fifo_level = (uint16_t)STEREO_GET(RESULT_LEVEL, LEVEL, v);
+    s->fifo_overflow = (uint16_t)STEREO_GET(RESULT_LEVEL, OVERFLOW, v);
+}
+
+uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t max)
+{
+    uint32_t n = 0u;
+    uint32_t level = STEREO_GET(RESULT_LEVEL, LEVEL, STEREO_ReadReg(base, STEREO_RESULT_LEVEL_OFFSET));
+    if (out == NULL) {
+        return 0u;
+    }
+    if (level > max) {
+        level = max;
+    }
+    while (n < level) {
+        uint32_t r = STEREO_ReadReg(base, STEREO_RESULT_OFFSET);
+        if (STEREO_GET(RESULT, VALID, r) == 0u) {
+            break;
+        }
+        out[n].x = (uint16_t)STEREO_GET(RESULT, X, r);
+        out[n].y = (uint16_t)STEREO_GET(RESULT, Y, r);
+        out[n].d = (uint8_t)STEREO_GET(RESULT, D, r);
+        n++;
+    }
+    return n;
+}
+
+void pipeline_clear_errors(uint32_t base)
+{
+    STEREO_WriteReg(base, STEREO_CTRL_OFFSET, STEREO_SET(CTRL, CLEAR_ERRORS, 1u));
+}
+
+void pipeline_flush_results(uint32_t base)
+{
+    STEREO_WriteReg(base, STEREO_CTRL_OFFSET, STEREO_SET(CTRL, FLUSH_RESULTS, 1u));
+}

@@ -1,0 +1,152 @@
+/* ADV7180 driver: ID, reset, init table, lock, error paths, two decoders on one bus. */
+#include "adv7180.h"
+#include "app.h"
+#include "fwtest.h"
+#include "hal.h"
+#include "sim_xiic.h"
+#include "stereo_regs.h"
+
+static sim_xiic_t sim;
+static iic_dev_t iic;
+
+static void setup(void)
+{
+    sim_init(&sim, STEREO_IIC_BASEADDR);
+    sim_install(&sim);
+    iic_init(&iic, STEREO_IIC_BASEADDR, 500u);
+}
+
+/* The device's registers equal the init table (last write wins), and only table registers
+ * were written after the reset. */
+static int matches_table(const sim_dev_t *d)
+{
+    uint8_t expect[256];
+    uint8_t in_table[256] = { 0 };
+    uint32_t i;
+    for (i = 0u; i < adv7180_ntsc_init_len; i++) {
+        expect[adv7180_ntsc_init[i].reg] = adv7180_ntsc_init[i].val;
+        in_table[adv7180_ntsc_init[i].reg] = 1u;
+    }
+    for (i = 0u; i < 256u; i++) {
+        if (in_table[i] != d->written[i] || (in_table[i] && d->regs[i] != expect[i])) {
+            printf("  register 0x%02X: written %d value 0x%02X\n", (unsigned)i, d->written[i],
+                   d->regs[i]);
+            return 0;
+        }
+    }
+    return d->writes == adv7180_ntsc_init_len;
+}
+
+static void test_bind_checks_address(void)
+{
+    adv7180_t dec;
+    setup();
+    FWT_CHECK_EQ(adv7180_bind(&dec, &iic, 0x22), FW_ERR_PARAM);
+    FWT_CHECK_EQ(adv7180_bind(&dec, &iic, 0x20), FW_OK);
+    FWT_CHECK_EQ(adv7180_bind(&dec, NULL, 0x20), FW_ERR_PARAM);
+}
+
+static void test_init_writes_table(void)
+{
+    adv7180_t dec;
+    sim_dev_t *d;
+    uint8_t locked = 0u;
+    setup();
+    d = sim_add_adv7180(&sim, 0x20);
+    adv7180_bind(&dec, &iic, 0x20);
+    FWT_CHECK_EQ(adv7180_init(&dec), FW_OK);
+    FWT_CHECK(matches_table(d));
+    FWT_CHECK_EQ(dec.failed_entry, -1);
+    FWT_CHECK(sim.delays_us >= ADV7180_RESET_POLL_US); /* waited after the reset */
+    FWT_CHECK_EQ(adv7180_lock_status(&dec, &locked), FW_OK);
+    FWT_CHECK_EQ(locked, 1);
+    d->regs[0x10] = 0x02; /* lost lock */
+    FWT_CHECK_EQ(adv7180_lock_status(&dec, &locked), FW_OK);
+    FWT_CHECK_EQ(locked, 0);
+    FWT_CHECK_EQ(dec.status1, 0x02);
+}
+
+static void test_wrong_id(void)
+{
+    adv7180_t dec;
+    sim_dev_t *d;
+    setup();
+    d = sim_add_adv7180(&sim, 0x21);
+    d->regs[0x11] = 0x41; /* an ADV7182 */
+    adv7180_bind(&dec, &iic, 0x21);
+    FWT_CHECK_EQ(adv7180_init(&dec), FW_ERR_ID);
+    FWT_CHECK_EQ(d->writes, 0);
+}
+
+static void test_reset_never_ends(void)
+{
+    adv7180_t dec;
+    sim_dev_t *d;
+    setup();
+    d = sim_add_adv7180(&sim, 0x20);
+    d->busy_after_reset = 1000;
+    adv7180_bind(&dec, &iic, 0x20);
+    FWT_CHECK_EQ(adv7180_init(&dec), FW_ERR_TIMEOUT);
+    FWT_CHECK_EQ(sim.delays_us, ADV7180_RESET_POLLS * ADV7180_RESET_POLL_US);
+}
+
+static void test_nack_and_stuck(void)
+{
+    adv7180_t dec;
+    sim_dev_t *d;
+    setup();
+    d = sim_add_adv7180(&sim, 0x20);
+    d->nack = 1;
+    adv7180_bind(&dec, &iic, 0x20);
+    FWT_CHECK_EQ(adv7180_init(&dec), FW_ERR_NACK);
+    setup();
+    d = sim_add_adv7180(&sim, 0x20);
+    d->hold_scl = 1;
+    adv7180_bind(&dec, &iic, 0x20);
+    FWT_CHECK_EQ(adv7180_init(&dec), FW_ERR_TIMEOUT);
+}
+
+static void test_two_decoders(void)
+{
+    static app_t app;
+    sim_dev_t *a, *b;
+    setup();
+    a = sim_add_adv7180(&sim, 0x20);
+    b = sim_add_adv7180(&sim, 0x21);
+    FWT_CHECK_EQ(app_init_decoders(&app, STEREO_IIC_BASEADDR, 500u), FW_OK);
+    FWT_CHECK(matches_table(a));
+    FWT_CHECK(matches_table(b));
+    /* the second decoder is still set up when the first one is missing */
+    setup();
+    b = sim_add_adv7180(&sim, 0x21);
+    FWT_CHECK_EQ(app_init_decoders(&app, STEREO_IIC_BASEADDR, 500u), FW_ERR_NACK);
+    FWT_CHECK_EQ(app.dec_status[0], FW_ERR_NACK);
+    FWT_CHECK_EQ(app.dec_status[1], FW_OK);
+    FWT_CHECK(matches_table(b));
+}
+
+static void test_table_stops_at_first_error(void)
+{
+    /* a device that stops answering after 5 table writes: the driver stops at entry 5 */
+    adv7180_t dec;
+    sim_dev_t *d;
+    setup();
+    d = sim_add_adv7180(&sim, 0x20);
+    d->fail_after = 5u;
+    adv7180_bind(&dec, &iic, 0x20);
+    FWT_CHECK_EQ(adv7180_init(&dec), FW_ERR_NACK);
+    FWT_CHECK_EQ(dec.failed_entry, 5);
+    FWT_CHECK_EQ(d->writes, 5);
+    FWT_CHECK(adv7180_ntsc_init_len >= 10u);
+}
+
+void suite_adv7180(void)
+{
+    FWT_RUN(test_bind_checks_address);
+    FWT_RUN(test_init_writes_table);
+    FWT_RUN(test_wrong_id);
+    FWT_RUN(test_reset_never_ends);
+    FWT_RUN(test_nack_and_stuck);
+    FWT_RUN(test_two_decoders);
+    FWT_RUN(test_table_stops_at_first_error);
+}

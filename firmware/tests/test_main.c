@@ -1,0 +1,18 @@
+#include "fwtest.h"
+
+extern int fwt_passed;
+extern int fwt_failed;
+
+int main(void)
+{
+    printf("# iic\n");
+    suite_iic();
+    printf("# adv7180\n");
+    suite_adv7180();
+    printf("# pipeline\n");
+    suite_pipeline();
+    printf("# radio\n");
+    suite_radio();
+    printf("%d passed, %d failed\n", fwt_passed, fwt_failed);
+    return fwt_failed == 0 ? 0 : 1;
+}

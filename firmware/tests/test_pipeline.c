@@ -1,0 +1,175 @@
+/* Pipeline configuration and readout through the generated header, on the register-block
+ * model of sim_xiic.c. */
+#include "app.h"
+#include "fwtest.h"
+#include "pipeline.h"
+#include "sim_xiic.h"
+#include "stereo_regs.h"
+
+#include <string.h>
+
+static sim_xiic_t sim;
+
+static void setup(void)
+{
+    sim_init(&sim, STEREO_IIC_BASEADDR);
+    sim_install(&sim);
+}
+
+static void test_id(void)
+{
+    setup();
+    FWT_CHECK_EQ(pipeline_check_id(STEREO_BASEADDR), FW_OK);
+    sim_uninstall(); /* empty bus reads 0xFFFFFFFF */
+    FWT_CHECK_EQ(pipeline_check_id(STEREO_BASEADDR), FW_ERR_ID);
+}
+
+static void test_defaults_match_reset_values(void)
+{
+    pipeline_config_t c;
+    setup();
+    pipeline_default_config(&c);
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);
+    FWT_CHECK_EQ(sim.regfile[STEREO_GROUND_OFFSET / 4], STEREO_GROUND_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_GROUND_REF_POS_OFFSET / 4], STEREO_GROUND_REF_POS_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_GROUND_REF_SIZE_OFFSET / 4], STEREO_GROUND_REF_SIZE_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_GROUND_INIT_OFFSET / 4], STEREO_GROUND_INIT_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_SOBEL_OFFSET / 4], STEREO_SOBEL_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], STEREO_MATCH_RESET);
+}
+
+static void test_configure_roundtrip(void)
+{
+    pipeline_config_t c, r;
+    setup();
+    memset(&c, 0, sizeof c); /* padding too, for the memcmp */
+    memset(&r, 0, sizeof r);
+    pipeline_default_config(&c);
+    c.mode = 1; c.k = 15; c.jnd_hue = 3; c.jnd_luma = 9; c.s_min = 200;
+    c.ref_x = 2047; c.ref_y = 5; c.ref_w = 1024; c.ref_h = 7;
+    c.hue_centre0 = 191; c.luma_centre0 = 255;
+    c.edge_threshold = 2000; c.ratio = 15; c.nms = 1;
+    c.d_min = 3; c.d_max = 63; c.uniqueness = 255; c.candidate_mode = 1; c.widen = 1;
+    c.camera_mode_drop = 1;
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);
+    pipeline_read_config(STEREO_BASEADDR, &r);
+    FWT_CHECK(memcmp(&c, &r, sizeof c) == 0);
+    /* exact bit positions, from the map */
+    FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], 0x07FF3F03u);
+}
+
+static void test_configure_rejects_bad_values(void)
+{
+    pipeline_config_t c;
+    setup();
+    pipeline_default_config(&c);
+    c.d_min = 40; c.d_max = 20;
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
+    FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], 0u); /* nothing written */
+    pipeline_default_config(&c);
+    c.mode = 3;
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
+    pipeline_default_config(&c);
+    c.hue_centre0 = 192;
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
+    pipeline_default_config(&c);
+    c.ref_w = 2048;
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
+}
+
+static uint32_t record(uint32_t x, uint32_t y, uint32_t d)
+{
+    return STEREO_SET(RESULT, X, x) | STEREO_SET(RESULT, Y, y) | STEREO_SET(RESULT, D, d) |
+           STEREO_SET(RESULT, VALID, 1u);
+}
+
+static void test_results_and_status(void)
+{
+    pipeline_match_t m[8];
+    pipeline_status_t st;
+    setup();
+    sim.result_fifo[0] = record(1023, 1023, 127);
+    sim.result_fifo[1] = record(5, 6, 7);
+    sim.result_fifo[2] = record(0, 0, 1);
+    sim.result_n = 3;
+    sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 77;
+    sim.regfile[STEREO_ERR_LEFT_OFFSET / 4] = 0x00020001u;
+    sim.regfile[STEREO_STAT_MATCHES_OFFSET / 4] = 3;
+    pipeline_read_status(STEREO_BASEADDR, &st);
+    FWT_CHECK_EQ(st.frames, 77);
+    FWT_CHECK_EQ(st.left_errors, 1);
+    FWT_CHECK_EQ(st.left_dropped, 2);
+    FWT_CHECK_EQ(st.matches, 3);
+    FWT_CHECK_EQ(st.fifo_level, 3);
+    FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 2), 2);
+    FWT_CHECK(m[0].x == 1023 && m[0].y == 1023 && m[0].d == 127);
+    FWT_CHECK(m[1].x == 5 && m[1].y == 6 && m[1].d == 7);
+    FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 1);
+    FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 0);
+    sim.result_n = 5;
+    pipeline_flush_results(STEREO_BASEADDR);
+    FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 0);
+}
+
+static void test_report_builds_frame(void)
+{
+    static app_t app;
+    uint8_t buf[RADIO_MAX_FRAME];
+    uint32_t n, i;
+    uint8_t sum = 0;
+    setup();
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    app.width = 752; app.n_bands = 32; app.min_support = 3; app.seq = 0;
+    for (i = 0; i < 5; i++) {
+        sim.result_fifo[sim.result_n++] = record(10 + i, 100, 20 + i); /* band 0 */
+    }
+    sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 0x12345;
+    n = app_report(&app, -5, 7, 0x4000, buf, sizeof buf);
+    FWT_CHECK_EQ(n, 13 + 32 + 9);
+    FWT_CHECK_EQ(sim.uart_n, n);
+    FWT_CHECK_EQ(buf[0], 0x7E);
+    FWT_CHECK_EQ(buf[8], 0xA1);
+    FWT_CHECK_EQ(buf[10], 0x23); /* frame counter low 16 bits, big-endian */
+    FWT_CHECK_EQ(buf[11], 0x45);
+    FWT_CHECK_EQ(buf[8 + 13], 22); /* 3rd largest of 20..24 */
+    FWT_CHECK_EQ(app.results_read, 5);
+    for (i = 3; i < n; i++) {
+        sum = (uint8_t)(sum + buf[i]);
+    }
+    FWT_CHECK_EQ(sum, 0xFF);
+    FWT_CHECK_EQ(app.seq, 1);
+}
+
+static void test_collect_across_frames(void)
+{
+    /* results collected in several drains end up in one report */
+    static app_t app;
+    uint8_t buf[RADIO_MAX_FRAME];
+    uint32_t i;
+    setup();
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    app.width = 752; app.n_bands = 32; app.min_support = 3; app.summary_open = 0;
+    for (i = 0; i < 2; i++) {
+        sim.result_fifo[sim.result_n++] = record(30, 10, 40);   /* band 1 */
+    }
+    FWT_CHECK_EQ(app_collect(&app), 2);
+    sim.result_fifo[sim.result_n++] = record(31, 11, 41);
+    FWT_CHECK_EQ(app_collect(&app), 1);
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), 54);
+    FWT_CHECK_EQ(buf[8 + 13 + 1], 40);   /* 3rd largest of 41, 40, 40 */
+    FWT_CHECK_EQ(app.results_read, 3);
+    /* the next report starts empty */
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), 54);
+    FWT_CHECK_EQ(buf[8 + 13 + 1], 0);
+}
+
+void suite_pipeline(void)
+{
+    FWT_RUN(test_id);
+    FWT_RUN(test_defaults_match_reset_values);
+    FWT_RUN(test_configure_roundtrip);
+    FWT_RUN(test_configure_rejects_bad_values);
+    FWT_RUN(test_results_and_status);
+    FWT_RUN(test_report_builds_frame);
+    FWT_RUN(test_collect_across_frames);
+}

@@ -1,0 +1,244 @@
+"""The pipeline's register map, defined once.
+
+Everything else is derived from the tables in this module:
+
+- ``hdl/regs.py`` elaborates the register block RTL from :data:`REGISTERS`;
+- ``sim/gen_regs.py`` writes ``firmware/include/stereo_regs.h`` (the firmware's only view of
+  the map) and ``docs/registers.md``; ``tests/test_regs.py`` fails when the committed files
+  differ from a fresh generation.
+
+Bus: the MicroBlaze MCS I/O bus (Xilinx PG116, "I/O Bus"), 32-bit data, byte addresses. A
+transfer starts with a one-cycle ``IO_Addr_Strobe`` together with ``IO_Read_Strobe`` or
+``IO_Write_Strobe``; ``IO_Address``, ``IO_Write_Data`` and ``IO_Byte_Enable`` are valid in that
+cycle only. The addressed peripheral answers with a one-cycle ``IO_Ready`` (and
+``IO_Read_Data`` for a read) any number of cycles later; the CPU stalls until then. Only one
+transfer is outstanding at a time. Peripherals that do not decode the address keep
+``IO_Ready`` low and ``IO_Read_Data`` zero, so the SoC ORs the answers of all peripherals.
+
+Register kinds (``Register.kind``):
+
+- ``rw``: parameter register; every field drives an output of the block; writes honour the
+  byte enables; reset value from the fields.
+- ``ro``: status register; fields come from inputs of the block; writes are ignored.
+- ``pulse``: write-one-to-pulse: a field written with 1 drives its output high for one cycle;
+  reads return 0.
+- ``fifo``: reading pops one record from the result FIFO (an empty FIFO reads 0, valid = 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from golden.ground import GroundParams
+from golden.matcher import MatcherParams
+from golden.sobel import SobelParams
+
+__all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
+           "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "register", "field", "parameter_fields",
+           "status_fields"]
+
+#: MCS I/O bus addresses: the I/O bus occupies 0xC0000000..0xFFFFFFFF on the MCS.
+REGS_BASEADDR = 0xC000_0000
+REGS_WINDOW = 0x100           #: bytes decoded by the register block
+IIC_BASEADDR = 0xC001_0000
+IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
+
+ID_MAGIC = 0x5354             #: "ST"
+MAP_VERSION = 1
+
+#: Reset values of the parameters are the golden models' defaults (golden/ground.py,
+#: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
+#: a frame of the reference resolution (shared/DESIGN.md: 752 x 480).
+REF_WIDTH, REF_HEIGHT = 752, 480
+_G = GroundParams.bottom_centre(REF_WIDTH, REF_HEIGHT)
+_S = SobelParams()
+_M = MatcherParams()
+
+
+@dataclass(frozen=True)
+class Field:
+    name: str
+    lsb: int
+    width: int
+    reset: int = 0
+    doc: str = ""
+
+    @property
+    def mask(self) -> int:
+        return ((1 << self.width) - 1) << self.lsb
+
+
+@dataclass(frozen=True)
+class Register:
+    name: str
+    offset: int
+    kind: str          # "rw", "ro", "pulse", "fifo"
+    doc: str
+    fields: tuple[Field, ...]
+
+    @property
+    def reset(self) -> int:
+        """Value read after reset (status inputs assumed 0, ID constant)."""
+        return sum(f.reset << f.lsb for f in self.fields) if self.kind in ("rw", "ro") else 0
+
+
+F = Field
+
+REGISTERS: tuple[Register, ...] = (
+    Register("ID", 0x00, "ro", "Identification: constant, lets the firmware check the bitstream.", (
+        F("version", 0, 16, MAP_VERSION, "register map version"),
+        F("magic", 16, 16, ID_MAGIC, "0x5354 (\"ST\")"),
+    )),
+    Register("CTRL", 0x04, "pulse", "Control pulses (write 1 to act; reads 0).", (
+        F("clear_errors", 0, 1, 0, "clear every sticky error counter"),
+        F("flush_results", 1, 1, 0, "empty the result FIFO and clear its overflow count"),
+    )),
+    Register("GROUND", 0x08, "rw", "Ground classifier (golden/ground.py): mode and band width.", (
+        F("mode", 0, 2, int(_G.mode), "0 off (every pixel is an obstacle), 1 luminance, 2 hue"),
+        F("k", 4, 4, _G.k, "half-width of the ground band, in JND units"),
+        F("jnd_hue", 8, 4, _G.jnd_hue, "just-noticeable hue difference, hue units (0..191 circle)"),
+        F("jnd_luma", 12, 4, _G.jnd_luma, "just-noticeable luminance difference, luma codes"),
+        F("s_min", 16, 8, _G.s_min, "minimum saturation for a reliable hue; greyer pixels use the luminance band"),
+    )),
+    Register("GROUND_REF_POS", 0x0C, "rw", "Reference area (learned as ground): top-left corner. "
+             f"Reset: bottom centre of a {REF_WIDTH}x{REF_HEIGHT} frame.", (
+        F("ref_x", 0, 11, _G.ref_x, "first column of the reference area"),
+        F("ref_y", 16, 11, _G.ref_y, "first row of the reference area"),
+    )),
+    Register("GROUND_REF_SIZE", 0x10, "rw", "Reference area: size.", (
+        F("ref_w", 0, 11, _G.ref_w, "width in pixels"),
+        F("ref_h", 16, 11, _G.ref_h, "height in rows"),
+    )),
+    Register("GROUND_INIT", 0x14, "rw", "Ground band centres used before the first frame is learned.", (
+        F("hue_centre0", 0, 8, _G.hue_centre0, "initial hue centre, 0..191"),
+        F("luma_centre0", 8, 8, _G.luma_centre0, "initial luminance centre"),
+    )),
+    Register("SOBEL", 0x18, "rw", "Vertical-edge detector (golden/sobel.py).", (
+        F("edge_threshold", 0, 11, _S.threshold, "minimum |Gx| of an edge pixel"),
+        F("ratio", 16, 4, _S.ratio, "dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy|"),
+        F("nms", 24, 1, int(_S.nms), "1: keep only horizontal local maxima of |Gx| (non-maximum suppression)"),
+    )),
+    Register("MATCH", 0x1C, "rw", "Stereo matcher (golden/matcher.py, hdl/matcher.py).", (
+        F("d_min", 0, 6, _M.d_min, "smallest disparity tried"),
+        F("d_max", 8, 6, _M.d_max, "largest disparity tried (d_min <= d_max)"),
+        F("uniqueness", 16, 8, _M.uniqueness, "margin u in 1/256 units: reject the best d if a "
+                                               "candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d)"),
+        F("candidate_mode", 24, 1, 0 if _M.mode == "adaptive" else 1,
+          "0 adaptive (only right-image edge columns), 1 full range"),
+        F("widen", 25, 1, int(_M.widen), "1: also try the neighbours (d-1, d+1) of each adaptive candidate"),
+        F("camera_mode_drop", 26, 1, 0, "1: camera inputs that cannot stall: the matcher drops "
+                                        "(and counts) edges it has no time for (hdl/matcher.py drop_mode)"),
+    )),
+    Register("FRAME_COUNT", 0x40, "ro", "Frames completed by the matcher since reset.", (
+        F("frames", 0, 32, 0, "frame counter (wraps)"),
+    )),
+    Register("ERR_LEFT", 0x44, "ro", "Left front end sticky counters (saturating; CTRL.clear_errors).", (
+        F("errors", 0, 16, 0, "malformed-stream errors"),
+        F("dropped", 16, 16, 0, "pixels dropped on overflow"),
+    )),
+    Register("ERR_RIGHT", 0x48, "ro", "Right front end sticky counters.", (
+        F("errors", 0, 16, 0, "malformed-stream errors"),
+        F("dropped", 16, 16, 0, "pixels dropped on overflow"),
+    )),
+    Register("ERR_MATCH", 0x4C, "ro", "Matcher sticky counters.", (
+        F("errors", 0, 16, 0, "malformed-stream errors"),
+        F("dropped", 16, 16, 0, "frames or lines dropped"),
+    )),
+    Register("STAT_EDGES", 0x50, "ro", "Last frame: left vertical-edge pixels.", (
+        F("count", 0, 32, 0, "edge pixels"),
+    )),
+    Register("STAT_SAD", 0x54, "ro", "Last frame: SAD evaluations.", (
+        F("count", 0, 32, 0, "window comparisons"),
+    )),
+    Register("STAT_MATCHES", 0x58, "ro", "Last frame: matches emitted.", (
+        F("count", 0, 32, 0, "(x, y, d) records"),
+    )),
+    Register("STAT_REJECTS", 0x5C, "ro", "Last frame: candidates rejected by the uniqueness test.", (
+        F("count", 0, 32, 0, "rejections"),
+    )),
+    Register("STAT_DROPS", 0x60, "ro", "Last frame: edge pixels not matched for lack of time.", (
+        F("count", 0, 32, 0, "drops"),
+    )),
+    Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one record.", (
+        F("x", 0, 10, 0, "column of the left edge pixel"),
+        F("y", 10, 10, 0, "row"),
+        F("d", 20, 7, 0, "disparity"),
+        F("valid", 31, 1, 0, "1: a record; 0: the FIFO was empty"),
+    )),
+    Register("RESULT_LEVEL", 0x84, "ro", "Result FIFO state.", (
+        F("level", 0, 16, 0, "records waiting"),
+        F("overflow", 16, 16, 0, "records lost because the FIFO was full (saturating; cleared by "
+                                  "CTRL.flush_results or CTRL.clear_errors)"),
+    )),
+)
+
+
+def register(name: str) -> Register:
+    for reg in REGISTERS:
+        if reg.name == name:
+            return reg
+    raise KeyError(name)
+
+
+def field(reg_name: str, field_name: str) -> Field:
+    for f in register(reg_name).fields:
+        if f.name == field_name:
+            return f
+    raise KeyError(f"{reg_name}.{field_name}")
+
+
+def parameter_fields():
+    """(register, field) of every run-time parameter, in map order."""
+    return [(r, f) for r in REGISTERS if r.kind == "rw" for f in r.fields]
+
+
+def status_fields():
+    """(register, field) of every status input (the block's own RESULT_LEVEL and ID excluded)."""
+    return [(r, f) for r in REGISTERS if r.kind == "ro" and r.name not in ("ID", "RESULT_LEVEL")
+            for f in r.fields]
+
+
+def _check():
+    offsets = set()
+    for reg in REGISTERS:
+        if reg.offset % 4 or not 0 <= reg.offset < REGS_WINDOW or reg.offset in offsets:
+            raise ValueError(f"bad offset for {reg.name}")
+        if reg.kind not in ("rw", "ro", "pulse", "fifo"):
+            raise ValueError(f"bad kind for {reg.name}")
+        offsets.add(reg.offset)
+        used = 0
+        for f in reg.fields:
+            if f.lsb + f.width > 32 or used & f.mask or not 0 <= f.reset < (1 << f.width):
+                raise ValueError(f"bad field {reg.name}.{f.name}")
+            used |= f.mask
+
+
+_check()
+
+
+def encode_params(ground=None, sobel=None, matcher=None, *, camera_mode_drop=0) -> dict:
+    """Register values (name -> 32-bit value) for golden parameter dataclasses; None = the
+    register's reset value. What the firmware writes for the same settings."""
+    values = {}
+    src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
+           "GROUND_INIT": ground, "SOBEL": sobel, "MATCH": matcher}
+    rename = {"edge_threshold": "threshold"}
+    for reg in REGISTERS:
+        if reg.kind != "rw":
+            continue
+        obj = src[reg.name]
+        v = 0
+        for f in reg.fields:
+            if obj is None:
+                x = f.reset
+            elif f.name == "candidate_mode":
+                x = 0 if obj.mode == "adaptive" else 1
+            elif f.name == "camera_mode_drop":
+                x = camera_mode_drop
+            else:
+                x = int(getattr(obj, rename.get(f.name, f.name)))
+            if not 0 <= x < (1 << f.width):
+                raise ValueError(f"{reg.name}.{f.name} = {x} does not fit {f.width} bits")
+            v |= x << f.lsb
+        values[reg.name] = v
+    return values

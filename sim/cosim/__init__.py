@@ -1,0 +1,1 @@
+"""Co-simulation of the firmware (host shared library) with the RTL, see run.py."""

@@ -1,0 +1,155 @@
+"""ctypes view of the firmware built as a host shared library (build/firmware/libfirmware.so).
+
+``load()`` builds the library with ``make -C firmware lib`` (cheap when up to date) and
+declares the functions the tests and the co-simulation call. The structures mirror the C
+headers in firmware/include; ``check_layout()`` compares their sizes with the C ones.
+"""
+
+from __future__ import annotations
+
+import ctypes as C
+import fcntl
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+LIB = ROOT / "build" / "firmware" / "libfirmware.so"
+
+RADIO_MAX_BANDS = 64
+RADIO_MAX_FRAME = 109
+
+STATUS_NAMES = {0: "OK", -1: "NACK", -2: "TIMEOUT", -3: "BUS_BUSY", -4: "ARBITRATION",
+                -5: "PARAM", -6: "ID", -7: "NO_LOCK", -8: "RX"}
+
+READ32 = C.CFUNCTYPE(C.c_uint32, C.c_void_p, C.c_uint32)
+WRITE32 = C.CFUNCTYPE(None, C.c_void_p, C.c_uint32, C.c_uint32)
+DELAY = C.CFUNCTYPE(None, C.c_void_p, C.c_uint32)
+UART = C.CFUNCTYPE(None, C.c_void_p, C.POINTER(C.c_uint8), C.c_uint32)
+
+
+class RadioPacketC(C.Structure):
+    _fields_ = [("seq", C.c_uint8), ("frame", C.c_uint16), ("x_mm", C.c_int16),
+                ("y_mm", C.c_int16), ("theta", C.c_uint16), ("width", C.c_uint16),
+                ("n_bands", C.c_uint8), ("bands", C.c_uint8 * RADIO_MAX_BANDS)]
+
+
+class RadioSummaryC(C.Structure):
+    _fields_ = [("width", C.c_uint16), ("n_bands", C.c_uint8), ("min_support", C.c_uint8),
+                ("count", C.c_uint8 * RADIO_MAX_BANDS),
+                ("top", (C.c_uint8 * 8) * RADIO_MAX_BANDS)]
+
+
+class IicDevC(C.Structure):
+    _fields_ = [("base", C.c_uint32), ("timeout_polls", C.c_uint32), ("polls", C.c_uint32),
+                ("errors", C.c_uint32)]
+
+
+class Adv7180C(C.Structure):
+    _fields_ = [("iic", C.POINTER(IicDevC)), ("addr7", C.c_uint8), ("status1", C.c_uint8),
+                ("failed_entry", C.c_int16)]
+
+
+class PipelineConfigC(C.Structure):
+    _fields_ = [(n, t) for n, t in (
+        ("mode", C.c_uint8), ("k", C.c_uint8), ("jnd_hue", C.c_uint8), ("jnd_luma", C.c_uint8),
+        ("s_min", C.c_uint8), ("ref_x", C.c_uint16), ("ref_y", C.c_uint16),
+        ("ref_w", C.c_uint16), ("ref_h", C.c_uint16), ("hue_centre0", C.c_uint8),
+        ("luma_centre0", C.c_uint8), ("edge_threshold", C.c_uint16),
+        ("ratio", C.c_uint8), ("nms", C.c_uint8), ("d_min", C.c_uint8),
+        ("d_max", C.c_uint8), ("uniqueness", C.c_uint8), ("candidate_mode", C.c_uint8),
+        ("widen", C.c_uint8), ("camera_mode_drop", C.c_uint8))]
+
+
+class AppC(C.Structure):
+    _fields_ = [("regs_base", C.c_uint32), ("iic", IicDevC), ("dec", Adv7180C * 2),
+                ("dec_status", C.c_int32 * 2), ("cfg", PipelineConfigC), ("seq", C.c_uint8),
+                ("n_bands", C.c_uint8), ("min_support", C.c_uint8), ("width", C.c_uint16),
+                ("results_read", C.c_uint32), ("summary_open", C.c_uint8),
+                ("summary", RadioSummaryC)]
+
+
+class RegValC(C.Structure):
+    _fields_ = [("reg", C.c_uint8), ("val", C.c_uint8)]
+
+
+def build() -> Path:
+    """``make -C firmware lib``, serialised with a lock file so that parallel test workers
+    (pytest -n) do not run two makes on the same outputs."""
+    LIB.parent.mkdir(parents=True, exist_ok=True)
+    with open(LIB.parent / ".build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            subprocess.run(["make", "-s", "-C", str(ROOT / "firmware"), "lib"], check=True)
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return LIB
+
+
+def load(rebuild: bool = True) -> C.CDLL:
+    if rebuild or not LIB.exists():
+        build()
+    lib = C.CDLL(str(LIB))
+    P = C.POINTER
+    sig = {
+        "hal_set_bus_hook": (None, [READ32, WRITE32, DELAY, UART, C.c_void_p]),
+        "radio_encode_payload": (C.c_uint32, [P(RadioPacketC), P(C.c_uint8), C.c_uint32]),
+        "radio_encode_api_frame": (C.c_uint32, [P(C.c_uint8), C.c_uint32, C.c_uint16,
+                                                C.c_uint8, P(C.c_uint8), C.c_uint32]),
+        "radio_summary_init": (C.c_int32, [P(RadioSummaryC), C.c_uint16, C.c_uint8, C.c_uint8]),
+        "radio_summary_add": (None, [P(RadioSummaryC), C.c_uint16, C.c_uint8]),
+        "radio_summary_finish": (None, [P(RadioSummaryC), P(C.c_uint8)]),
+        "iic_init": (C.c_int32, [P(IicDevC), C.c_uint32, C.c_uint32]),
+        "iic_write_reg8": (C.c_int32, [P(IicDevC), C.c_uint8, C.c_uint8, C.c_uint8]),
+        "iic_read_reg8": (C.c_int32, [P(IicDevC), C.c_uint8, C.c_uint8, P(C.c_uint8)]),
+        "app_init_decoders": (C.c_int32, [P(AppC), C.c_uint32, C.c_uint32]),
+        "app_init_pipeline": (C.c_int32, [P(AppC), C.c_uint32]),
+        "app_collect": (C.c_uint32, [P(AppC)]),
+        "app_sizeof": (C.c_uint32, []),
+        "app_report": (C.c_uint32, [P(AppC), C.c_int16, C.c_int16, C.c_uint16, P(C.c_uint8),
+                                    C.c_uint32]),
+        "pipeline_read_config": (None, [C.c_uint32, P(PipelineConfigC)]),
+    }
+    for name, (res, args) in sig.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = res, args
+    return lib
+
+
+def check_layout(lib: C.CDLL) -> None:
+    """The ctypes mirror of app_t must have the C size."""
+    if C.sizeof(AppC) != lib.app_sizeof():
+        raise RuntimeError(f"AppC is {C.sizeof(AppC)} bytes, app_t {lib.app_sizeof()}")
+
+
+def init_table(lib: C.CDLL) -> list[tuple[int, int]]:
+    """The firmware's ADV7180 init table, read from the library's data."""
+    n = C.c_uint32.in_dll(lib, "adv7180_ntsc_init_len").value
+    table = (RegValC * n).in_dll(lib, "adv7180_ntsc_init")
+    return [(e.reg, e.val) for e in table]
+
+
+def encode_packet(lib: C.CDLL, pkt) -> bytes:
+    """Firmware encoding of a station.radio.RadioPacket: the API frame bytes."""
+    c = RadioPacketC(seq=pkt.seq, frame=pkt.frame, x_mm=pkt.x_mm, y_mm=pkt.y_mm,
+                     theta=pkt.theta_u16, width=pkt.width, n_bands=len(pkt.bands))
+    for i, b in enumerate(pkt.bands):
+        c.bands[i] = b
+    rf = (C.c_uint8 * 100)()
+    n = lib.radio_encode_payload(C.byref(c), rf, 100)
+    if n == 0:
+        raise ValueError("firmware refused the packet")
+    out = (C.c_uint8 * RADIO_MAX_FRAME)()
+    m = lib.radio_encode_api_frame(rf, n, 0x0001, 1, out, RADIO_MAX_FRAME)
+    return bytes(out[:m])
+
+
+def summarise(lib: C.CDLL, matches, width, n_bands, min_support) -> tuple[int, ...]:
+    s = RadioSummaryC()
+    st = lib.radio_summary_init(C.byref(s), width, n_bands, min_support)
+    if st != 0:
+        raise ValueError(f"radio_summary_init: {STATUS_NAMES.get(st, st)}")
+    for x, _y, d in matches:
+        lib.radio_summary_add(C.byref(s), x, d)
+    out = (C.c_uint8 * RADIO_MAX_BANDS)()
+    lib.radio_summary_finish(C.byref(s), out)
+    return tuple(out[:n_bands])

@@ -1,0 +1,209 @@
+"""Register block (hdl/regs.py) under Amaranth's simulator, and the generated files."""
+
+import random
+
+import pytest
+from amaranth.sim import Simulator
+
+from hdl import regmap
+from hdl.regs import RegisterBlock, status_port_name
+from sim import gen_regs
+from sim.cosim.iobus import BusTimeout, io_read, io_write, last_latency
+
+BASE = regmap.REGS_BASEADDR
+OFF = {r.name: r.offset for r in regmap.REGISTERS}
+
+
+def run(dut, *benches):
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    for b in benches:
+        sim.add_testbench(b)
+    sim.run()
+
+
+def test_generated_files_are_current():
+    stale = gen_regs.stale()
+    assert not stale, f"stale generated files: {stale}: run python -m sim.gen_regs"
+
+
+def test_header_has_every_field():
+    text = gen_regs.HEADER.read_text()
+    for reg in regmap.REGISTERS:
+        assert f"STEREO_{reg.name}_OFFSET" in text
+        for f in reg.fields:
+            assert f"STEREO_{reg.name}_{f.name.upper()}_MASK" in text
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="fifo_depth"):
+        RegisterBlock(fifo_depth=1)
+    with pytest.raises(ValueError, match="aligned"):
+        RegisterBlock(base=BASE + 4)
+
+
+def test_reset_values_and_latency():
+    dut = RegisterBlock(fifo_depth=8)
+
+    async def bench(ctx):
+        for reg in regmap.REGISTERS:
+            v = await io_read(ctx, dut.bus, BASE + reg.offset)
+            assert v == reg.reset, reg.name
+            assert last_latency[0] == 1
+        for _reg, f in regmap.parameter_fields():
+            assert ctx.get(getattr(dut, f.name)) == f.reset, f.name
+        # unmapped offset inside the window: answered, reads 0
+        assert await io_read(ctx, dut.bus, BASE + 0xFC) == 0
+        # outside the window: no answer
+        with pytest.raises(BusTimeout):
+            await io_read(ctx, dut.bus, BASE + 0x100, timeout=8)
+        assert ctx.get(dut.bus.read_data) == 0
+        print(f"{len(regmap.REGISTERS)} registers read back their reset values, latency 1 cycle")
+
+    run(dut, bench)
+
+
+def test_write_read_byte_enables():
+    dut = RegisterBlock(fifo_depth=8)
+    rng = random.Random(1)
+
+    async def bench(ctx):
+        for reg in regmap.REGISTERS:
+            if reg.kind != "rw":
+                continue
+            mask = sum(f.mask for f in reg.fields)
+            value = rng.getrandbits(32)
+            await io_write(ctx, dut.bus, BASE + reg.offset, value)
+            assert await io_read(ctx, dut.bus, BASE + reg.offset) == value & mask
+            for f in reg.fields:
+                assert ctx.get(getattr(dut, f.name)) == (value & f.mask) >> f.lsb, f.name
+            # byte enables: only the enabled bytes change
+            for be in (0b0001, 0b0010, 0b0100, 0b1000, 0b0101):
+                before = await io_read(ctx, dut.bus, BASE + reg.offset)
+                new = rng.getrandbits(32)
+                await io_write(ctx, dut.bus, BASE + reg.offset, new, byte_enable=be)
+                bm = sum(0xFF << (8 * b) for b in range(4) if be >> b & 1)
+                expect = ((before & ~bm) | (new & bm)) & mask
+                assert await io_read(ctx, dut.bus, BASE + reg.offset) == expect, (reg.name, be)
+        # read-only registers ignore writes
+        await io_write(ctx, dut.bus, BASE + OFF["ID"], 0)
+        assert await io_read(ctx, dut.bus, BASE + OFF["ID"]) == regmap.register("ID").reset
+
+    run(dut, bench)
+
+
+def test_status_inputs():
+    dut = RegisterBlock(fifo_depth=8)
+    rng = random.Random(2)
+
+    async def bench(ctx):
+        expect = {}
+        for reg, f in regmap.status_fields():
+            v = rng.getrandbits(f.width)
+            ctx.set(getattr(dut, status_port_name(reg, f)), v)
+            expect[reg.name] = expect.get(reg.name, 0) | v << f.lsb
+        for name, v in expect.items():
+            assert await io_read(ctx, dut.bus, BASE + OFF[name]) == v, name
+
+    run(dut, bench)
+
+
+def test_clear_errors_pulse():
+    dut = RegisterBlock(fifo_depth=8)
+
+    async def bench(ctx):
+        seen = []
+        await io_write(ctx, dut.bus, BASE + OFF["CTRL"], 1)
+        seen.append(ctx.get(dut.clear_errors))
+        for _ in range(3):
+            await ctx.tick()
+            seen.append(ctx.get(dut.clear_errors))
+        assert seen == [1, 0, 0, 0]
+        # byte enable off: no pulse
+        await io_write(ctx, dut.bus, BASE + OFF["CTRL"], 1, byte_enable=0b1110)
+        assert ctx.get(dut.clear_errors) == 0
+        assert await io_read(ctx, dut.bus, BASE + OFF["CTRL"]) == 0
+
+    run(dut, bench)
+
+
+def record(x, y, d):
+    return {"x": x, "y": y, "d": d}
+
+
+def test_result_fifo():
+    depth = 8
+    dut = RegisterBlock(fifo_depth=depth)
+    rng = random.Random(3)
+    recs = [(rng.randrange(1024), rng.randrange(1024), rng.randrange(128)) for _ in range(depth + 3)]
+
+    async def bench(ctx):
+        # producer: depth + 3 records back to back, the last 3 overflow
+        for x, y, d in recs:
+            ctx.set(dut.results.payload, record(x, y, d))
+            ctx.set(dut.results.valid, 1)
+            await ctx.tick()
+            assert ctx.get(dut.results.ready) == 1
+        ctx.set(dut.results.valid, 0)
+        await ctx.tick()
+        level = await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"])
+        assert level & 0xFFFF == depth
+        assert level >> 16 == 3
+        for x, y, d in recs[:depth]:
+            w = await io_read(ctx, dut.bus, BASE + OFF["RESULT"])
+            assert w == x | y << 10 | d << 20 | 1 << 31
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == 0  # empty: valid = 0
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 3 << 16
+        # flush empties the FIFO and clears the overflow count
+        for x, y, d in recs[:4]:
+            ctx.set(dut.results.payload, record(x, y, d))
+            ctx.set(dut.results.valid, 1)
+            await ctx.tick()
+        ctx.set(dut.results.valid, 0)
+        await ctx.tick()
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 4 | 3 << 16
+        await io_write(ctx, dut.bus, BASE + OFF["CTRL"], 2)
+        await ctx.tick()
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 0
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == 0
+        print(f"FIFO depth {depth}: {depth} records read in order, 3 overflows counted, flush ok")
+
+    run(dut, bench)
+
+
+def test_result_fifo_concurrent_read_write():
+    """Producer and CPU at the same time: every record comes out once, in order."""
+    dut = RegisterBlock(fifo_depth=4)
+    rng = random.Random(4)
+    recs = [(rng.randrange(1024), rng.randrange(1024), rng.randrange(128)) for _ in range(40)]
+    got = []
+
+    async def producer(ctx):
+        for x, y, d in recs:
+            ctx.set(dut.results.payload, record(x, y, d))
+            ctx.set(dut.results.valid, 1)
+            await ctx.tick()
+            ctx.set(dut.results.valid, 0)
+            for _ in range(rng.randrange(3, 8)):
+                await ctx.tick()
+
+    async def cpu(ctx):
+        while len(got) < len(recs):
+            w = await io_read(ctx, dut.bus, BASE + OFF["RESULT"])
+            if w >> 31:
+                got.append((w & 0x3FF, w >> 10 & 0x3FF, w >> 20 & 0x7F))
+
+    run(dut, producer, cpu)
+    assert got == recs
+
+
+def test_reset_values_are_golden_defaults():
+    from golden.ground import GroundParams
+    from golden.matcher import MatcherParams
+    from golden.sobel import SobelParams
+    values = regmap.encode_params(GroundParams.bottom_centre(752, 480), SobelParams(),
+                                  MatcherParams())
+    for name, v in values.items():
+        assert v == regmap.register(name).reset, name
+    with pytest.raises(ValueError, match="does not fit"):
+        regmap.encode_params(GroundParams(ref_x=4000))
