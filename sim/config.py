@@ -40,7 +40,7 @@ def config_values(dut, params):
         cfg = getattr(dut, port, None)
         if cfg is not None and hasattr(cfg, "ref_x"):
             fields = {name: int(getattr(gp, name)) for name, _ in GroundParams.FIELDS}
-            values[port] = int(Packer(GroundConfig).pack(**fields))
+            values[port] = Packer(GroundConfig).pack_int(**fields)
     for name, value in _scalar_values(params):
         if hasattr(dut, name):
             values[name] = int(value)

@@ -31,8 +31,9 @@ __all__ = ["Packer", "frame_words", "frames_words", "words_to_frames", "Reset", 
 
 
 class Packer:
-    """Packs and unpacks the fields of a :class:`data.StructLayout` to and from integers,
-    element-wise over NumPy arrays."""
+    """Packs and unpacks the fields of a :class:`data.StructLayout` to and from integers:
+    element-wise over NumPy arrays (``pack``, ``unpack``: layouts of at most 64 bits, the stream
+    payloads) or one Python integer of any width (``pack_int``, for configuration ports)."""
 
     def __init__(self, layout):
         self.layout = data.StructLayout(dict(layout)) if not isinstance(layout, data.Layout) else layout
@@ -40,7 +41,21 @@ class Packer:
                        for name, fld in self.layout}
         self.width = self.layout.size
 
+    def pack_int(self, **values):
+        """One word as a Python integer (no width limit)."""
+        word = 0
+        for name, value in values.items():
+            offset, width = self.fields[name]
+            word |= (int(value) & ((1 << width) - 1)) << offset
+        return word
+
+    def _check_array_width(self):
+        if self.width > 64:
+            raise ValueError(f"a {self.width}-bit layout does not fit the 64-bit NumPy words; "
+                             f"use pack_int")
+
     def pack(self, **values):
+        self._check_array_width()
         word = np.zeros(np.broadcast(*values.values()).shape, dtype=np.uint64) if values else 0
         for name, value in values.items():
             offset, width = self.fields[name]
@@ -49,6 +64,7 @@ class Packer:
         return word
 
     def unpack(self, words):
+        self._check_array_width()
         words = np.asarray(words, dtype=np.uint64)
         return {name: ((words >> np.uint64(offset)) & np.uint64((1 << width) - 1)).astype(np.int64)
                 for name, (offset, width) in self.fields.items()}
