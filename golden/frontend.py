@@ -6,10 +6,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .color import rgb_to_yhs
-from .ground import GroundMode, GroundParams, ground_frames
+from .ground import GroundModel, GroundParams
 from .sobel import SobelParams, sobel_edges
 
-__all__ = ["FrontEndParams", "FrontEndFrame", "frontend_frames", "as_rgb"]
+__all__ = ["FrontEndParams", "FrontEndFrame", "FrontEndModel", "frontend_frames", "as_rgb"]
 
 
 @dataclass(frozen=True)
@@ -53,13 +53,22 @@ def as_rgb(image):
     return np.ascontiguousarray(image), False
 
 
+class FrontEndModel:
+    """One camera's front end from reset, one frame per ``step``."""
+
+    def __init__(self, params):
+        self.params = params.validate()
+        self.ground = GroundModel(params.ground)
+
+    def step(self, rgb):
+        y, h, s = rgb_to_yhs(rgb)
+        centres = self.ground.centres
+        mask = self.ground.step(y, h, s)
+        edge, neg = sobel_edges(y, mask, self.params.sobel)
+        return FrontEndFrame(y, h, s, mask, edge, neg, centres)
+
+
 def frontend_frames(rgb_frames, params):
     """Run one camera's front end over consecutive RGB frames from reset."""
-    params.validate()
-    yhs = [rgb_to_yhs(f) for f in rgb_frames]
-    masks, centres = ground_frames(yhs, params.ground)
-    out = []
-    for (y, h, s), mask, c in zip(yhs, masks, centres):
-        edge, neg = sobel_edges(y, mask, params.sobel)
-        out.append(FrontEndFrame(y, h, s, mask, edge, neg, c))
-    return out
+    model = FrontEndModel(params)
+    return [model.step(f) for f in rgb_frames]

@@ -42,7 +42,7 @@ import numpy as np
 from .color import HUE_STEPS
 
 __all__ = ["GroundMode", "GroundParams", "HIST_MAX", "hue_distance", "classify",
-           "learn_centres", "ground_frames"]
+           "learn_centres", "GroundModel", "ground_frames"]
 
 HIST_BITS = 18
 HIST_MAX = (1 << HIST_BITS) - 1
@@ -136,15 +136,28 @@ def learn_centres(y, h, s, params, centre_h, centre_y):
     return centre_h, centre_y
 
 
+class GroundModel:
+    """The ground unit's state from reset: ``step`` classifies one frame with the current band
+    centres, then learns the centres for the next frame."""
+
+    def __init__(self, params):
+        self.params = params.validate()
+        self.centres = (params.hue_centre0, params.luma_centre0)
+
+    def step(self, y, h, s):
+        """Ground mask of one frame (uint8 0/1); ``self.centres`` moves on to the next frame's."""
+        mask = classify(y, h, s, self.params, *self.centres)
+        self.centres = learn_centres(y, h, s, self.params, *self.centres)
+        return mask
+
+
 def ground_frames(frames, params):
     """Run the ground unit over consecutive frames (each a (Y, H, S) tuple of (H, W) arrays),
     starting from reset. Returns the list of ground masks and the list of (hue, luma) centres
     each frame was classified with."""
-    params.validate()
-    centre_h, centre_y = params.hue_centre0, params.luma_centre0
+    model = GroundModel(params)
     masks, centres = [], []
     for y, h, s in frames:
-        masks.append(classify(y, h, s, params, centre_h, centre_y))
-        centres.append((centre_h, centre_y))
-        centre_h, centre_y = learn_centres(y, h, s, params, centre_h, centre_y)
+        centres.append(model.centres)
+        masks.append(model.step(y, h, s))
     return masks, centres
