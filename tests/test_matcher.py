@@ -1,0 +1,452 @@
+"""RTL matcher (hdl/matcher.py) against its golden model (golden/matcher.py), bit for bit.
+
+Small frames under Amaranth's simulator: the matcher is elaborated small (max_width 64,
+max_height 32, max_disparity 15, window 3, 5 or 7) so a frame costs a few thousand cycles.
+:func:`run_matcher` is a two-input testbench (seeded idle cycles on each input, seeded
+backpressure on the output, resets of the domain survived) that any left/right/record unit can
+use. Failing runs are repeated with a VCD written to build/waves/ (always with WAVES=1).
+
+Covered: synthetic shifted-texture pairs (2 frames, odd and even heights, windows 3/5/7,
+1-3 lanes, adaptive / widen / full, d_min > 0), a motorcycle crop, a short line, missing sof,
+one input cut short, frames of different heights and widths, reset mid-frame, drop mode with
+and without pressure, elaboration errors. Full frames run under Verilator elsewhere.
+"""
+import os
+import random
+
+import numpy as np
+import pytest
+from amaranth.hdl import ClockDomain, Module
+from amaranth.sim import Simulator, DomainReset
+
+from golden.matcher import MatcherParams, match, STAT_KEYS
+from golden.sobel import sobel_edges, SobelParams
+from hdl.matcher import Matcher, STAT_NAMES
+from hdl.types import EdgePixel
+from sim.streams import Packer, frames_words, Reset, Deadlock
+
+EDGE = Packer(EdgePixel)
+CLOCK = 1e-8
+
+
+# ------------------------------------------------------------------ scenes
+
+def front_end(y, threshold=64):
+    """What a front end delivers for a luminance image: y, edge, neg (ground classifier off)."""
+    y = np.asarray(y, dtype=np.uint8)
+    edge, neg = sobel_edges(y, np.zeros_like(y), SobelParams(threshold=threshold))
+    return {"y": y, "edge": edge, "neg": neg}
+
+
+def shifted_texture(h, w, seed, rects=((2, 8, 6, 12, 3), (3, 20, 8, 30, 7)), bg_d=1, noise=0):
+    """A random-texture stereo pair: background at disparity ``bg_d``, rectangles
+    ``(y0, x0, y1, x1, d)`` at their own disparity (right pixel = left pixel shifted by -d)."""
+    rng = np.random.default_rng(seed)
+    tex_bg = rng.integers(0, 256, (h, w + 64)).astype(np.int64)
+    left = tex_bg[:, :w].copy()
+    right = tex_bg[:, bg_d:w + bg_d].copy()
+    disp = np.full((h, w), bg_d, dtype=np.int64)
+    for (y0, x0, y1, x1, d) in rects:
+        tex = rng.integers(0, 256, (h, w + 64)).astype(np.int64)
+        left[y0:y1, x0:x1] = tex[y0:y1, x0:x1]
+        disp[y0:y1, x0:x1] = d
+        xr0, xr1 = max(x0 - d, 0), x1 - d
+        right[y0:y1, xr0:xr1] = tex[y0:y1, xr0 + d:x1]
+    if noise:
+        left = left + rng.integers(-noise, noise + 1, left.shape)
+        right = right + rng.integers(-noise, noise + 1, right.shape)
+    return (np.clip(left, 0, 255).astype(np.uint8), np.clip(right, 0, 255).astype(np.uint8),
+            disp)
+
+
+def motorcycle_crop(h=12, w=40, y0=200, x0=300, step=4):
+    """A crop of the Middlebury motorcycle pair, subsampled by ``step`` in x (disparities shrink
+    to about 1/step so they fit a small matcher)."""
+    import skimage.data
+    from golden.color import luma
+    left, right, _ = skimage.data.stereo_motorcycle()
+    sl = np.s_[y0:y0 + h, x0:x0 + w * step:step]
+    return luma(left)[sl], luma(right)[sl]
+
+
+# ------------------------------------------------------------------ testbench
+
+class MatchRun:
+    def __init__(self):
+        self.records = []          # per frame: (N, 4) int array of (x, y, d, cost)
+        self.stats = []            # per frame: dict over STAT_KEYS
+        self.cycles = 0
+        self.errors = 0
+        self.dropped = 0
+        self.frames = 0
+
+
+async def put_words(ctx, port, words, *, rng, idle=0.0, reset=None):
+    """Like :func:`sim.streams.stream_put`, but survives resets of the domain: a :class:`Reset`
+    item holds ``reset`` for its cycles (waiting with ``ctx.delay``, since ticks raise
+    :class:`DomainReset` while the domain is reset), and a word whose wait was interrupted by a
+    reset (from another testbench) is offered again."""
+    payload = port.payload.as_value()
+    for word in words:
+        if isinstance(word, Reset):
+            ctx.set(port.valid, 0)
+            ctx.set(reset, 1)
+            await ctx.delay(CLOCK * word.cycles)
+            ctx.set(reset, 0)
+            continue
+        while True:
+            try:
+                while idle and rng.random() < idle:
+                    ctx.set(port.valid, 0)
+                    await ctx.tick()
+                ctx.set(payload, word)
+                ctx.set(port.valid, 1)
+                await ctx.tick().until(port.ready)
+                break
+            except DomainReset:
+                continue
+    ctx.set(port.valid, 0)
+
+
+def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(), drop_mode=False,
+                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None):
+    """Drive ``dut`` (a :class:`Matcher`) with two word lists (``Reset`` items allowed in
+    ``left_words``: they reset the whole unit) and collect ``frames`` end-of-frame markers.
+
+    Each input and the output has its own seeded random generator (``idle`` / ``stall``
+    probabilities). Returns a :class:`MatchRun`; raises :class:`Deadlock` when nothing comes
+    out for ``timeout`` cycles."""
+    m = Module()
+    m.domains.sync = cd = ClockDomain("sync")
+    m.submodules.dut = dut
+    sim = Simulator(m)
+    sim.add_clock(CLOCK, domain="sync")
+    run = MatchRun()
+    rec = dut.record
+    state = {"cycle": 0, "start": 0}
+    stat_ports = [getattr(dut, f"frame_{n}") for n in STAT_NAMES]
+
+    async def clock_counter(ctx):
+        while True:
+            try:
+                async for _ in ctx.tick():
+                    state["cycle"] += 1
+            except DomainReset:
+                state["cycle"] += 1
+
+    async def setup(ctx):
+        ctx.set(dut.d_min, params.d_min)
+        ctx.set(dut.d_max, params.d_max)
+        ctx.set(dut.uniqueness, params.uniqueness)
+        ctx.set(dut.mode_full, params.mode == "full")
+        ctx.set(dut.widen, params.widen)
+        ctx.set(dut.drop_mode, drop_mode)
+
+    async def put_left(ctx):
+        await setup(ctx)
+        await ctx.tick()
+        state["start"] = state["cycle"]
+        await put_words(ctx, dut.left, left_words, rng=random.Random(seed * 3 + 1), idle=idle,
+                        reset=cd.rst)
+
+    async def put_right(ctx):
+        await ctx.tick()
+        await put_words(ctx, dut.right, right_words, rng=random.Random(seed * 3 + 2), idle=idle)
+
+    async def get(ctx):
+        rng = random.Random(seed * 3 + 3)
+        await ctx.tick()
+        cur, quiet = [], 0
+        while len(run.stats) < frames:
+            ready = not (stall and rng.random() < stall)
+            ctx.set(dut.o.ready, ready)
+            try:
+                _, rst, valid, word, *stats = await ctx.tick().sample(
+                    dut.o.valid, dut.o.payload, *stat_ports)
+            except DomainReset:
+                rst = True
+            if rst:
+                cur = []                 # a reset aborts the frame being output
+                continue
+            if valid and ready:
+                quiet = 0
+                if word.eof:
+                    run.records.append(np.array(cur, dtype=np.int64).reshape(-1, 4))
+                    run.stats.append(dict(zip(STAT_KEYS, (int(s) for s in stats))))
+                    cur = []
+                else:
+                    cur.append((word.x, word.y, word.d, word.cost))
+            else:
+                quiet += 1
+                if quiet > timeout:
+                    raise Deadlock(f"no output for {timeout} cycles after {len(run.stats)} "
+                                   f"frames")
+        ctx.set(dut.o.ready, 0)
+        run.cycles = state["cycle"] - state["start"]
+        await ctx.tick().repeat(5)
+        run.errors = ctx.get(dut.errors)
+        run.dropped = ctx.get(dut.dropped)
+        run.frames = ctx.get(dut.frames)
+
+    sim.add_process(clock_counter)
+    sim.add_testbench(put_left, background=True)
+    sim.add_testbench(put_right, background=True)
+    sim.add_testbench(get)
+    if vcd is None and os.environ.get("WAVES") == "1":
+        vcd = "build/waves/Matcher.vcd"
+    if vcd:
+        os.makedirs(os.path.dirname(vcd), exist_ok=True)
+        with sim.write_vcd(vcd):
+            sim.run()
+    else:
+        sim.run()
+    return run
+
+
+def golden_records(left, right, params):
+    recs, stats = match(left, right, params)
+    return np.stack([recs["x"], recs["y"], recs["d"], recs["cost"]], axis=1).astype(np.int64), stats
+
+
+def check_frames(run, expected, name):
+    """Compare a run with a list of golden (records, stats); on mismatch re-run is the caller's
+    business (it knows the arguments), here we only report."""
+    assert len(run.records) == len(expected), f"{name}: {len(run.records)} frames out"
+    for i, ((recs, stats), got, got_stats) in enumerate(zip(expected, run.records, run.stats)):
+        assert np.array_equal(got, recs), (
+            f"{name} frame {i}: {len(got)} records vs {len(recs)} golden; first difference "
+            f"{_first_diff(got, recs)}")
+        assert got_stats == stats, f"{name} frame {i}: stats {got_stats} != golden {stats}"
+
+
+def _first_diff(a, b):
+    n = min(len(a), len(b))
+    for i in range(n):
+        if not np.array_equal(a[i], b[i]):
+            return f"at {i}: rtl {a[i].tolist()} golden {b[i].tolist()}"
+    return f"at {n}: lengths differ"
+
+
+def small_matcher(window=3, max_disparity=15, engines=2, **kw):
+    return Matcher(max_width=64, max_height=32, max_disparity=max_disparity, window=window,
+                   engines=engines, **kw)
+
+
+def run_checked(name, make_dut, left_words, right_words, expected, params, **kw):
+    """:func:`run_matcher` then :func:`check_frames`; on a mismatch (or a deadlock) the run is
+    repeated with a VCD written to build/waves/matcher_<name>.vcd before the error is raised."""
+    try:
+        run = run_matcher(make_dut(), left_words, right_words, frames=len(expected),
+                          params=params, **kw)
+        check_frames(run, expected, name)
+    except AssertionError:
+        vcd = f"build/waves/matcher_{name.replace(' ', '_')}.vcd"
+        try:
+            run_matcher(make_dut(), left_words, right_words, frames=len(expected),
+                        params=params, vcd=vcd, **kw)
+        except AssertionError:
+            pass
+        raise
+    return run
+
+
+def run_and_check(name, make_dut, frames_l, frames_r, params, *, seeds=(0,), idle=0.0,
+                  stall=0.0, drop_mode=False):
+    expected = [golden_records(fl, fr, params) for fl, fr in zip(frames_l, frames_r)]
+    lw, rw = frames_words(EDGE, frames_l), frames_words(EDGE, frames_r)
+    runs = []
+    for seed in seeds:
+        runs.append(run_checked(f"{name} seed {seed}", make_dut, lw, rw, expected, params,
+                                seed=seed, idle=idle, stall=stall, drop_mode=drop_mode))
+    return runs, expected
+
+
+# ------------------------------------------------------------------ tests
+
+def synthetic_frames(n, h=12, w=32, seed=0, threshold=64, **kw):
+    fl, fr = [], []
+    for s in range(n):
+        l, r, _ = shifted_texture(h, w, seed=seed + s, **kw)
+        fl.append(front_end(l, threshold)); fr.append(front_end(r, threshold))
+    return fl, fr
+
+
+def crop(f, h=None, w=None):
+    return {k: v[:h, :w] for k, v in f.items()}
+
+
+def bad_words(words, *, clear=None, cut=None):
+    """Copy of a word list with the flag ``clear`` ("sof", "eol") removed from the first word
+    that has it, or cut short after ``cut`` words."""
+    words = list(words)
+    if clear is not None:
+        bit = 1 << EDGE.fields[clear][0]
+        i = next(i for i, w in enumerate(words) if w & bit)
+        words[i] &= ~bit
+    if cut is not None:
+        words = words[:cut]
+    return words
+
+
+def test_synthetic_always_valid():
+    fl, fr = synthetic_frames(2)
+    params = MatcherParams(d_max=15, window=3)
+    (run,), expected = run_and_check("synth_valid", small_matcher, fl, fr, params)
+    assert sum(st["matches"] for _, st in expected) > 40
+    assert run.errors == 0 and run.dropped == 0 and run.frames == 2
+    # Always-valid inputs: cycles per input pixel (both cameras in parallel) on 2 frames.
+    assert run.cycles / (2 * 12 * 32) < 2.5
+
+
+@pytest.mark.parametrize("window, engines, kw", [
+    (3, 2, {}),
+    (5, 1, {"widen": True, "uniqueness": 16}),
+    (5, 3, {"mode": "full", "d_min": 2, "d_max": 12}),
+    (3, 2, {"widen": True, "d_min": 1, "d_max": 9, "uniqueness": 0}),
+])
+def test_synthetic_stalls(window, engines, kw):
+    # Odd heights (13 lines) exercise the flush of a last line left without its pair.
+    fl, fr = synthetic_frames(2, h=12 + window % 4 // 2, seed=window + engines)
+    params = MatcherParams(**{"d_max": 15, "window": window, **kw})
+    runs, expected = run_and_check(f"synth_w{window}_p{engines}",
+                                   lambda: small_matcher(window=window, engines=engines),
+                                   fl, fr, params, seeds=(1, 2), idle=0.3, stall=0.3)
+    assert sum(st["matches"] for _, st in expected) > 20
+
+
+def test_window7_default_parameters():
+    # The default window and uniqueness (elaborated for max_disparity 15 to stay small).
+    fl, fr = synthetic_frames(2, h=15, w=40, seed=80,
+                              rects=((3, 10, 10, 20, 4), (4, 24, 12, 36, 9)))
+    params = MatcherParams(d_max=15, widen=True)
+    runs, expected = run_and_check("w7", lambda: small_matcher(window=7), fl, fr, params,
+                                   seeds=(11,), idle=0.2, stall=0.2)
+    assert sum(st["matches"] for _, st in expected) > 20
+
+
+def test_motorcycle_crop():
+    yl, yr = motorcycle_crop(h=12, w=40)
+    fl, fr = [front_end(yl, 96)], [front_end(yr, 96)]
+    params = MatcherParams(d_max=15, window=5, widen=True)
+    (run,), expected = run_and_check("motorcycle", lambda: small_matcher(window=5), fl, fr,
+                                     params, seeds=(3,), idle=0.2, stall=0.4)
+    assert expected[0][1]["matches"] > 10
+
+
+def test_short_line_then_good_frames():
+    # Left frame 0 has a short line 5: it ends there; the frame is matched on its first 5 lines.
+    fl, fr = synthetic_frames(3, seed=10)
+    params = MatcherParams(d_max=15, window=3)
+    lw = frames_words(EDGE, fl)
+    n = 12 * 32
+    eol = 1 << EDGE.fields["eol"][0]
+    lw[5 * 32 + 20] |= eol                       # line 5 ends after 21 pixels
+    rw = frames_words(EDGE, fr)
+    expected = [golden_records(crop(fl[0], 5), crop(fr[0], 5), params)] + \
+        [golden_records(a, b, params) for a, b in zip(fl[1:], fr[1:])]
+    for seed in (0, 1):
+        run = run_checked(f"short_line seed {seed}", small_matcher, lw, rw, expected, params,
+                          seed=seed, idle=0.2 * seed, stall=0.2 * seed)
+        assert run.errors == 2           # the broken rule, and frames of unequal height
+        assert run.dropped == n - 5 * 32 - 20     # from the bad beat to the next sof
+
+
+def test_missing_sof_then_good_frames():
+    fl, fr = synthetic_frames(3, seed=20)
+    params = MatcherParams(d_max=15, window=3)
+    lw = bad_words(frames_words(EDGE, fl[:1]), clear="sof") + frames_words(EDGE, fl[1:])
+    rw = bad_words(frames_words(EDGE, fr[:1]), clear="sof") + frames_words(EDGE, fr[1:])
+    expected = [golden_records(a, b, params) for a, b in zip(fl[1:], fr[1:])]
+    run = run_checked("missing_sof", small_matcher, lw, rw, expected, params, seed=4, idle=0.2,
+                      stall=0.2)
+    assert run.errors == 2 and run.dropped == 2 * 12 * 32
+
+
+def test_one_input_cut_short():
+    # Right frame 0 stops after 7 lines and the next frame starts (sof before eof): frame 0 is
+    # matched on 7 lines, the rest of the left frame is discarded, frames 1 and 2 are exact.
+    fl, fr = synthetic_frames(3, seed=30)
+    params = MatcherParams(d_max=15, window=3)
+    lw = frames_words(EDGE, fl)
+    rw = bad_words(frames_words(EDGE, fr[:1]), cut=7 * 32) + frames_words(EDGE, fr[1:])
+    expected = [golden_records(crop(fl[0], 7), crop(fr[0], 7), params)] + \
+        [golden_records(a, b, params) for a, b in zip(fl[1:], fr[1:])]
+    run = run_checked("one_input_cut", small_matcher, lw, rw, expected, params, seed=5,
+                      idle=0.2, stall=0.3)
+    assert run.errors == 2 and run.dropped == 0
+
+
+def test_different_sizes():
+    fl, fr = synthetic_frames(4, seed=40)
+    params = MatcherParams(d_max=15, window=3)
+    # Frame 0: right has 9 lines (crop to 9); frame 1: left has 10 lines; frame 2: widths
+    # differ (no records, zero statistics); frame 3: good.
+    fr0 = crop(fr[0], 9)
+    fl1 = crop(fl[1], 10)
+    fr2 = crop(fr[2], None, 30)
+    lw = frames_words(EDGE, [fl[0], fl1, fl[2], fl[3]])
+    rw = frames_words(EDGE, [fr0, fr[1], fr2, fr[3]])
+    zero = (np.zeros((0, 4), dtype=np.int64), dict.fromkeys(STAT_KEYS, 0))
+    expected = [golden_records(crop(fl[0], 9), fr0, params),
+                golden_records(fl1, crop(fr[1], 10), params), zero,
+                golden_records(fl[3], fr[3], params)]
+    for seed in (6, 7):
+        run = run_checked(f"sizes seed {seed}", small_matcher, lw, rw, expected, params,
+                          seed=seed, idle=0.3, stall=0.3)
+        assert run.errors == 3 and run.dropped == 0
+
+
+def test_reset_mid_frame():
+    fl, fr = synthetic_frames(4, seed=50)
+    params = MatcherParams(d_max=15, window=3)
+    half = 6 * 32 + 5
+    lw = frames_words(EDGE, fl[:1]) + bad_words(frames_words(EDGE, fl[1:2]), cut=half) + \
+        [Reset(2)] + frames_words(EDGE, fl[2:])
+    rw = frames_words(EDGE, fr[:1]) + bad_words(frames_words(EDGE, fr[1:2]), cut=half) + \
+        frames_words(EDGE, fr[2:])
+    expected = [golden_records(a, b, params) for a, b in zip([fl[0]] + fl[2:], [fr[0]] + fr[2:])]
+    run = run_checked("reset", small_matcher, lw, rw, expected, params, seed=8, idle=0.2)
+    assert run.errors <= 1           # the right input's leftover beats, if any, after reset
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_drop_mode(seed):
+    # A slow matcher (full mode, one lane, window 5) behind always-valid inputs: drops, but
+    # every record is a golden record and every left edge is accounted for.
+    fl, fr = synthetic_frames(2, seed=60 + seed)
+    params = MatcherParams(d_max=15, window=5, mode="full")
+    expected = [golden_records(a, b, params) for a, b in zip(fl, fr)]
+    run = run_matcher(small_matcher(window=5, engines=1), frames_words(EDGE, fl),
+                      frames_words(EDGE, fr), frames=2, params=params, drop_mode=True,
+                      seed=seed, stall=0.3 * seed)
+    assert len(run.records) == 2
+    total_drops = 0
+    for (want, want_st), got, st in zip(expected, run.records, run.stats):
+        want_set = {tuple(r) for r in want.tolist()}
+        assert all(tuple(r) in want_set for r in got.tolist())
+        assert st["edge_pixels"] == want_st["edge_pixels"]
+        assert st["border"] == want_st["border"]
+        assert st["no_candidate"] == want_st["no_candidate"]
+        assert st["matches"] == len(got)
+        assert sum(st[k] for k in ("border", "no_candidate", "rejected", "matches", "drops")) \
+            == st["edge_pixels"]
+        total_drops += st["drops"]
+    assert total_drops > 0
+
+
+def test_drop_mode_without_pressure_is_exact():
+    # Slow inputs and two spare line slots: the engine keeps up and nothing is dropped.
+    fl, fr = synthetic_frames(2, seed=70)
+    params = MatcherParams(d_max=15, window=3)
+    run_and_check("drop_idle", lambda: small_matcher(extra_rows=2), fl, fr, params, seeds=(9,),
+                  idle=0.7, drop_mode=True)
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"window": 4}, "odd"), ({"window": 1}, "odd"), ({"max_disparity": 64}, "max_disparity"),
+    ({"engines": 0}, "engines"), ({"queue_depth": 1}, "queue_depth"),
+    ({"extra_rows": 1}, "extra_rows"),
+])
+def test_elaboration_errors(kw, message):
+    with pytest.raises(ValueError, match=message):
+        Matcher(**kw)
