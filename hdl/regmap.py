@@ -28,10 +28,9 @@ Register kinds (``Register.kind``):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
-from golden.ground import GroundParams
-from golden.matcher import MatcherParams
-from golden.sobel import SobelParams
+from golden.pipeline import default_params
 
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
            "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "register", "field", "parameter_fields",
@@ -44,15 +43,16 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 1
+MAP_VERSION = 2
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
 #: a frame of the reference resolution (shared/DESIGN.md: 752 x 480).
 REF_WIDTH, REF_HEIGHT = 752, 480
-_G = GroundParams.bottom_centre(REF_WIDTH, REF_HEIGHT)
-_S = SobelParams()
-_M = MatcherParams()
+_P = default_params(REF_WIDTH, REF_HEIGHT)      # reset values: the default pipeline
+_G = _P.frontend.ground
+_S = _P.frontend.sobel
+_M = _P.matcher
 
 
 @dataclass(frozen=True)
@@ -117,6 +117,10 @@ REGISTERS: tuple[Register, ...] = (
         F("edge_threshold", 0, 11, _S.threshold, "minimum |Gx| of an edge pixel"),
         F("ratio", 16, 4, _S.ratio, "dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy|"),
         F("nms", 24, 1, int(_S.nms), "1: keep only horizontal local maxima of |Gx| (non-maximum suppression)"),
+    )),
+    Register("SOBEL_RIGHT", 0x20, "rw", "Right camera's edge threshold: its edges only select "
+             "the candidates of the matcher, so it is lower than the left's (golden/pipeline.py).", (
+        F("right_threshold", 0, 11, _P.right_threshold, "minimum |Gx| of a right-image edge pixel"),
     )),
     Register("MATCH", 0x1C, "rw", "Stereo matcher (golden/matcher.py, hdl/matcher.py).", (
         F("d_min", 0, 6, _M.d_min, "smallest disparity tried"),
@@ -216,12 +220,17 @@ def _check():
 _check()
 
 
-def encode_params(ground=None, sobel=None, matcher=None, *, camera_mode_drop=0) -> dict:
+def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None,
+                  camera_mode_drop=0) -> dict:
     """Register values (name -> 32-bit value) for golden parameter dataclasses; None = the
-    register's reset value. What the firmware writes for the same settings."""
+    register's reset value (``right_threshold`` None: the left's threshold when ``sobel`` is
+    given). What the firmware writes for the same settings."""
     values = {}
+    if right_threshold is None and sobel is not None:
+        right_threshold = sobel.threshold
+    right = None if right_threshold is None else SimpleNamespace(right_threshold=right_threshold)
     src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
-           "GROUND_INIT": ground, "SOBEL": sobel, "MATCH": matcher}
+           "GROUND_INIT": ground, "SOBEL": sobel, "SOBEL_RIGHT": right, "MATCH": matcher}
     rename = {"edge_threshold": "threshold"}
     for reg in REGISTERS:
         if reg.kind != "rw":

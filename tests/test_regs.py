@@ -199,10 +199,10 @@ def test_result_fifo_concurrent_read_write():
 
 def test_reset_values_are_golden_defaults():
     from golden.ground import GroundParams
-    from golden.matcher import MatcherParams
-    from golden.sobel import SobelParams
-    values = regmap.encode_params(GroundParams.bottom_centre(752, 480), SobelParams(),
-                                  MatcherParams())
+    from golden.pipeline import default_params
+    p = default_params(752, 480)
+    values = regmap.encode_params(p.frontend.ground, p.frontend.sobel, p.matcher,
+                                  right_threshold=p.right_threshold)
     for name, v in values.items():
         assert v == regmap.register(name).reset, name
     with pytest.raises(ValueError, match="does not fit"):

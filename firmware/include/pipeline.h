@@ -24,6 +24,7 @@ typedef struct {
     uint16_t edge_threshold; /**< SOBEL.edge_threshold */
     uint8_t ratio; /**< SOBEL.ratio */
     uint8_t nms;             /**< SOBEL.nms */
+    uint16_t right_threshold; /**< SOBEL_RIGHT.right_threshold */
     uint8_t d_min;           /**< MATCH.d_min */
     uint8_t d_max;           /**< MATCH.d_max */
     uint8_t uniqueness;      /**< MATCH.uniqueness (u = value/256) */

@@ -10,14 +10,14 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           1u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           2u           /**< ID.version value */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540001u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540002u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      1u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      2u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -83,10 +83,10 @@
 
 /* SOBEL (read/write): Vertical-edge detector (golden/sobel.py). */
 #define STEREO_SOBEL_OFFSET                          0x18u        /**< Vertical-edge detector (golden/sobel.py). */
-#define STEREO_SOBEL_RESET                           0x01080080u  /**< SOBEL value after reset */
+#define STEREO_SOBEL_RESET                           0x010800C0u  /**< SOBEL value after reset */
 #define STEREO_SOBEL_EDGE_THRESHOLD_SHIFT            0u           /**< edge_threshold: minimum |Gx| of an edge pixel */
 #define STEREO_SOBEL_EDGE_THRESHOLD_MASK             0x7FFu       /**< edge_threshold mask (11 bits) */
-#define STEREO_SOBEL_EDGE_THRESHOLD_RESET            128u         /**< edge_threshold reset value */
+#define STEREO_SOBEL_EDGE_THRESHOLD_RESET            192u         /**< edge_threshold reset value */
 #define STEREO_SOBEL_RATIO_SHIFT                     16u          /**< ratio: dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy| */
 #define STEREO_SOBEL_RATIO_MASK                      0x000F0000u  /**< ratio mask (4 bits) */
 #define STEREO_SOBEL_RATIO_RESET                     8u           /**< ratio reset value */
@@ -94,9 +94,16 @@
 #define STEREO_SOBEL_NMS_MASK                        0x01000000u  /**< nms mask (1 bits) */
 #define STEREO_SOBEL_NMS_RESET                       1u           /**< nms reset value */
 
+/* SOBEL_RIGHT (read/write): Right camera's edge threshold: its edges only select the candidates of the matcher, so it is lower than the left's (golden/pipeline.py). */
+#define STEREO_SOBEL_RIGHT_OFFSET                    0x20u        /**< Right camera's edge threshold: its edges only select the candidates of the matcher, so it is lower than the left's (golden/pipeline.py). */
+#define STEREO_SOBEL_RIGHT_RESET                     0x60u        /**< SOBEL_RIGHT value after reset */
+#define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_SHIFT     0u           /**< right_threshold: minimum |Gx| of a right-image edge pixel */
+#define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_MASK      0x7FFu       /**< right_threshold mask (11 bits) */
+#define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_RESET     96u          /**< right_threshold reset value */
+
 /* MATCH (read/write): Stereo matcher (golden/matcher.py, hdl/matcher.py). */
 #define STEREO_MATCH_OFFSET                          0x1Cu        /**< Stereo matcher (golden/matcher.py, hdl/matcher.py). */
-#define STEREO_MATCH_RESET                           0x00303F00u  /**< MATCH value after reset */
+#define STEREO_MATCH_RESET                           0x02303F00u  /**< MATCH value after reset */
 #define STEREO_MATCH_D_MIN_SHIFT                     0u           /**< d_min: smallest disparity tried */
 #define STEREO_MATCH_D_MIN_MASK                      0x3Fu        /**< d_min mask (6 bits) */
 #define STEREO_MATCH_D_MIN_RESET                     0u           /**< d_min reset value */
@@ -111,7 +118,7 @@
 #define STEREO_MATCH_CANDIDATE_MODE_RESET            0u           /**< candidate_mode reset value */
 #define STEREO_MATCH_WIDEN_SHIFT                     25u          /**< widen: 1: also try the neighbours (d-1, d+1) of each adaptive candidate */
 #define STEREO_MATCH_WIDEN_MASK                      0x02000000u  /**< widen mask (1 bits) */
-#define STEREO_MATCH_WIDEN_RESET                     0u           /**< widen reset value */
+#define STEREO_MATCH_WIDEN_RESET                     1u           /**< widen reset value */
 #define STEREO_MATCH_CAMERA_MODE_DROP_SHIFT          26u          /**< camera_mode_drop: 1: camera inputs that cannot stall: the matcher drops (and counts) edges it has no time for (hdl/matcher.py drop_mode) */
 #define STEREO_MATCH_CAMERA_MODE_DROP_MASK           0x04000000u  /**< camera_mode_drop mask (1 bits) */
 #define STEREO_MATCH_CAMERA_MODE_DROP_RESET          0u           /**< camera_mode_drop reset value */

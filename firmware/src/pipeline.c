@@ -25,6 +25,7 @@ void pipeline_default_config(pipeline_config_t *cfg)
     cfg->edge_threshold = STEREO_SOBEL_EDGE_THRESHOLD_RESET;
     cfg->ratio = STEREO_SOBEL_RATIO_RESET;
     cfg->nms = STEREO_SOBEL_NMS_RESET;
+    cfg->right_threshold = STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_RESET;
     cfg->d_min = STEREO_MATCH_D_MIN_RESET;
     cfg->d_max = STEREO_MATCH_D_MAX_RESET;
     cfg->uniqueness = STEREO_MATCH_UNIQUENESS_RESET;
@@ -52,6 +53,7 @@ static int config_valid(const pipeline_config_t *c)
            c->hue_centre0 <= 191u &&
            c->edge_threshold <= FIELD_MAX(SOBEL, EDGE_THRESHOLD) &&
            c->ratio <= FIELD_MAX(SOBEL, RATIO) && c->nms <= 1u &&
+           c->right_threshold <= FIELD_MAX(SOBEL_RIGHT, RIGHT_THRESHOLD) &&
            c->d_min <= FIELD_MAX(MATCH, D_MIN) && c->d_max <= FIELD_MAX(MATCH, D_MAX) &&
            c->d_min <= c->d_max && c->candidate_mode <= 1u && c->widen <= 1u &&
            c->camera_mode_drop <= 1u;
@@ -64,7 +66,7 @@ typedef struct {
 
 fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
 {
-    reg_write_t w[6];
+    reg_write_t w[7];
     uint32_t i;
     if (c == NULL || !config_valid(c)) {
         return FW_ERR_PARAM;
@@ -83,8 +85,10 @@ fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
     w[4].offset = STEREO_SOBEL_OFFSET;
     w[4].value = STEREO_SET(SOBEL, EDGE_THRESHOLD, c->edge_threshold) |
                  STEREO_SET(SOBEL, RATIO, c->ratio) | STEREO_SET(SOBEL, NMS, c->nms);
-    w[5].offset = STEREO_MATCH_OFFSET;
-    w[5].value = STEREO_SET(MATCH, D_MIN, c->d_min) | STEREO_SET(MATCH, D_MAX, c->d_max) |
+    w[5].offset = STEREO_SOBEL_RIGHT_OFFSET;
+    w[5].value = STEREO_SET(SOBEL_RIGHT, RIGHT_THRESHOLD, c->right_threshold);
+    w[6].offset = STEREO_MATCH_OFFSET;
+    w[6].value = STEREO_SET(MATCH, D_MIN, c->d_min) | STEREO_SET(MATCH, D_MAX, c->d_max) |
                  STEREO_SET(MATCH, UNIQUENESS, c->uniqueness) |
                  STEREO_SET(MATCH, CANDIDATE_MODE, c->candidate_mode) |
                  STEREO_SET(MATCH, WIDEN, c->widen) |
@@ -121,6 +125,8 @@ void pipeline_read_config(uint32_t base, pipeline_config_t *c)
     c->edge_threshold = (uint16_t)STEREO_GET(SOBEL, EDGE_THRESHOLD, v);
     c->ratio = (uint8_t)STEREO_GET(SOBEL, RATIO, v);
     c->nms = (uint8_t)STEREO_GET(SOBEL, NMS, v);
+    v = STEREO_ReadReg(base, STEREO_SOBEL_RIGHT_OFFSET);
+    c->right_threshold = (uint16_t)STEREO_GET(SOBEL_RIGHT, RIGHT_THRESHOLD, v);
     v = STEREO_ReadReg(base, STEREO_MATCH_OFFSET);
     c->d_min = (uint8_t)STEREO_GET(MATCH, D_MIN, v);
     c->d_max = (uint8_t)STEREO_GET(MATCH, D_MAX, v);

@@ -35,6 +35,7 @@ static void test_defaults_match_reset_values(void)
     FWT_CHECK_EQ(sim.regfile[STEREO_GROUND_REF_SIZE_OFFSET / 4], STEREO_GROUND_REF_SIZE_RESET);
     FWT_CHECK_EQ(sim.regfile[STEREO_GROUND_INIT_OFFSET / 4], STEREO_GROUND_INIT_RESET);
     FWT_CHECK_EQ(sim.regfile[STEREO_SOBEL_OFFSET / 4], STEREO_SOBEL_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_SOBEL_RIGHT_OFFSET / 4], STEREO_SOBEL_RIGHT_RESET);
     FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], STEREO_MATCH_RESET);
 }
 
@@ -48,7 +49,7 @@ static void test_configure_roundtrip(void)
     c.mode = 1; c.k = 15; c.jnd_hue = 3; c.jnd_luma = 9; c.s_min = 200;
     c.ref_x = 2047; c.ref_y = 5; c.ref_w = 1024; c.ref_h = 7;
     c.hue_centre0 = 191; c.luma_centre0 = 255;
-    c.edge_threshold = 2000; c.ratio = 15; c.nms = 1;
+    c.edge_threshold = 2000; c.ratio = 15; c.nms = 1; c.right_threshold = 1234;
     c.d_min = 3; c.d_max = 63; c.uniqueness = 255; c.candidate_mode = 1; c.widen = 1;
     c.camera_mode_drop = 1;
     FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);

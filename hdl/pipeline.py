@@ -1,0 +1,102 @@
+"""Stereo pipeline top: two per-camera front ends and the SAD matcher
+(specification: ``golden/pipeline.py``)."""
+from amaranth.hdl import Module
+from amaranth.lib import wiring, stream
+from amaranth.lib.wiring import In, Out
+
+from golden.sobel import THRESHOLD_BITS, RATIO_BITS
+from .frontend import FrontEnd
+from .ground import GroundConfig
+from .matcher import Matcher, STAT_NAMES, match_record_layout
+from .types import RGBPixel
+
+__all__ = ["StereoPipeline"]
+
+
+class StereoPipeline(wiring.Component):
+    """Two cameras in, sparse disparities out.
+
+    Ports
+    -----
+    left, right : In(stream of :data:`RGBPixel`)
+        The two cameras, rectified rows, equal frame sizes. Both apply backpressure (the front
+        ends pass the matcher's through); with ``drop_mode`` the matcher drops work instead of
+        stalling inside a frame (for cameras that cannot wait).
+    o : Out(stream of :func:`~hdl.matcher.match_record_layout`)
+        ``(x, y, d, cost)`` records of matched left obstacle-edge pixels in raster order, then one
+        record with ``eof`` set per frame, when the ``frame_*`` statistics take that frame's values.
+    ground, threshold, ratio, nms : In
+        Front-end parameters, shared by both cameras (each learns its own ground band), except:
+    right_threshold : In
+        The right camera's Sobel threshold (its edges only select candidates; see
+        ``golden.pipeline.RIGHT_THRESHOLD``).
+    d_min, d_max, uniqueness, mode_full, widen, drop_mode : In
+        Matcher parameters.
+    frame_<stat>, frames : Out(32)
+        Matcher statistics of the last finished frame (:data:`~hdl.matcher.STAT_NAMES`).
+    left_errors, left_dropped, right_errors, right_dropped : Out(16), Out(32)
+        Malformed-stream counters at each camera input.
+    match_errors, match_dropped : Out(16), Out(32)
+        The matcher's counters (frames of unequal size included).
+    left_centre_h, left_centre_y, right_centre_h, right_centre_y : Out(8)
+        Ground band centres in use.
+
+    Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
+    ``window``, ``engines`` (parallel SAD lanes), ``queue_depth`` (edge jobs buffered).
+    """
+
+    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=63, window=7,
+                 engines=2, queue_depth=16):
+        self._size = dict(max_width=max_width, max_height=max_height)
+        self._matcher = dict(max_disparity=max_disparity, window=window, engines=engines,
+                             queue_depth=queue_depth)
+        self.max_disparity = max_disparity
+        self.window = window
+        ports = {
+            "left": In(stream.Signature(RGBPixel)),
+            "right": In(stream.Signature(RGBPixel)),
+            "o": Out(stream.Signature(match_record_layout(max_width, max_height))),
+            "ground": In(GroundConfig),
+            "threshold": In(THRESHOLD_BITS), "right_threshold": In(THRESHOLD_BITS),
+            "ratio": In(RATIO_BITS), "nms": In(1),
+            "d_min": In(6), "d_max": In(6, init=max_disparity), "uniqueness": In(8),
+            "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
+            "frames": Out(32),
+            "match_errors": Out(16), "match_dropped": Out(32),
+        }
+        for side in ("left", "right"):
+            ports[f"{side}_errors"] = Out(16)
+            ports[f"{side}_dropped"] = Out(32)
+            ports[f"{side}_centre_h"] = Out(8)
+            ports[f"{side}_centre_y"] = Out(8)
+        for name in STAT_NAMES:
+            ports[f"frame_{name}"] = Out(32)
+        super().__init__(ports)
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.matcher = matcher = Matcher(**self._size, **self._matcher)
+        for side in ("left", "right"):
+            fe = FrontEnd(**self._size)
+            m.submodules[f"{side}_frontend"] = fe
+            wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
+            wiring.connect(m, fe.o, getattr(matcher, side))
+            m.d.comb += [
+                fe.ground.eq(self.ground),
+                fe.threshold.eq(self.threshold if side == "left" else self.right_threshold),
+                fe.ratio.eq(self.ratio), fe.nms.eq(self.nms),
+                getattr(self, f"{side}_errors").eq(fe.errors),
+                getattr(self, f"{side}_dropped").eq(fe.dropped),
+                getattr(self, f"{side}_centre_h").eq(fe.centre_h),
+                getattr(self, f"{side}_centre_y").eq(fe.centre_y),
+            ]
+        wiring.connect(m, matcher.o, wiring.flipped(self.o))
+        for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "drop_mode"):
+            m.d.comb += getattr(matcher, name).eq(getattr(self, name))
+        m.d.comb += [
+            self.frames.eq(matcher.frames),
+            self.match_errors.eq(matcher.errors), self.match_dropped.eq(matcher.dropped),
+        ]
+        for name in STAT_NAMES:
+            m.d.comb += getattr(self, f"frame_{name}").eq(getattr(matcher, f"frame_{name}"))
+        return m
