@@ -1,12 +1,17 @@
-# Stereo obstacle detection: every target bootstraps the virtual environment first.
+# Stereo obstacle detection. Every target bootstraps what it needs: `make sim` and `make test`
+# work on a fresh machine. Outputs go under build/.
 PYTHON_SYS ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+SYSTEM_STAMP := build/.system-packages
+# Debian packages the simulators and the firmware host build need (installed only when a
+# command is missing; needs root or sudo, as on the project's machines).
+DEBIAN_PACKAGES := iverilog ghdl g++ make
 
-.PHONY: setup sim test verilog vhdl synth bench firmware cosim demo clean
+.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo clean
 
-setup: $(STAMP)
+setup: $(STAMP) $(SYSTEM_STAMP)
 
 $(STAMP): pyproject.toml
 	$(PYTHON_SYS) -m venv $(VENV)
@@ -14,14 +19,39 @@ $(STAMP): pyproject.toml
 	$(VENV)/bin/pip install -q -e .
 	touch $@
 
-sim: setup
-	$(PY) -m sim run --default --out build/sim
+$(SYSTEM_STAMP):
+	@missing=""; \
+	for cmd in iverilog ghdl g++ make; do command -v $$cmd >/dev/null || missing="$$missing $$cmd"; done; \
+	if [ -n "$$missing" ]; then \
+		echo "installing Debian packages for:$$missing"; \
+		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+		$$SUDO apt-get update -q && $$SUDO apt-get install -y -q $(DEBIAN_PACKAGES); \
+	fi
+	@mkdir -p build && touch $@
 
-test: setup
+sim: setup
+	$(PY) -m sim run --out build/sim
+
+test: setup firmware
 	$(PY) -m pytest -q -n 2
 
 verilog: setup
-	$(PY) -m sim verilog --out build/verilog
+	$(PY) -m sim.export --out build/verilog
+
+vhdl: setup
+	$(PY) -m sim.vhdl --out build/vhdl
+
+synth: setup
+	$(PY) -m sim.synth --out build/synth
+
+firmware: setup
+	$(MAKE) -C firmware all test
+
+cosim: setup firmware
+	$(PY) -m sim.cosim.run
+
+demo: setup
+	$(PY) -m station.demo --out build/demo
 
 clean:
 	rm -rf build

@@ -1,0 +1,53 @@
+"""Run a unit of :mod:`sim.units` on a backend and count mismatches with golden."""
+from .config import apply_config, config_values
+from .streams import run_streams, Deadlock
+
+__all__ = ["run_unit", "STALL_PROBABILITY"]
+
+#: Idle and backpressure probability per cycle when stalls are requested.
+STALL_PROBABILITY = 0.25
+
+
+def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
+    """Simulate ``unit`` on ``job`` with ``backend``. Returns a dict with ``mismatches``,
+    ``cycles`` (first input word offered to last output taken), ``words`` (output words per
+    port), ``status`` (status ports at the end) and ``dut``."""
+    from .cli import CliError
+    stalls = STALL_PROBABILITY if stall_seed is not None else 0.0
+    seed = stall_seed or 0
+    dut = unit.make(job)
+    if backend == "amaranth":
+        try:
+            run = run_streams(dut, unit.words(job), unit.outputs(job), seed=seed, idle=stalls,
+                              stall=stalls, setup=lambda ctx: apply_config(ctx, dut, job.params),
+                              timeout=timeout, probes=())
+        except Deadlock as e:
+            raise CliError(f"{unit.name} deadlocked: {e}") from None
+        words, cycles, status = run.words, run.cycles, {}
+    elif backend == "verilator":
+        from .verilator import run_verilator, VerilatorError
+        try:
+            run = run_verilator(dut, inputs=unit.words(job), out_frames=unit.outputs(job),
+                                runtime=config_values(dut, job.params), seed=seed, idle=stalls,
+                                stall=stalls, timeout=timeout, name=unit.name)
+        except VerilatorError as e:
+            raise CliError(str(e).splitlines()[0]) from None
+        except Deadlock as e:
+            raise CliError(f"{unit.name} deadlocked: {e}") from None
+        words, cycles, status = run.outputs, run.cycles, run.status
+    elif backend in ("icarus", "ghdl"):
+        # cocotb on the exported Verilog (Icarus) or on the generated VHDL (GHDL)
+        from .cocotb_tb import simulate, SimulatorMissing
+        try:
+            run = simulate(dut, backend, name=unit.name, inputs=unit.words(job),
+                           out_frames=unit.outputs(job), runtime=config_values(dut, job.params),
+                           seed=seed, idle=stalls, stall=stalls, timeout=timeout)
+        except SimulatorMissing as e:
+            raise CliError(str(e).splitlines()[0]) from None
+        except Deadlock as e:
+            raise CliError(f"{unit.name} deadlocked: {e}") from None
+        words, cycles, status = run.outputs, run.cycles, run.status
+    else:
+        raise CliError(f"unknown backend {backend!r}")
+    return {"mismatches": unit.mismatches(job, words, dut), "cycles": cycles, "words": words,
+            "status": status, "dut": dut}

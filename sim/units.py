@@ -1,0 +1,199 @@
+"""The units the command line and the backends know: how to build each one, feed it from a
+stereo job, and what the golden model expects. Adding a unit is one entry in :data:`UNITS`."""
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+
+from golden.ground import GroundParams
+from golden.pipeline import PipelineParams, pipeline_frames
+from golden.frontend import frontend_frames
+from hdl import types
+from .streams import Packer, frames_words, words_to_frames
+from .config import apply_config, config_values
+
+__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pixel_mismatches", "records_from_words"]
+
+
+@dataclass
+class Job:
+    """What to run: consecutive RGB frames of one or two cameras and the parameters."""
+    left: list
+    right: list
+    params: PipelineParams
+    max_width: int = 1024
+    max_height: int = 1024
+    max_disparity: int = 63
+
+    @cached_property
+    def golden(self):
+        if self.right:
+            return pipeline_frames(self.left, self.right, self.params)
+        return [type("Frame", (), {"left": f}) for f in frontend_frames(self.left, self.params.frontend)]
+
+
+def rgb(frame):
+    return dict(r=frame[..., 0], g=frame[..., 1], b=frame[..., 2])
+
+
+@dataclass
+class Unit:
+    name: str
+    stereo: bool
+    make: Callable            # (job) -> component
+    in_layout: object         # payload layout of input port i
+    out_layout: object        # payload layout of output port o
+    inputs: Callable          # (job) -> list of frame dicts for port i
+    expected: Callable        # (job) -> list of frame dicts expected on port o
+    doc: str = ""
+
+    def words(self, job):
+        return {"i": frames_words(Packer(self.in_layout), self.inputs(job))}
+
+    def outputs(self, job):
+        return {"o": len(job.left)}
+
+    def mismatches(self, job, words, dut):
+        return pixel_mismatches(Packer(self.out_layout), words["o"], self.expected(job))
+
+
+def pixel_mismatches(packer, words, expected):
+    """Differing pixels between output words and expected frames (a missing or misframed
+    frame counts all its pixels)."""
+    try:
+        got = words_to_frames(packer, words)
+    except ValueError:
+        return sum(next(iter(e.values())).size for e in expected)
+    bad = 0
+    for k, exp in enumerate(expected):
+        size = next(iter(exp.values())).size
+        if k >= len(got) or next(iter(got[k].values())).shape != next(iter(exp.values())).shape:
+            bad += size
+            continue
+        differ = np.zeros(next(iter(exp.values())).shape, dtype=bool)
+        for name, arr in exp.items():
+            differ |= got[k][name] != arr
+        bad += int(differ.sum())
+    return bad
+
+
+def _size(job):
+    return dict(max_width=job.max_width, max_height=job.max_height)
+
+
+def _color(job):
+    from hdl.color import ColorConvert
+    return ColorConvert(**_size(job))
+
+
+def _ground(job):
+    from hdl.ground import GroundClassifier
+    return GroundClassifier(**_size(job))
+
+
+def _sobel(job):
+    from hdl.sobel import SobelEdges
+    return SobelEdges(**_size(job))
+
+
+def records_from_words(layout, words):
+    """Split matcher output words into frames: a list of RECORD_DTYPE arrays, one per ``eof``
+    record (a trailing unterminated frame is dropped)."""
+    from golden.matcher import RECORD_DTYPE
+    f = Packer(layout).unpack(np.array(words, dtype=np.uint64)) if len(words) else None
+    frames, start = [], 0
+    if f is None:
+        return frames
+    for end in np.flatnonzero(f["eof"]):
+        sl = slice(start, end)
+        rec = np.zeros(end - start, dtype=RECORD_DTYPE)
+        for name in ("x", "y", "d", "cost"):
+            rec[name] = f[name][sl]
+        frames.append(rec)
+        start = end + 1
+    return frames
+
+
+def record_mismatches(got, expected):
+    """Records that differ between two per-frame record lists (a missing frame counts all its
+    records, plus one)."""
+    bad = 0
+    for k, exp in enumerate(expected):
+        if k >= len(got):
+            bad += len(exp) + 1
+            continue
+        g = {tuple(r) for r in got[k].tolist()}
+        e = {tuple(r) for r in exp.tolist()}
+        bad += len(g ^ e)
+        if not bad and not np.array_equal(got[k], exp):
+            bad += 1        # same records in another order
+    return bad + max(0, len(got) - len(expected))
+
+
+@dataclass
+class StereoUnit:
+    """A unit with ``left``/``right`` inputs and a record output ``o`` (matcher, pipeline)."""
+    name: str
+    make: Callable
+    in_layout: object
+    inputs: Callable            # (job, side) -> list of frame dicts
+    doc: str = ""
+    stereo: bool = True
+
+    def words(self, job):
+        return {side: frames_words(Packer(self.in_layout), self.inputs(job, side))
+                for side in ("left", "right")}
+
+    def outputs(self, job):
+        return {"o": len(job.left)}
+
+    def expected(self, job):
+        return [g.records for g in job.golden]
+
+    def mismatches(self, job, words, dut):
+        layout = dut.o.payload.shape()
+        return record_mismatches(records_from_words(layout, words["o"]), self.expected(job))
+
+
+def _matcher(job):
+    from hdl.matcher import Matcher
+    mp = job.params.matcher
+    return Matcher(**_size(job), max_disparity=job.max_disparity, window=mp.window)
+
+
+def _pipeline(job):
+    from hdl.pipeline import StereoPipeline
+    mp = job.params.matcher
+    return StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window)
+
+
+def _frontend(job):
+    from hdl.frontend import FrontEnd
+    return FrontEnd(**_size(job))
+
+
+UNITS = {
+    "color": Unit("color", False, _color, types.RGBPixel, types.YHSPixel,
+                  lambda job: [rgb(f) for f in job.left],
+                  lambda job: [dict(y=g.left.y, h=g.left.h, s=g.left.s) for g in job.golden],
+                  "RGB888 -> luminance, hue, saturation"),
+    "ground": Unit("ground", False, _ground, types.YHSPixel, types.GroundPixel,
+                   lambda job: [dict(y=g.left.y, h=g.left.h, s=g.left.s) for g in job.golden],
+                   lambda job: [dict(y=g.left.y, ground=g.left.ground) for g in job.golden],
+                   "ground model and classifier"),
+    "sobel": Unit("sobel", False, _sobel, types.GroundPixel, types.EdgePixel,
+                  lambda job: [dict(y=g.left.y, ground=g.left.ground) for g in job.golden],
+                  lambda job: [g.left.output() for g in job.golden],
+                  "Sobel vertical-edge unit"),
+    "frontend": Unit("frontend", False, _frontend, types.RGBPixel, types.EdgePixel,
+                     lambda job: [rgb(f) for f in job.left],
+                     lambda job: [g.left.output() for g in job.golden],
+                     "colour -> ground -> Sobel, one camera"),
+    "sad": StereoUnit("sad", _matcher, types.EdgePixel,
+                      lambda job, side: [getattr(g, side).output() for g in job.golden],
+                      "SAD block matcher on the golden front ends' outputs"),
+    "pipeline": StereoUnit("pipeline", _pipeline, types.RGBPixel,
+                           lambda job, side: [rgb(f) for f in getattr(job, side)],
+                           "the whole stereo pipeline"),
+}
