@@ -1,0 +1,210 @@
+"""The base station: radio bytes in, map and path out.
+
+``BaseStation.receive(data, t)`` feeds raw bytes from the XBee's UART to the
+``station.radio.FrameDecoder`` (bad frames are dropped and counted there, never raised),
+turns each good packet's pose and band disparities into a map update (``station.camera``,
+``station.grid``) and decides whether to replan:
+
+- "initial": no path yet; "retry": the last request failed (it retries on every packet,
+  keeping the previous path, if any, meanwhile);
+- "blocked": a cell that became occupied in this update, inflated by the robot radius, lies
+  on the part of the current path still ahead of the robot;
+- "periodic": ``replan_period_s`` (3 s, the seed's figure) since the last plan, so that a
+  shorter way that opened up (an obstacle moved away, unknown space seen free) is taken.
+
+Plausibility: the XBee checksum is 8 bits, so about one damaged frame in 256 passes it (a
+frame cut short and completed by the next frame's first bytes, for instance). A packet whose
+band disparities exceed the pipeline's maximum (``max_disparity``, 63) or whose pose jumps
+farther than ``max_speed_mps`` allows since the last packet is dropped and counted in
+``implausible``, before it can put a phantom obstacle on the map.
+
+Planning uses the inflated occupancy grid; unknown cells count as free (the robot only
+learns the world by driving towards the goal). If the robot's own cell is blocked after
+inflation (an obstacle seen close by), the plan starts from the nearest free cell, and if the
+goal cell is blocked from the nearest free cell within ``goal_tolerance_m``; a request that
+still fails leaves the previous path in place and is reported in ``last_result.status``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from station.camera import CameraModel, observe_bands
+from station.grid import OccupancyGrid, disc as _disc
+from station.planner import PlanResult, SacoParams, astar, sacodm
+from station.radio import FrameDecoder, RadioPacket
+
+__all__ = ["BaseStation", "pose_from_packet", "pose_to_wire", "PlanEvent"]
+
+
+def pose_from_packet(pkt: RadioPacket):
+    """(x, y, theta) in metres and radians (theta in [-pi, pi)) from a packet."""
+    th = pkt.theta_u16 * (2.0 * math.pi / 65536.0)
+    if th >= math.pi:
+        th -= 2.0 * math.pi
+    return pkt.x_mm / 1000.0, pkt.y_mm / 1000.0, th
+
+
+def pose_to_wire(pose):
+    """(x_mm, y_mm, theta_u16) as the firmware sends them (rounded, wrapped)."""
+    x, y, th = pose
+    return (int(round(x * 1000.0)), int(round(y * 1000.0)),
+            int(round(th / (2.0 * math.pi) * 65536.0)) % 65536)
+
+
+@dataclass
+class PlanEvent:
+    t: float
+    reason: str
+    status: str
+    length_m: float
+    astar_length_m: float = math.nan     #: A* on the same request, if check_reference
+
+
+@dataclass
+class BaseStation:
+    grid: OccupancyGrid
+    cam: CameraModel
+    goal: tuple                                # (x, y) metres
+    planner: str = "sacodm"                    # or "astar"
+    saco: SacoParams = SacoParams()
+    inflate_m: float = 0.25                    # robot radius 0.15 m + 10 cm (range error)
+    replan_period_s: float = 3.0
+    goal_tolerance_m: float = 0.3
+    band_gap_fill: int = 3
+    check_reference: bool = False              # also run A* on every request (for reports)
+    max_disparity: int = 63                    # the matcher's largest disparity
+    max_speed_mps: float = 1.0                 # faster pose changes are implausible
+    decoder: FrameDecoder = field(default_factory=FrameDecoder)
+
+    def __post_init__(self):
+        self.path_cells: list = []
+        self.path_world: list = []
+        self.pose = None
+        self.last_t = None
+        self.last_plan_t = -math.inf
+        self.last_result: PlanResult | None = None
+        self.events: list[PlanEvent] = []
+        self.packets = 0
+        self.seq_gaps = 0
+        self.implausible = 0
+        self._last_seq = None
+
+    # -- radio side -------------------------------------------------------------------------
+    def receive(self, data: bytes, t: float) -> list[RadioPacket]:
+        """Feed raw UART bytes received at time ``t`` (s). Never raises on bad bytes."""
+        pkts = self.decoder.feed(data)
+        for pkt in pkts:
+            self.handle_packet(pkt, t)
+        return pkts
+
+    def plausible(self, pkt: RadioPacket, t: float) -> bool:
+        if max(pkt.bands) > self.max_disparity:
+            return False
+        if self.pose is not None and self.last_t is not None:
+            x, y, _ = pose_from_packet(pkt)
+            reach = self.max_speed_mps * max(t - self.last_t, 0.0) + 0.05
+            if math.hypot(x - self.pose[0], y - self.pose[1]) > reach:
+                return False
+        return True
+
+    def handle_packet(self, pkt: RadioPacket, t: float):
+        if not self.plausible(pkt, t):
+            self.implausible += 1
+            return
+        if self._last_seq is not None and pkt.seq != (self._last_seq + 1) & 0xFF:
+            self.seq_gaps += 1
+        self._last_seq = pkt.seq
+        self.packets += 1
+        pose = pose_from_packet(pkt)
+        dt = 0.0 if self.last_t is None else max(0.0, t - self.last_t)
+        self.last_t = t
+        self.pose = pose
+        obs = observe_bands(self.cam, pkt.bands, pkt.width, self.band_gap_fill)
+        newly = self.grid.update(pose, obs, dt)
+        reason = None
+        if not self.path_cells and self.last_result is None:
+            reason = "initial"
+        elif self.last_result is not None and not self.last_result.ok:
+            reason = "retry"
+        elif newly.any() and self._path_hit(newly):
+            reason = "blocked"
+        elif t - self.last_plan_t >= self.replan_period_s:
+            reason = "periodic"
+        if reason:
+            self.replan(t, reason)
+
+    # -- planning side ----------------------------------------------------------------------
+    def _path_hit(self, newly) -> bool:
+        grown = ndimage.binary_dilation(newly, structure=_disc(self.inflate_m / self.grid.res))
+        ahead = self._remaining_cells()
+        return any(grown[r, c] for r, c in ahead)
+
+    def _remaining_cells(self):
+        if not self.path_cells or self.pose is None:
+            return self.path_cells
+        r, c = self.grid.world_to_cell(self.pose[0], self.pose[1])
+        pts = np.asarray(self.path_cells)
+        k = int(np.argmin(np.hypot(pts[:, 0] - r, pts[:, 1] - c)))
+        return self.path_cells[k:]
+
+    def _nearest_free(self, blocked, cell, max_m):
+        r, c = cell
+        h, w = blocked.shape
+        r, c = int(np.clip(r, 0, h - 1)), int(np.clip(c, 0, w - 1))
+        if not blocked[r, c]:
+            return (r, c)
+        dist, (ir, ic) = ndimage.distance_transform_edt(blocked, return_indices=True)
+        if dist[r, c] * self.grid.res > max_m:
+            return None
+        return (int(ir[r, c]), int(ic[r, c]))
+
+    def plan_request(self):
+        """(blocked grid, start cell, goal cell) for the current pose."""
+        blocked = self.grid.blocked(self.inflate_m)
+        start = tuple(int(v) for v in self.grid.world_to_cell(self.pose[0], self.pose[1]))
+        goal = tuple(int(v) for v in self.grid.world_to_cell(*self.goal))
+        return blocked, start, goal
+
+    def endpoints(self, blocked, start, goal):
+        """Start and goal cells actually planned between: the nearest free cells (within
+        1 m of the robot, ``goal_tolerance_m`` of the goal), or the requested cells (so that
+        the planner reports the precise failure) when there is none."""
+        s = self._nearest_free(blocked, start, 1.0) if self.grid.inside(*start) else None
+        g = self._nearest_free(blocked, goal, self.goal_tolerance_m) \
+            if self.grid.inside(*goal) else None
+        return (s or start), (g or goal)
+
+    def plan(self, blocked, start, goal, planner=None) -> PlanResult:
+        planner = planner or self.planner
+        s, g = self.endpoints(blocked, start, goal)
+        return sacodm(blocked, s, g, self.saco) if planner == "sacodm" else astar(blocked, s, g)
+
+    def replan(self, t: float, reason: str) -> PlanResult:
+        blocked, start, goal = self.plan_request()
+        res = self.plan(blocked, start, goal)
+        ref = math.nan
+        if self.check_reference and res.ok:
+            a = astar(blocked, *self.endpoints(blocked, start, goal))
+            ref = a.length * self.grid.res if a.ok else math.nan
+        self.last_result = res
+        self.last_plan_t = t
+        self.events.append(PlanEvent(t, reason, res.status,
+                                     res.length * self.grid.res if res.ok else math.inf, ref))
+        if res.ok:
+            self.path_cells = list(res.path)
+            xs, ys = self.grid.cell_to_world([p[0] for p in res.path], [p[1] for p in res.path])
+            self.path_world = list(zip(map(float, xs), map(float, ys)))
+            self.path_world[-1] = tuple(self.goal) if res.path[-1] == goal else \
+                self.path_world[-1]
+        return res
+
+    @property
+    def replans(self) -> int:
+        return len(self.events)
+
+

@@ -1,0 +1,46 @@
+"""The perception step of the closed loop: the stereo pipeline's golden model, frame by frame.
+
+``GoldenPipeline(width, height)`` is a callable ``(left, right) -> (N, 3) int array of
+(x, y, d)``: the matches the FPGA hands the firmware. It keeps the per-camera ground model
+state between calls, as the hardware does (the ground band learned on frame n classifies frame
+n+1), so one instance must see the frames of one run in order, starting from reset.
+
+It steps ``golden.pipeline.PipelineModel`` (the model ``pipeline_frames`` runs over a whole
+list) one frame at a time, because the next frame depends on where the robot drives, with the
+parameters of ``golden.pipeline.default_params``.
+
+To run another model (or the RTL) in the loop, pass any callable with the same signature to
+``station.closedloop.run_world``; ``default_perceiver`` is the one line to change for a new
+default.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from golden.frontend import as_rgb
+from golden.pipeline import PipelineModel, default_params
+
+__all__ = ["GoldenPipeline", "default_perceiver"]
+
+
+class GoldenPipeline:
+    """Stateful frame-by-frame golden model of the whole pipeline (hue ground mode)."""
+
+    def __init__(self, width: int, height: int, params=None):
+        self.params = (params or default_params(width, height)).validate()
+        self.model = PipelineModel(self.params)
+        self.frames = 0
+        self.last_stats = None
+
+    def __call__(self, left, right) -> np.ndarray:
+        frame = self.model.step(as_rgb(left)[0], as_rgb(right)[0])
+        self.frames += 1
+        self.last_stats = frame.stats
+        records = frame.records
+        return np.stack([records["x"], records["y"], records["d"]], axis=1).astype(np.int64)
+
+
+def default_perceiver(width: int, height: int):
+    """The closed loop's default perception: the pipeline's golden model."""
+    return GoldenPipeline(width, height)

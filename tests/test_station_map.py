@@ -1,0 +1,163 @@
+"""Triangulation (station.camera) and the occupancy grid (station.grid)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.scenes import Box, Rig, World, backproject, render
+from station.camera import CameraModel, fill_band_gaps, observe_bands
+from station.closedloop import truth_matches
+from station.grid import GridParams, OccupancyGrid
+from station.radio import summarise_matches
+
+RIG = Rig.scaled(160, 120)
+CAM = CameraModel.from_rig(RIG)
+
+
+def test_depth_is_fb_over_d_and_zero_means_none():
+    d = np.array([0, 1, 5, 20])
+    z = CAM.depth_m(d)
+    assert math.isinf(z[0])
+    assert z[1:] == pytest.approx(RIG.focal_px * RIG.baseline_m / d[1:])
+
+
+@pytest.mark.parametrize("u,z", [(10.0, 1.0), (80.0, 2.5), (150.0, 0.7)])
+def test_column_to_point_matches_the_renderer_at_camera_height(u, z):
+    # the row of camera height is the horizon row; backproject is the renderer's geometry
+    v = RIG.cy - RIG.focal_px * math.tan(math.radians(RIG.pitch_deg))
+    x, y, h = backproject(RIG, u, v, z)
+    fwd, left = CAM.column_to_point(u, z)
+    assert h == pytest.approx(RIG.cam_height_m)
+    assert fwd == pytest.approx(x)
+    assert left + CAM.cam_left_m == pytest.approx(y)
+    assert CAM.column_bearing(u) == pytest.approx(math.atan2(left, fwd))
+
+
+def test_uncalibrated_model_and_error_growth():
+    nominal = CameraModel.nominal(160, 120, hfov_deg=64.0, baseline_m=0.12)
+    assert nominal.focal_px == pytest.approx(80.0 / math.tan(math.radians(32.0)))
+    # the range error of one pixel of disparity grows with 1/d^2
+    e = CAM.depth_error_m(np.array([2.0, 4.0, 8.0]))
+    assert e[0] / e[1] == pytest.approx(4.0) and e[1] / e[2] == pytest.approx(4.0)
+    # a relative focal-length error scales every range by the same factor
+    wrong = CameraModel.nominal(160, 120, hfov_deg=62.0, baseline_m=0.12)
+    ratio = CAM.depth_m(10.0) / wrong.depth_m(10.0)
+    assert ratio == pytest.approx(CAM.focal_px / wrong.focal_px)
+
+
+def test_band_gap_filling():
+    assert fill_band_gaps((0, 9, 0, 0, 7, 0, 0, 0, 0, 5), 3, 0) == (0, 9, 7, 7, 7, 0, 0, 0, 0, 5)
+    assert fill_band_gaps((0, 9, 0, 0, 7, 0, 0, 0, 0, 6)) == (0, 9, 7, 7, 7, 6, 6, 6, 6, 6)
+    assert fill_band_gaps((0, 9, 0, 0, 7, 0, 0, 0, 0, 5)) == (0, 9, 7, 7, 7, 0, 0, 0, 0, 5)
+    assert fill_band_gaps((20, 0, 0, 0, 0, 5)) == (20, 0, 0, 0, 0, 5)     # disagree: kept
+    assert fill_band_gaps((0, 0, 0), 3) == (0, 0, 0)
+
+
+def test_box_ahead_is_triangulated_at_its_face():
+    # a box whose front face is 2 m ahead of the robot, seen through the truth matcher
+    world = World(obstacles=(Box(2.0, -0.4, 2.4, 0.4, 0.5),))
+    frame = render(world, RIG, pose=(0.0, 0.0, 0.0), supersample=False)
+    bands = summarise_matches(truth_matches(frame).tolist(), 160, 32, 3)
+    obs = observe_bands(CAM, bands, 160)
+    centre = np.nonzero((obs.bearing_lo <= 0.0) & (obs.bearing_hi >= 0.0))[0]
+    assert list(centre) == [15, 16]
+    # top of the box is above the camera: the estimate is a little nearer (safe side)
+    assert all(1.85 < obs.forward_m[i] <= 2.02 for i in centre)
+    assert all(math.isinf(f) or f > 10 for f in obs.forward_m[:5])   # far wall / nothing
+
+
+def _grid():
+    return OccupancyGrid(-0.5, -1.5, 4.0, 1.5, GridParams())
+
+
+def _obs(forward):
+    """32 bands, all with the same forward distance (inf = nothing)."""
+    return observe_bands(CAM, tuple([0] * 32) if math.isinf(forward) else
+                         tuple([max(1, round(CAM.fb / (forward * math.cos(
+                             math.radians(CAM.pitch_deg)))))] * 32), 160, 0)
+
+
+def _hit_cell(g, forward):
+    """Cell just behind the face that _obs(forward) reports, straight ahead of the camera."""
+    return g.world_to_cell(_obs(forward).forward_m[16] + 0.02, CAM.cam_left_m)
+
+
+def test_grid_marks_hit_and_free_space():
+    g = _grid()
+    obs = _obs(2.0)
+    for _ in range(3):
+        g.update((0.0, 0.0, 0.0), obs, dt=0.1)
+    occ = g.occupied()
+    d = CAM.fb / obs.disparity[16] / math.cos(math.radians(CAM.pitch_deg))
+    r, c = g.world_to_cell(d + 0.02, 0.06)
+    assert occ[r, c]
+    r, c = g.world_to_cell(1.0, 0.0)
+    assert g.logodds[r, c] < 0 and not occ[r, c]
+    r, c = g.world_to_cell(3.0, 0.0)          # behind the obstacle: unknown
+    assert g.logodds[r, c] == 0
+    r, c = g.world_to_cell(1.0, -1.4)         # outside the field of view: unknown
+    assert g.logodds[r, c] == 0
+
+
+def test_grid_respects_pose():
+    g = _grid()
+    for _ in range(3):
+        g.update((1.0, 0.5, math.pi / 2), _obs(0.8), dt=0.1)   # looking along +y
+    r, c = g.world_to_cell(1.0 - 0.06, 0.5 + 0.82)
+    assert g.occupied()[r, c]
+
+
+def test_obstacle_that_moves_away_clears():
+    g = _grid()
+    for _ in range(10):
+        g.update((0.0, 0.0, 0.0), _obs(1.5), dt=0.1)
+    r, c = _hit_cell(g, 1.5)
+    assert g.occupied()[r, c]
+    # the obstacle is gone: the band now sees the far wall (beyond max range)
+    far = observe_bands(CAM, tuple([1] * 32), 160, 0)
+    n = 0
+    while g.occupied()[r, c]:
+        g.update((0.0, 0.0, 0.0), far, dt=0.1)
+        n += 1
+        assert n < 20
+    assert n <= 12
+
+
+def test_aging_forgets_unobserved_obstacles():
+    g = _grid()
+    for _ in range(10):
+        g.update((0.0, 0.0, 0.0), _obs(1.5), dt=0.1)
+    r, c = _hit_cell(g, 1.5)
+    assert g.occupied()[r, c]
+    g.age(5.0)
+    assert g.occupied()[r, c]                    # a few seconds out of view: remembered
+    g.age(40.0)
+    assert not g.occupied()[r, c]                # long out of view: forgotten
+    assert g.logodds[r, c] > 0
+
+
+def test_hits_need_confirmation_and_new_cells_are_reported_once():
+    g = _grid()
+    new = [g.update((0.0, 0.0, 0.0), _obs(1.5), dt=0.1).sum() for _ in range(4)]
+    assert new[0] == 0                  # one frame's hit is not enough (phantom matches)
+    assert new[1] > 0 and new[2] == 0 and new[3] == 0
+
+
+def test_missing_matches_do_not_clear():
+    # an edge-based sensor says nothing about a band without matches (plain face, sky)
+    g = _grid()
+    for _ in range(5):
+        g.update((0.0, 0.0, 0.0), _obs(1.5), dt=0.1)
+    r, c = _hit_cell(g, 1.5)
+    before = g.logodds[r, c]
+    for _ in range(20):
+        g.update((0.0, 0.0, 0.0), _obs(math.inf), dt=0.0)
+    assert g.logodds[r, c] == before
+
+
+def test_inflation_by_robot_radius():
+    g = _grid()
+    g.logodds[30, 40] = 3.0
+    b = g.blocked(0.2)
+    assert b[30, 44] and b[34, 40] and not b[30, 45] and not b[34, 44]
