@@ -11,6 +11,9 @@ def _scalar_values(params):
     """(port, value) of the Sobel and matcher parameters present in ``params``."""
     sp = getattr(params, "frontend", params).sobel
     values = [("threshold", sp.threshold), ("ratio", sp.ratio), ("nms", int(sp.nms))]
+    if hasattr(params, "right_threshold"):
+        right = sp.threshold if params.right_threshold is None else params.right_threshold
+        values.append(("right_threshold", right))
     mp = getattr(params, "matcher", None)
     if mp is not None:
         values += [("d_min", mp.d_min), ("d_max", mp.d_max), ("uniqueness", mp.uniqueness),
