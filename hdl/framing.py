@@ -39,6 +39,7 @@ class FrameTracker(Elaboratable):
 
     def __init__(self, *, max_width=1024, max_height=1024):
         if max_width < 1 or max_height < 1:
+            self._MustUse__silence = True      # never elaborated: no "unused" warning
             raise ValueError(f"max_width and max_height must be at least 1, "
                              f"not {max_width} and {max_height}")
         self.max_width = max_width

@@ -114,6 +114,7 @@ class SobelEdges(wiring.Component):
     def __init__(self, *, max_width=1024, max_height=1024):
         for name, value in (("max_width", max_width), ("max_height", max_height)):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                self._MustUse__silence = True  # never elaborated: no "unused" warning
                 raise ValueError(f"{name} must be an integer of at least 1, not {value!r}")
         self._max_width = max_width
         self._max_height = max_height

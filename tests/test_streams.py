@@ -7,6 +7,7 @@ from golden.ground import GroundParams
 from hdl.ground import GroundClassifier, GroundConfig
 from hdl.types import RGBPixel, frame_layout
 from sim.config import config_values
+from sim.export import silenced
 from sim.streams import Packer, frame_words, frames_words, words_to_frames, malformed_cases, Reset
 
 
@@ -23,7 +24,7 @@ def test_wide_layouts_pack_as_python_ints_and_refuse_arrays():
     p = Packer(GroundConfig)
     assert p.width > 64
     params = GroundParams(s_min=200, hue_centre0=150, luma_centre0=77)
-    word = config_values(GroundClassifier(max_width=8, max_height=8),
+    word = config_values(silenced(GroundClassifier(max_width=8, max_height=8)),
                          FrontEndParams(ground=params))["config"]
     for name, _ in GroundParams.FIELDS:
         offset, width = p.fields[name]
