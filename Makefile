@@ -50,6 +50,9 @@ firmware: setup
 cosim: setup firmware
 	$(PY) -m sim.cosim.run
 
+bench: setup
+	$(PY) -m sim.bench --out build/bench
+
 demo: setup
 	$(PY) -m station.demo --out build/demo
 

@@ -1,0 +1,68 @@
+"""`make bench` smoke test: the bench runs end to end on a tiny input (``--quick``: a 200x120
+crop of the motorcycle pair, small scenes, no synthesis, no cocotb) and writes every output with
+the keys the issue asks for. Benchmarks are not tests: no figure or timing is asserted here."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sim.bench import BM_BLOCKS, score
+
+ROOT = Path(__file__).resolve().parent.parent
+ACCURACY_KEYS = ("density", "bad1", "bad2", "avgerr", "sad_eval_fraction")
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    r = subprocess.run([sys.executable, "-m", "sim.bench", "--quick", "--out", str(out)],
+                       cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr[-3000:]
+    return out, r
+
+
+def test_quick_bench_writes_report_and_plots(quick_run):
+    out, _ = quick_run
+    for name in ("report.md", "report.json", "error_map.png", "sweep.png"):
+        assert (out / name).stat().st_size > 0, name
+    for name in ("error_map.png", "sweep.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (out / "report.md").read_text()
+    assert "(error_map.png)" in md and "(sweep.png)" in md
+
+
+def test_quick_bench_json_has_the_keys(quick_run):
+    out, _ = quick_run
+    rep = json.loads((out / "report.json").read_text())
+    for method in ["pipeline_default", "pipeline_adaptive", "pipeline_full",
+                   *(f"stereobm_{b}" for b in BM_BLOCKS)]:
+        for key in ACCURACY_KEYS:
+            assert isinstance(rep[method][key], float), (method, key)
+    for section in ("resources", "throughput", "sim_speed", "software_speed",
+                    "ground_agreement", "sweep", "check", "provenance"):
+        assert section in rep, section
+    assert rep["meta"]["quick"] and "skipped" in rep["resources"]
+    assert {"amaranth", "verilator"} <= set(rep["sim_speed"]["backends"])
+    assert rep["throughput"]["scenes"] and rep["software_speed"]["stereobm_7_s"] > 0
+    # every figure's origin is recorded
+    assert any(k.startswith("accuracy.stereobm_") for k in rep["provenance"])
+
+
+def test_quick_bench_prints_progress_and_sources(quick_run):
+    _, r = quick_run
+    assert "[1/9]" in r.stderr and "[9/9]" in r.stderr
+    assert "<- accuracy.pipeline_default:" in r.stderr
+
+
+def test_score():
+    import numpy as np
+    gt = np.array([[1.0, 2.0, np.inf], [4.0, 5.0, 6.0]])
+    scored = np.array([[True, True, False], [True, False, True]])
+    # matches: (0,0) exact, (1,0) off by 1.5, (0,1) off by 3, (1,1) not scored, (2,0) unknown gt
+    r = score([0, 1, 0, 1, 2], [0, 0, 1, 1, 0], [1.0, 3.5, 7.0, 0.0, 9.0], scored, gt)
+    assert r["scored_pixels"] == 4 and r["matched"] == 3
+    assert r["density"] == 0.75
+    assert r["bad1"] == pytest.approx(2 / 3) and r["bad2"] == pytest.approx(1 / 3)
+    assert r["avgerr"] == pytest.approx((0 + 1.5 + 3) / 3)
