@@ -1,0 +1,61 @@
+"""The stereo pipeline top against the chained golden model: full frames under Verilator
+(the Middlebury motorcycle pair and synthetic scenes, with and without stalls), crops under
+Amaranth's simulator with stalls, and the matcher's statistics of the last frame."""
+import numpy as np
+import pytest
+
+from golden.pipeline import default_params
+from sim.backends import run_unit
+from sim.data import motorcycle, crop
+from sim.units import UNITS, Job, records_from_words
+
+STATS = {"edge_pixels": "frame_edge_pixels", "sad_evaluations": "frame_sad_evaluations",
+         "matches": "frame_matches", "rejected": "frame_rejected", "drops": "frame_drops",
+         "border": "frame_border", "no_candidate": "frame_no_candidate"}
+
+
+def check(job, backend, stall_seed=None):
+    result = run_unit(UNITS["pipeline"], job, backend=backend, stall_seed=stall_seed,
+                      timeout=1_000_000)
+    got = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"])
+    assert len(got) == len(job.left)
+    for k, (g, frame) in enumerate(zip(got, job.golden)):
+        assert np.array_equal(g, frame.records), f"frame {k}: records differ"
+    if result["status"]:
+        last = job.golden[-1].stats
+        assert {k: result["status"][v] for k, v in STATS.items()} == \
+            {k: int(last[k]) for k in STATS}
+    return result, sum(len(g) for g in got)
+
+
+@pytest.mark.parametrize("stalls", [None, 7])
+def test_motorcycle_full_frames_verilator(stalls):
+    left, right, _ = motorcycle()
+    h, w = left.shape[:2]
+    job = Job([left, left], [right, right], default_params(w, h, ground="off"))
+    _, matches = check(job, "verilator", stalls)
+    assert matches > 10000
+
+
+@pytest.mark.parametrize("scene, stalls", [("mixed", 3), ("boxes", None), ("poles", 5)])
+def test_synthetic_scenes_full_frames_verilator(scene, stalls):
+    from sim.scenes import make_scene
+    frames = [make_scene(scene, 752, 480, brightness=b) for b in (1.0, 0.8)]
+    job = Job([f.left for f in frames], [f.right for f in frames], default_params(752, 480))
+    _, matches = check(job, "verilator", stalls)
+    assert matches > 100
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_crops_amaranth_with_stalls(seed):
+    from sim.scenes import make_scene
+    left, right, _ = motorcycle()
+    scene = make_scene("mixed", 752, 480)
+    pairs = [(crop(left, 40, 10, 380, 240), crop(right, 40, 10, 380, 240)),
+             (np.ascontiguousarray(scene.left[180:190, 460:500]),
+              np.ascontiguousarray(scene.right[180:190, 460:500]))]
+    l, r = pairs[seed - 1]
+    params = default_params(40, 10, ground="off" if seed == 1 else "hue", d_max=31, window=5)
+    job = Job([l, l, l], [r, r, r], params, max_width=64, max_height=16, max_disparity=31)
+    _, matches = check(job, "amaranth", seed)
+    assert matches > 0
