@@ -37,9 +37,10 @@ HARNESS = Path(__file__).resolve().parent / "harness.cpp"
 VERILATOR_FLAGS = ["-O3", "--x-assign", "fast", "--x-initial", "fast", "-Wno-fatal", "-Wno-lint",
                    "-Wno-style", "--noassert"]
 CFLAGS = "-std=c++17"
-#: Optimisation of the Verilated model: -O1 builds about twice as fast as -O2 for nearly the
-#: same simulation speed on these designs.
-OPT = "-O1"
+#: Optimisation of the Verilated model's fast path: -O3 runs the whole pipeline about 20 %
+#: faster than -O1 (483k against 397k cycles/s on the motorcycle pair) for about 17 s more build
+#: time per design, once (builds are cached).
+OPT = "-O3"
 
 
 class VerilatorError(RuntimeError):
