@@ -26,7 +26,7 @@ from amaranth.sim import Simulator
 from hdl.types import FRAMING
 
 __all__ = ["Packer", "frame_words", "frames_words", "words_to_frames", "Reset", "Deadlock",
-           "malformed_cases", "run_streams",
+           "malformed_cases", "run_streams", "run_simulation",
            "stream_put", "stream_get", "run_stream_unit", "StreamRun"]
 
 
@@ -183,6 +183,19 @@ class StreamRun:
     probes: dict = field(default_factory=dict)   # values of the probed ports at the end
 
 
+def run_simulation(sim, vcd=None, *, name="unit"):
+    """Run ``sim`` to the end, writing a VCD to ``vcd`` when given or when the environment
+    variable ``WAVES=1`` is set (then to ``build/waves/<name>.vcd``)."""
+    if vcd is None and os.environ.get("WAVES") == "1":
+        vcd = f"build/waves/{name}.vcd"
+    if vcd:
+        os.makedirs(os.path.dirname(vcd) or ".", exist_ok=True)
+        with sim.write_vcd(vcd):
+            sim.run()
+    else:
+        sim.run()
+
+
 def _eof_bit(port):
     shape = port.payload.shape() if hasattr(port.payload, "shape") else None
     if isinstance(shape, data.StructLayout) and "eof" in dict(shape):
@@ -255,14 +268,7 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
         sim.add_testbench(producer(k, name, words), background=True)
     for k, (name, want) in enumerate(outputs.items()):
         sim.add_testbench(consumer(k, name, want))
-    if vcd is None and os.environ.get("WAVES") == "1":
-        vcd = f"build/waves/{type(dut).__name__}.vcd"
-    if vcd:
-        os.makedirs(os.path.dirname(vcd) or ".", exist_ok=True)
-        with sim.write_vcd(vcd):
-            sim.run()
-    else:
-        sim.run()
+    run_simulation(sim, vcd, name=type(dut).__name__)
     result.first_in = state["start"] or 0
     result.last_out = state["last"]
     result.cycles = state["last"] - result.first_in

@@ -11,7 +11,6 @@ Covered: synthetic shifted-texture pairs (2 frames, odd and even heights, window
 one input cut short, frames of different heights and widths, reset mid-frame, drop mode with
 and without pressure, elaboration errors. Full frames run under Verilator elsewhere.
 """
-import os
 import random
 
 import numpy as np
@@ -23,7 +22,7 @@ from golden.matcher import MatcherParams, match, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher, STAT_NAMES
 from hdl.types import EdgePixel
-from sim.streams import Packer, frames_words, Reset, Deadlock
+from sim.streams import Packer, frames_words, Reset, Deadlock, run_simulation
 
 EDGE = Packer(EdgePixel)
 CLOCK = 1e-8
@@ -192,14 +191,7 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
     sim.add_testbench(put_left, background=True)
     sim.add_testbench(put_right, background=True)
     sim.add_testbench(get)
-    if vcd is None and os.environ.get("WAVES") == "1":
-        vcd = "build/waves/Matcher.vcd"
-    if vcd:
-        os.makedirs(os.path.dirname(vcd), exist_ok=True)
-        with sim.write_vcd(vcd):
-            sim.run()
-    else:
-        sim.run()
+    run_simulation(sim, vcd, name="Matcher")
     return run
 
 

@@ -16,8 +16,8 @@ from golden.sobel import (DEFAULT_THRESHOLD, SobelParams, edge_density, gradient
                           sobel_edges)
 from hdl.sobel import SobelEdges
 from hdl.types import EdgePixel, GroundPixel
-from sim.streams import (Deadlock, Packer, Reset, frame_words, frames_words, run_stream_unit,
-                         stream_get, stream_put, words_to_frames)
+from sim.streams import (Deadlock, Packer, Reset, frame_words, frames_words, run_simulation,
+                         run_stream_unit, stream_get, stream_put, words_to_frames)
 
 PIN = Packer(GroundPixel)
 POUT = Packer(EdgePixel)
@@ -300,13 +300,7 @@ def simulate(segments, *, out_frames, seed=0, idle=0.0, stall=0.0, max_width=32,
     sim.add_process(counter)
     sim.add_testbench(producer, background=True)
     sim.add_testbench(consumer)
-    if vcd:
-        import os
-        os.makedirs(os.path.dirname(vcd), exist_ok=True)
-        with sim.write_vcd(vcd):
-            sim.run()
-    else:
-        sim.run()
+    run_simulation(sim, vcd, name="SobelEdges")
     return state["words"], state["errors"], state["dropped"], state["cycles"]
 
 
