@@ -5,7 +5,7 @@ from amaranth.lib.wiring import In, Out
 
 from golden.color import RECIP, HUE_SEXTANT, HUE_STEPS
 from .types import RGBPixel, YHSPixel
-from .framing import FrameTracker
+from .framing import FrameTracker, check_frame_size
 
 __all__ = ["ColorConvert"]
 
@@ -35,6 +35,7 @@ class ColorConvert(wiring.Component):
     dropped: Out(32)
 
     def __init__(self, *, max_width=1024, max_height=1024):
+        check_frame_size(self, max_width, max_height)
         self._max_width = max_width
         self._max_height = max_height
         super().__init__()

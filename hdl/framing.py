@@ -18,7 +18,17 @@ Rules (identical for every unit, see also ``sim/streams.py`` for the test side):
 from amaranth.hdl import Elaboratable, Module, Signal, Mux
 from amaranth.utils import bits_for
 
-__all__ = ["FrameTracker"]
+__all__ = ["FrameTracker", "check_frame_size"]
+
+
+def check_frame_size(unit, max_width, max_height):
+    """Raise :class:`ValueError` unless both elaboration limits are integers of at least 1 (every
+    unit's constructor calls this; ``unit`` is marked so a rejected unit raises no "never
+    elaborated" warning)."""
+    for name, value in (("max_width", max_width), ("max_height", max_height)):
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            unit._MustUse__silence = True
+            raise ValueError(f"{name} must be an integer of at least 1, not {value!r}")
 
 
 class FrameTracker(Elaboratable):
@@ -38,10 +48,7 @@ class FrameTracker(Elaboratable):
     """
 
     def __init__(self, *, max_width=1024, max_height=1024):
-        if max_width < 1 or max_height < 1:
-            self._MustUse__silence = True      # never elaborated: no "unused" warning
-            raise ValueError(f"max_width and max_height must be at least 1, "
-                             f"not {max_width} and {max_height}")
+        check_frame_size(self, max_width, max_height)
         self.max_width = max_width
         self.max_height = max_height
         self.beat = Signal()

@@ -8,6 +8,7 @@ from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .color import ColorConvert
 from .ground import GroundClassifier, GroundConfig
 from .sobel import SobelEdges
+from .framing import check_frame_size
 from .types import RGBPixel, EdgePixel
 
 __all__ = ["FrontEnd"]
@@ -46,6 +47,7 @@ class FrontEnd(wiring.Component):
     dropped: Out(32)
 
     def __init__(self, *, max_width=1024, max_height=1024):
+        check_frame_size(self, max_width, max_height)
         self._max_width = max_width
         self._max_height = max_height
         super().__init__()

@@ -6,7 +6,7 @@ from amaranth.lib.wiring import In, Out
 from golden.color import HUE_STEPS
 from golden.ground import GroundParams, HIST_BITS, HIST_MAX
 from .types import YHSPixel, GroundPixel
-from .framing import FrameTracker
+from .framing import FrameTracker, check_frame_size
 
 __all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES"]
 
@@ -55,6 +55,7 @@ class GroundClassifier(wiring.Component):
     dropped: Out(32)
 
     def __init__(self, *, max_width=1024, max_height=1024):
+        check_frame_size(self, max_width, max_height)
         self._max_width = max_width
         self._max_height = max_height
         super().__init__()

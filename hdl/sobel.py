@@ -65,7 +65,7 @@ from amaranth.lib.wiring import In, Out
 
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .types import GroundPixel, EdgePixel
-from .framing import FrameTracker
+from .framing import FrameTracker, check_frame_size
 
 __all__ = ["SobelEdges"]
 
@@ -112,10 +112,7 @@ class SobelEdges(wiring.Component):
     dropped: Out(32)
 
     def __init__(self, *, max_width=1024, max_height=1024):
-        for name, value in (("max_width", max_width), ("max_height", max_height)):
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                self._MustUse__silence = True  # never elaborated: no "unused" warning
-                raise ValueError(f"{name} must be an integer of at least 1, not {value!r}")
+        check_frame_size(self, max_width, max_height)
         self._max_width = max_width
         self._max_height = max_height
         super().__init__()

@@ -108,7 +108,14 @@ def test_malformed_stream_recovers(case):
     assert run.probes == {"errors": errors, "dropped": dropped}
 
 
-def test_bad_parameters():
-    from hdl.framing import FrameTracker
-    with pytest.raises(ValueError, match="max_width"):
-        FrameTracker(max_width=0)
+@pytest.mark.parametrize("unit", ["FrameTracker", "ColorConvert", "GroundClassifier",
+                                  "SobelEdges", "FrontEnd"])
+@pytest.mark.parametrize("kwargs, message", [(dict(max_width=0), "max_width must be"),
+                                             (dict(max_height=2.5), "max_height must be"),
+                                             (dict(max_width=True), "max_width must be")])
+def test_bad_frame_limits_are_rejected_at_construction(unit, kwargs, message):
+    import hdl.color, hdl.framing, hdl.frontend, hdl.ground, hdl.sobel
+    cls = next(getattr(mod, unit) for mod in (hdl.framing, hdl.color, hdl.ground, hdl.sobel,
+                                               hdl.frontend) if hasattr(mod, unit))
+    with pytest.raises(ValueError, match=message):
+        cls(**kwargs)
