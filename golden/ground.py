@@ -34,7 +34,7 @@ Classification of each pixel (1 = ground, 0 = obstacle)::
 Learning runs in every mode (the histograms cost nothing extra), so switching modes takes effect
 with an already-learned band.
 """
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np

@@ -6,7 +6,7 @@ import numpy as np
 
 from .frontend import FrontEndParams, FrontEndFrame, FrontEndModel
 from .ground import GroundMode, GroundParams
-from .matcher import MatcherParams, match, RECORD_DTYPE, STAT_KEYS
+from .matcher import MatcherParams, match
 from .sobel import SobelParams
 
 __all__ = ["PipelineParams", "PipelineFrame", "PipelineModel", "pipeline_frames",

@@ -5,7 +5,7 @@ The bit-exact specification (decoding rules, colour conversion, error counting) 
 ``golden/bt656.py``; this unit matches it beat for beat.
 """
 
-from amaranth.hdl import Cat, Module, Mux, Signal, signed
+from amaranth.hdl import Module, Mux, Signal, signed
 from amaranth.lib import stream, wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out

@@ -1,6 +1,6 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
-from amaranth.hdl import Module, Signal, Mux, Cat
-from amaranth.lib import wiring, stream, memory, data, enum
+from amaranth.hdl import Module, Signal, Mux
+from amaranth.lib import wiring, stream, memory, data
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS

@@ -400,7 +400,7 @@ def resources(bench, out_dir, quick):
 def pipeline_rtl_run(left, right, params, frames):
     """The pipeline RTL on the Verilator harness (no idle cycles, no backpressure), as
     sim.backends.run_unit runs it, keeping the harness's own timing."""
-    from sim.units import UNITS, Job, records_from_words
+    from sim.units import UNITS, Job
     from sim.config import config_values
     from sim.verilator import run_verilator
     unit = UNITS["pipeline"]

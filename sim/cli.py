@@ -149,7 +149,6 @@ def default_pair(scene):
 
 
 def cmd_run(args):
-    from golden.pipeline import pipeline_frames
     from .units import UNITS, Job, records_from_words
     from .backends import run_unit
     from .views import write_outputs

@@ -32,7 +32,7 @@ import numpy as np
 from amaranth.hdl import Shape
 from amaranth.lib import data, stream, wiring
 
-from sim.streams import Packer, frames_words
+from sim.streams import Packer
 
 __all__ = ["Design", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
            "elaborate", "verilog_source", "export_verilog", "tool_versions", "main"]

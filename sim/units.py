@@ -2,16 +2,15 @@
 stereo job, and what the golden model expects. Adding a unit is one entry in :data:`UNITS`."""
 from dataclasses import dataclass
 from functools import cached_property
+from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
 
-from golden.ground import GroundParams
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.frontend import frontend_frames
 from hdl import types
 from .streams import Packer, frames_words, words_to_frames
-from .config import apply_config, config_values
 
 __all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pixel_mismatches", "records_from_words"]
 
@@ -30,7 +29,8 @@ class Job:
     def golden(self):
         if self.right:
             return pipeline_frames(self.left, self.right, self.params)
-        return [type("Frame", (), {"left": f}) for f in frontend_frames(self.left, self.params.frontend)]
+        # one camera: frames with only the left front end's result
+        return [SimpleNamespace(left=f) for f in frontend_frames(self.left, self.params.frontend)]
 
 
 def rgb(frame):

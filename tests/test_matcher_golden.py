@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from golden.matcher import MatcherParams, match, accuracy, candidates, STAT_KEYS
+from golden.matcher import MatcherParams, match, accuracy, STAT_KEYS
 
 # ------------------------------------------------------------------ helpers
 

@@ -1,6 +1,5 @@
 """The vision core as the CPU sees it: configure through registers, stream a stereo pair,
 read the results out of the FIFO over the MCS I/O bus; compare with the golden pipeline."""
-import numpy as np
 from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
