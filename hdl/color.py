@@ -1,16 +1,16 @@
 """Colour conversion unit: RGB888 -> Y, H, S (specification: ``golden/color.py``)."""
 from amaranth.hdl import Module, Signal, Mux, Cat
-from amaranth.lib import wiring, stream, memory
+from amaranth.lib import stream, memory
 from amaranth.lib.wiring import In, Out
 
 from golden.color import RECIP, HUE_SEXTANT, HUE_STEPS
 from .types import RGBPixel, YHSPixel
-from .framing import FrameTracker, check_frame_size
+from .framing import FramedUnit
 
 __all__ = ["ColorConvert"]
 
 
-class ColorConvert(wiring.Component):
+class ColorConvert(FramedUnit):
     """RGB888 to luminance, hue and saturation, one pixel per clock.
 
     Ports
@@ -34,16 +34,9 @@ class ColorConvert(wiring.Component):
     errors: Out(16)
     dropped: Out(32)
 
-    def __init__(self, *, max_width=1024, max_height=1024):
-        check_frame_size(self, max_width, max_height)
-        self._max_width = max_width
-        self._max_height = max_height
-        super().__init__()
-
     def elaborate(self, platform):
         m = Module()
-        m.submodules.track = track = FrameTracker(max_width=self._max_width,
-                                                  max_height=self._max_height)
+        m.submodules.track = track = self.frame_tracker()
         m.submodules.recip = recip = memory.Memory(shape=17, depth=256, init=[int(v) for v in RECIP])
 
         p = self.i.payload

@@ -16,9 +16,10 @@ Rules (identical for every unit, see also ``sim/streams.py`` for the test side):
   dropped beat adds one to ``dropped``. Both counters saturate and are cleared only by reset.
 """
 from amaranth.hdl import Elaboratable, Module, Signal, Mux
+from amaranth.lib import wiring
 from amaranth.utils import bits_for
 
-__all__ = ["FrameTracker", "check_frame_size"]
+__all__ = ["FrameTracker", "FramedUnit", "check_frame_size"]
 
 
 def check_frame_size(unit, max_width, max_height):
@@ -112,3 +113,18 @@ class FrameTracker(Elaboratable):
                 with m.If(~dropping | self.in_frame):
                     m.d.sync += saturating_inc(self.errors)
         return m
+
+
+class FramedUnit(wiring.Component):
+    """Base of the pixel units: the keyword-only frame limits ``max_width`` and ``max_height``
+    (checked at construction, kept as ``self._max_width`` / ``self._max_height``) and the
+    :class:`FrameTracker` sized by them. Each unit declares its own ports."""
+
+    def __init__(self, *, max_width=1024, max_height=1024):
+        check_frame_size(self, max_width, max_height)
+        self._max_width = max_width
+        self._max_height = max_height
+        super().__init__()
+
+    def frame_tracker(self):
+        return FrameTracker(max_width=self._max_width, max_height=self._max_height)

@@ -8,13 +8,13 @@ from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .color import ColorConvert
 from .ground import GroundClassifier, GroundConfig
 from .sobel import SobelEdges
-from .framing import check_frame_size
+from .framing import FramedUnit
 from .types import RGBPixel, EdgePixel
 
 __all__ = ["FrontEnd"]
 
 
-class FrontEnd(wiring.Component):
+class FrontEnd(FramedUnit):
     """One camera's front end, one pixel per clock.
 
     Ports
@@ -45,12 +45,6 @@ class FrontEnd(wiring.Component):
     centre_y: Out(8)
     errors: Out(16)
     dropped: Out(32)
-
-    def __init__(self, *, max_width=1024, max_height=1024):
-        check_frame_size(self, max_width, max_height)
-        self._max_width = max_width
-        self._max_height = max_height
-        super().__init__()
 
     def elaborate(self, platform):
         m = Module()

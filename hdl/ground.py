@@ -1,12 +1,12 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
 from amaranth.hdl import Module, Signal, Mux
-from amaranth.lib import wiring, stream, memory, data
+from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS
 from golden.ground import GroundParams, HIST_BITS, HIST_MAX
 from .types import YHSPixel, GroundPixel
-from .framing import FrameTracker, check_frame_size
+from .framing import FramedUnit
 
 __all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES"]
 
@@ -18,7 +18,7 @@ GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIEL
 SEARCH_CYCLES = 259
 
 
-class GroundClassifier(wiring.Component):
+class GroundClassifier(FramedUnit):
     """Learns the ground's hue and luminance from a reference region and marks each pixel
     ground (1) or obstacle (0), one pixel per clock.
 
@@ -54,18 +54,11 @@ class GroundClassifier(wiring.Component):
     errors: Out(16)
     dropped: Out(32)
 
-    def __init__(self, *, max_width=1024, max_height=1024):
-        check_frame_size(self, max_width, max_height)
-        self._max_width = max_width
-        self._max_height = max_height
-        super().__init__()
-
     def elaborate(self, platform):
         m = Module()
         cfg = self.config
         p = self.i.payload
-        m.submodules.track = track = FrameTracker(max_width=self._max_width,
-                                                  max_height=self._max_height)
+        m.submodules.track = track = self.frame_tracker()
         m.d.comb += [track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
                      self.errors.eq(track.errors), self.dropped.eq(track.dropped)]
 

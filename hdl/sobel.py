@@ -60,12 +60,12 @@ of the output like any other (``i.ready`` does not look at the payload). A reset
 the registers the same way (not the line buffer, which needs no clearing).
 """
 from amaranth.hdl import Module, Signal, Mux, Cat
-from amaranth.lib import wiring, stream, memory, data
+from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .types import GroundPixel, EdgePixel
-from .framing import FrameTracker, check_frame_size
+from .framing import FramedUnit
 
 __all__ = ["SobelEdges"]
 
@@ -73,7 +73,7 @@ __all__ = ["SobelEdges"]
 _Tag = data.StructLayout({"emit": 1, "inter": 1, "sof": 1, "eol": 1, "eof": 1})
 
 
-class SobelEdges(wiring.Component):
+class SobelEdges(FramedUnit):
     """3x3 Sobel vertical-edge detector with non-maximum suppression, one pixel per clock.
 
     Ports
@@ -111,16 +111,9 @@ class SobelEdges(wiring.Component):
     errors: Out(16)
     dropped: Out(32)
 
-    def __init__(self, *, max_width=1024, max_height=1024):
-        check_frame_size(self, max_width, max_height)
-        self._max_width = max_width
-        self._max_height = max_height
-        super().__init__()
-
     def elaborate(self, platform):
         m = Module()
-        m.submodules.track = track = FrameTracker(max_width=self._max_width,
-                                                  max_height=self._max_height)
+        m.submodules.track = track = self.frame_tracker()
         m.submodules.lines = lines = memory.Memory(shape=17, depth=self._max_width, init=[])
         wr = lines.write_port()
         rd = lines.read_port(transparent_for=(wr,))
