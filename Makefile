@@ -9,14 +9,14 @@ SYSTEM_STAMP := build/.system-packages
 # command is missing; needs root or sudo, as on the project's machines).
 DEBIAN_PACKAGES := iverilog ghdl g++ make
 
-.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo clean
+.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo install-check clean
 
 setup: $(STAMP) $(SYSTEM_STAMP)
 
 $(STAMP): pyproject.toml
 	$(PYTHON_SYS) -m venv $(VENV)
 	$(VENV)/bin/pip install -q --upgrade pip
-	$(VENV)/bin/pip install -q -e .
+	$(VENV)/bin/pip install -q -e ".[test]"
 	touch $@
 
 $(SYSTEM_STAMP):
@@ -55,6 +55,16 @@ bench: setup
 
 demo: setup
 	$(PY) -m station.demo --out build/demo
+
+# The package as a user gets it: build the wheel, install it into a fresh virtual environment
+# and run the main job from a folder outside the checkout (exit 0 only when bit-exact).
+install-check: setup
+	rm -rf build/dist build/install-venv build/install-run
+	$(PY) -m pip wheel --no-deps --no-build-isolation -q -w build/dist .
+	$(PYTHON_SYS) -m venv build/install-venv
+	build/install-venv/bin/pip install -q build/dist/*.whl
+	mkdir -p build/install-run
+	cd build/install-run && ../install-venv/bin/python -m sim run --scene mixed --out out
 
 clean:
 	rm -rf build

@@ -34,10 +34,25 @@ from amaranth.lib import data, stream, wiring
 
 from sim.streams import Packer
 
-__all__ = ["Design", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
+__all__ = ["ROOT", "BUILD", "source_key", "Design", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
            "elaborate", "verilog_source", "export_verilog", "tool_versions", "main"]
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def _build_dir():
+    """Where generated files go: ``$STEREO_BUILD_DIR`` if set, ``build/`` of the source
+    checkout, or ``build/`` under the working directory for an installed package (whose
+    site-packages is no place for build output)."""
+    if os.environ.get("STEREO_BUILD_DIR"):
+        return Path(os.environ["STEREO_BUILD_DIR"]).resolve()
+    if (ROOT / "pyproject.toml").is_file():
+        return ROOT / "build"
+    return Path.cwd().resolve() / "build"
+
+
+#: The one build directory every generator and backend writes under.
+BUILD = _build_dir()
 
 
 @dataclass(frozen=True)
@@ -330,7 +345,7 @@ def export_verilog(name, component=None, params=None, out_dir=None):
         component, params = registered(name, params)
     params = params or {}
     text = verilog_source(name, component, params)
-    out = Path(out_dir) if out_dir else ROOT / "build" / "verilog"
+    out = Path(out_dir) if out_dir else BUILD / "verilog"
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{name}.v"
     if not path.exists() or path.read_text() != text:
@@ -352,6 +367,16 @@ def registered(name, params=None):
     if key not in _registered:
         _registered[key] = silenced(d.build(**params))
     return _registered[key], params
+
+
+def source_key(name, params):
+    """A hash of everything the Verilog of registered design ``name`` is a function of: the
+    RTL sources (``hdl/``), this exporter, the tool versions and the elaboration parameters.
+    Lets a cached build be found without converting the design again (a conversion of the
+    pipeline takes seconds; hashing the sources, milliseconds)."""
+    sources = sorted((ROOT / "hdl").rglob("*.py")) + [Path(__file__).resolve()]
+    return text_hash(name, repr(sorted(params.items())), repr(sorted(tool_versions().items())),
+                     *(f"{p.relative_to(ROOT)}\n{p.read_text()}" for p in sources))
 
 
 def text_hash(*texts):

@@ -31,7 +31,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from sim.export import DESIGNS, ROOT, export_verilog
+from sim.export import BUILD, DESIGNS, export_verilog
 
 __all__ = ["BUDGET", "synthesize", "count_cells", "lut_levels", "write_report", "build_ise", "main"]
 
@@ -112,7 +112,7 @@ def lut_levels(netlist, top):
 
 def synthesize(name, out_dir=None, params=None):
     """Synthesise design ``name``; returns its counts (see the module docstring)."""
-    out = Path(out_dir or ROOT / "build" / "synth") / name
+    out = Path(out_dir or BUILD / "synth") / name
     out.mkdir(parents=True, exist_ok=True)
     vpath = export_verilog(name, params=params, out_dir=out)
     script = (f"read_verilog {vpath.name}; "
@@ -172,7 +172,7 @@ def build_ise(design="pipeline", out_dir=None, platform=None):
     """Write the ISE build tree (no ISE run) of the reference board around ``design`` under
     ``<out_dir>/ise`` (default ``build/synth/ise``); returns the folder."""
     from hdl.platform import RobotBoardPlatform, BoardTop
-    out = Path(out_dir or ROOT / "build" / "synth") / "ise"
+    out = Path(out_dir or BUILD / "synth") / "ise"
     platform = platform or RobotBoardPlatform()
     plan = platform.build(BoardTop(design), name="top", do_build=False)
     plan.extract(str(out))

@@ -42,7 +42,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sim.export import DESIGNS, ROOT, export_verilog
+from sim.export import BUILD, DESIGNS, export_verilog
 
 __all__ = ["ToolMissing", "ConversionError", "rename_escaped", "fix_initial_processes",
            "fix_output_ports", "fix_sign_extension", "order_units", "direct_instances", "verilog_to_vhdl", "export_vhdl", "check_ghdl", "vhdl_port_name",
@@ -365,7 +365,7 @@ def export_vhdl(name, out_dir=None, params=None, verilog_dir=None, component=Non
                             "(iverilog -tvhdl and fix-ups) from the Verilog of sim/export.py")
     header += "-- VHDL ports: '__' in the Verilog names becomes '_' (i__valid -> i_valid).\n"
     text = header + verilog_to_vhdl(verilog, source_name=vpath.name)
-    out = Path(out_dir) if out_dir else ROOT / "build" / "vhdl"
+    out = Path(out_dir) if out_dir else BUILD / "vhdl"
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{name}.vhd"
     if not path.exists() or path.read_text() != text:

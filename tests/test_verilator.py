@@ -177,3 +177,30 @@ def test_every_design_bit_exact(name):
     run = run_verilator(name, inputs=case.inputs, runtime=case.runtime, out_frames=case.out_frames,
                         out_words=case.out_words, seed=4, idle=0.2, stall=0.3)
     assert case.check(run.outputs) == (0, None)
+
+
+def test_cached_build_found_without_export(monkeypatch):
+    """A warm run finds its build from the sources: the design is not converted again."""
+    import sim.verilator as vl
+    first = vl.build("color")
+    monkeypatch.setattr(vl, "_built", {})
+
+    def no_export(*args, **kwargs):
+        raise AssertionError("the design was exported again")
+    monkeypatch.setattr(vl, "export_verilog", no_export)
+    again = vl.build("color")
+    assert again.cached and again.exe == first.exe
+
+
+def test_parameter_register_wrapper():
+    """The simulation wrapper keeps the ports (an escaped keyword name included) and puts every
+    run-time parameter, and only those, behind a register."""
+    from sim.export import registered, ports, verilog_source
+    from sim.verilator import module_ports, param_register_wrapper
+    component, params = registered("ground")
+    text = verilog_source("ground", component, params)
+    wrapped = param_register_wrapper(text, "ground", ports(component))
+    assert module_ports(wrapped, "ground") == module_ports(text, "ground")
+    assert "module ground_core(" in wrapped
+    assert "always @(posedge clk) param_q_0 <= \\config ;" in wrapped
+    assert wrapped.count("always @(posedge clk) param_q_") == len(ports(component).params)

@@ -19,7 +19,7 @@ import sys
 
 from dataclasses import dataclass
 
-from sim.export import ROOT, export_verilog, ports as get_ports
+from sim.export import BUILD, ROOT, export_verilog, ports as get_ports
 
 __all__ = ["SIMULATORS", "SimulatorMissing", "CocotbFailure", "CocotbRun", "check_simulator",
            "run_cocotb", "simulate", "icarus_fixup"]
@@ -119,7 +119,7 @@ def _prepare(name, simulator, component, params, vhdl_std):
     """Sources, runner and arguments for ``name`` on ``simulator``."""
     check_simulator(simulator)
     from cocotb_tools.runner import get_runner
-    base = ROOT / "build" / "cocotb" / simulator / name
+    base = BUILD / "cocotb" / simulator / name
     base.mkdir(parents=True, exist_ok=True)
     tag = f"{vhdl_std}" if simulator == "ghdl" else ""
     if simulator == "ghdl":

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.export import ROOT, export_verilog, ports, registered, text_hash
+from sim.export import BUILD, export_verilog, ports, registered, source_key, text_hash
 from sim.streams import Deadlock
 
 __all__ = ["VerilatorRun", "VerilatorBuild", "VerilatorError", "verilator_bin", "build",
@@ -137,13 +137,73 @@ def ports_header(name, p, clk=True, rst=True):
     return "\n".join(lines) + "\n"
 
 
+def construction_params(component):
+    """Everything plain a component (and the components it groups) was constructed with: the
+    private attributes holding numbers, strings, flags or tuples/dicts of them. With the RTL
+    sources these determine its Verilog."""
+    plain = (bool, int, float, str, type(None))
+
+    def simple(v):
+        if isinstance(v, plain):
+            return True
+        if isinstance(v, (tuple, list, frozenset)):
+            return all(simple(x) for x in v)
+        if isinstance(v, dict):
+            return all(isinstance(k, str) and simple(x) for k, x in v.items())
+        return False
+
+    return {k: repr(v) for k, v in vars(component).items()
+            if k.startswith("_") and not k.startswith(("__", "_MustUse")) and simple(v)}
+
+
+def param_register_wrapper(verilog, name, p):
+    """Rename module ``name`` of ``verilog`` to ``<name>_core`` and add a module ``name`` with
+    the same ports that holds every run-time parameter input in a register (reset-less,
+    loaded on every clock, so it holds the value by the end of the harness's reset cycles).
+
+    Verilator re-evaluates all logic fed combinationally by top-level inputs on every
+    ``eval()``: with the parameters as plain inputs that is most of a front end's logic, twice
+    per cycle. Behind registers it is settled once per clock edge. The harness sets the
+    parameters before reset and never changes them, so the outputs are the same cycle for
+    cycle (the Verilator tests compare them with golden)."""
+    core = f"{name}_core"
+    text, n = re.subn(r"^module\s+" + re.escape(name) + r"\b", f"module {core}", verilog,
+                      count=1, flags=re.M)
+    if n != 1:
+        raise VerilatorError(f"no module {name} in the Verilog")
+    plain = {x.name: x for x in p.plain}
+    names = sorted(module_ports(verilog, name))
+    start = re.search(r"^module\s+" + re.escape(name) + r"\b", verilog, re.M).start()
+    body = verilog[start:verilog.index("endmodule", start)]
+    decls, regs, conns = [], [], []
+    for port in names:
+        # an escaped identifier (``\config``: a keyword as a name) ends at white space
+        ref = port + " " if port.startswith("\\") else port
+        m = re.search(r"^\s*(input|output)\s+(?:wire\s+|reg\s+)?(\[[^\]]+\]\s*)?"
+                      + re.escape(port) + r"\s*;", body, re.M)
+        if not m:
+            raise VerilatorError(f"no declaration of port {port} of {name}")
+        direction, rng = m.group(1), (m.group(2) or "").strip()
+        decls.append(f"  {direction} {rng} {ref};")
+        if direction == "input" and port.lstrip("\\") in plain and "clk" in names:
+            q = f"param_q_{len(regs)}"
+            regs.append(f"  reg {rng} {q};\n  always @(posedge clk) {q} <= {ref};")
+            conns.append(f"    .{ref}({q})")
+        else:
+            conns.append(f"    .{ref}({ref})")
+    wrapper = (f"\n// Simulation wrapper (sim/verilator): run-time parameters held in registers.\n"
+               f"module {name}({', '.join(n + ' ' if n.startswith(chr(92)) else n for n in names)});\n" + "\n".join(decls) + "\n"
+               + "\n".join(regs) + f"\n  {core} core (\n" + ",\n".join(conns) + "\n  );\nendmodule\n")
+    return text + wrapper
+
+
 def _runtime_dir():
     """Where the compiled Verilator runtime (verilated*.o) is kept: the same for every design
     built with the same Verilator and flags, so only the first build compiles it."""
     inc = verilator_bin().parent / "include"
     key = text_hash((inc / "verilated.mk").read_text(), (inc / "verilated.cpp").read_bytes(),
                     CFLAGS, " ".join(VERILATOR_FLAGS))
-    return ROOT / "build" / "verilator" / "_runtime" / key
+    return BUILD / "verilator" / "_runtime" / key
 
 
 def _compile(name, tmp):
@@ -207,23 +267,43 @@ class VerilatorBuild:
 _built = {}     # (name, hash) -> VerilatorBuild, for this process
 
 
-def build(name, component=None, params=None, verilog=None):
+def build(name, component=None, params=None, verilog=None, register_params=True):
     """Build (or reuse) the harness for design ``name``. ``component`` defaults to the
-    registered design; ``verilog`` (text) defaults to its export. Safe to call from several
-    processes at once (a lock file per design)."""
+    registered design; ``verilog`` (text) defaults to its export. ``register_params``: wrap
+    the design so its run-time parameters come from registers (:func:`param_register_wrapper`;
+    off only to measure what that gains). Safe to call from several processes at once (a lock
+    file per design)."""
+    harness = HARNESS.read_text()
+    flags = (" ".join(VERILATOR_FLAGS), CFLAGS, OPT, f"register_params={register_params}")
+    base = BUILD / "verilator" / name
     if component is None:
         component, params = registered(name, params)
     p = ports(component)
+    skey = None
+    if verilog is None:
+        # The build of an exported design is found from its sources and construction
+        # parameters, without converting it again (seconds for the pipeline).
+        skey = text_hash(source_key(name, construction_params(component)),
+                         type(component).__qualname__, *p.describe(), harness, *flags)
+        if (name, skey) in _built:
+            return _built[(name, skey)]
+        index = base / "by-source" / skey
+        if index.is_file():
+            exe = base / index.read_text().strip() / "harness"
+            if exe.exists():
+                b = VerilatorBuild(name, exe, p, 0.0, True)
+                _built[(name, skey)] = b
+                return b
     if verilog is None:
         verilog = export_verilog(name, component, params or {},
-                                 out_dir=ROOT / "build" / "verilator" / name).read_text()
+                                 out_dir=BUILD / "verilator" / name).read_text()
     names = module_ports(verilog, name)
     header = ports_header(name, p, clk="clk" in names, rst="rst" in names)
-    harness = HARNESS.read_text()
-    key = text_hash(verilog, header, harness, " ".join(VERILATOR_FLAGS), CFLAGS, OPT)
+    if register_params:
+        verilog = param_register_wrapper(verilog, name, p)
+    key = text_hash(verilog, header, harness, *flags)
     if (name, key) in _built:
         return _built[(name, key)]
-    base = ROOT / "build" / "verilator" / name
     out = base / key
     exe = out / "harness"
     base.mkdir(parents=True, exist_ok=True)
@@ -245,8 +325,13 @@ def build(name, component=None, params=None, verilog=None):
             shutil.rmtree(out, ignore_errors=True)
             os.replace(tmp, out)
         seconds = 0.0 if cached else time.monotonic() - t0
+        if skey is not None:
+            (base / "by-source").mkdir(exist_ok=True)
+            (base / "by-source" / skey).write_text(key + "\n")
     b = VerilatorBuild(name, exe, p, seconds, cached)
     _built[(name, key)] = b
+    if skey is not None:
+        _built[(name, skey)] = b
     return b
 
 
@@ -265,7 +350,8 @@ class VerilatorRun:
 
 
 def run_verilator(design, *, inputs, out_frames=None, out_words=None, params=None, runtime=None,
-                  seed=0, idle=0.0, stall=0.0, timeout=10000, max_cycles=None, name=None):
+                  seed=0, idle=0.0, stall=0.0, timeout=10000, max_cycles=None, name=None,
+                  register_params=True):
     """Simulate ``design`` on whole streams.
 
     ``design``: a registered design name, a component, or a factory returning one.
@@ -279,11 +365,11 @@ def run_verilator(design, *, inputs, out_frames=None, out_words=None, params=Non
     """
     if isinstance(design, str):
         name = name or design
-        b = build(design, params=params)
+        b = build(design, params=params, register_params=register_params)
     else:
         component = design() if isinstance(design, type) or not hasattr(design, "elaborate") else design
         name = name or type(component).__name__.lower()
-        b = build(name, component=component)
+        b = build(name, component=component, register_params=register_params)
     p = b.ports
     out_frames, out_words, runtime = dict(out_frames or {}), dict(out_words or {}), dict(runtime or {})
     args = [str(b.exe), "--seed", str(seed), "--idle", repr(float(idle)), "--stall",
