@@ -56,7 +56,7 @@ from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
 from . import regmap
-from .regs import IOBusSignature
+from .regs import BusWindow, IOBusSignature, check_window_base
 
 __all__ = ["IICMaster", "XIIC"]
 
@@ -390,10 +390,7 @@ class IICMaster(wiring.Component):
         if not isinstance(clk_div, int) or clk_div < 4:
             self._MustUse__silence = True
             raise ValueError(f"clk_div must be an integer >= 4, not {clk_div!r}")
-        if not isinstance(base, int) or base % regmap.IIC_WINDOW or not 0 <= base < 2**32:
-            self._MustUse__silence = True
-            raise ValueError(f"base must be a 32-bit address aligned to "
-                             f"0x{regmap.IIC_WINDOW:X}, not {base!r}")
+        check_window_base(self, base, regmap.IIC_WINDOW)
         self._clk_div = clk_div
         self._base = base
         super().__init__({
@@ -409,15 +406,9 @@ class IICMaster(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         bus = self.bus
-        wbits = (regmap.IIC_WINDOW - 1).bit_length()
-        hit = Signal()
-        offset = Signal(wbits)
-        m.d.comb += [
-            hit.eq(bus.addr_strobe & (bus.address[wbits:] == self._base >> wbits)),
-            offset.eq(bus.address[:wbits] & ~0b11),
-        ]
-        do_read = hit & bus.read_strobe
-        do_write = hit & bus.write_strobe & (bus.byte_enable == 0xF)
+        window = BusWindow(m, bus, self._base, regmap.IIC_WINDOW)
+        offset, do_read = window.offset, window.read
+        do_write = window.write & (bus.byte_enable == 0xF)
 
         soft_reset = Signal()
         m.d.sync += soft_reset.eq(do_write & (offset == XIIC.RESETR_OFFSET)
@@ -448,6 +439,5 @@ class IICMaster(wiring.Component):
                 with m.Case(off):
                     m.d.comb += value.eq(sig)
 
-        m.d.sync += [bus.ready.eq(hit & (bus.read_strobe | bus.write_strobe)),
-                     bus.read_data.eq(Mux(do_read, value, 0))]
+        window.answer(value)
         return m

@@ -30,7 +30,8 @@ from amaranth.lib.wiring import In, Out
 
 from . import regmap
 
-__all__ = ["IOBusSignature", "ResultLayout", "RegisterBlock", "status_port_name"]
+__all__ = ["IOBusSignature", "BusWindow", "check_window_base", "ResultLayout", "RegisterBlock",
+           "status_port_name"]
 
 
 class IOBusSignature(wiring.Signature):
@@ -47,6 +48,40 @@ class IOBusSignature(wiring.Signature):
             "read_data": In(32),
             "ready": In(1),
         })
+
+
+def check_window_base(component, base, window):
+    """Raise ``ValueError`` unless ``base`` is a 32-bit address aligned to ``window`` bytes
+    (``component`` is the peripheral being constructed: it is silenced, as it will never be
+    elaborated)."""
+    if not isinstance(base, int) or base % window or not 0 <= base < 2**32:
+        component._MustUse__silence = True
+        raise ValueError(f"base must be a 32-bit address aligned to 0x{window:X}, not {base!r}")
+
+
+class BusWindow:
+    """The slave side of one peripheral's address window on the I/O bus, shared by every
+    peripheral: ``hit`` (a transfer into ``[base, base + window)`` starts this cycle),
+    ``offset`` (its word-aligned byte offset), ``read`` and ``write`` (hit and the direction).
+    :meth:`answer` gives the one-cycle ``ready`` a cycle after the strobe, with ``value`` as
+    read data for a read and 0 otherwise (so the SoC can OR the answers of all peripherals)."""
+
+    def __init__(self, m, bus, base, window):
+        bits = (window - 1).bit_length()
+        self._m, self._bus = m, bus
+        self.hit = Signal(name="bus_hit")
+        self.offset = Signal(bits, name="bus_offset")
+        m.d.comb += [
+            self.hit.eq(bus.addr_strobe & (bus.address[bits:] == base >> bits)),
+            self.offset.eq(bus.address[:bits] & ~0b11),
+        ]
+        self.read = self.hit & bus.read_strobe
+        self.write = self.hit & bus.write_strobe
+
+    def answer(self, value):
+        bus = self._bus
+        self._m.d.sync += [bus.ready.eq(self.hit & (bus.read_strobe | bus.write_strobe)),
+                           bus.read_data.eq(Mux(self.read, value, 0))]
 
 
 #: One result record: the (x, y, d) of a matched obstacle-edge pixel.
@@ -89,10 +124,7 @@ class RegisterBlock(wiring.Component):
         if not isinstance(fifo_depth, int) or fifo_depth < 2:
             self._MustUse__silence = True
             raise ValueError(f"fifo_depth must be an integer >= 2, not {fifo_depth!r}")
-        if not isinstance(base, int) or base % regmap.REGS_WINDOW or not 0 <= base < 2**32:
-            self._MustUse__silence = True
-            raise ValueError(f"base must be a 32-bit address aligned to "
-                             f"0x{regmap.REGS_WINDOW:X}, not {base!r}")
+        check_window_base(self, base, regmap.REGS_WINDOW)
         self._fifo_depth = fifo_depth
         self._base = base
         members = {"bus": In(IOBusSignature()), "clear_errors": Out(1),
@@ -110,15 +142,8 @@ class RegisterBlock(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         bus = self.bus
-        window_bits = (regmap.REGS_WINDOW - 1).bit_length()
-        hit = Signal()
-        offset = Signal(window_bits)
-        m.d.comb += [
-            hit.eq(bus.addr_strobe & (bus.address[window_bits:] == self._base >> window_bits)),
-            offset.eq(bus.address[:window_bits] & ~0b11),
-        ]
-        do_read = hit & bus.read_strobe
-        do_write = hit & bus.write_strobe
+        window = BusWindow(m, bus, self._base, regmap.REGS_WINDOW)
+        offset, do_read, do_write = window.offset, window.read, window.write
 
         # result FIFO, flushed by a reset of its own
         flush = Signal()
@@ -183,8 +208,5 @@ class RegisterBlock(wiring.Component):
                                 getattr(self, status_port_name(reg, f)))
                     # pulse registers read 0
 
-        m.d.sync += [bus.ready.eq(hit & (bus.read_strobe | bus.write_strobe)),
-                     bus.read_data.eq(0)]
-        with m.If(do_read):
-            m.d.sync += bus.read_data.eq(read_value)
+        window.answer(read_value)
         return m

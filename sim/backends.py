@@ -1,4 +1,6 @@
 """Run a unit of :mod:`sim.units` on a backend and count mismatches with golden."""
+import threading
+
 from .config import apply_config, config_values
 from .streams import run_streams, Deadlock
 
@@ -26,6 +28,9 @@ def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
         words, cycles, status = run.words, run.cycles, {}
     elif backend == "verilator":
         from .verilator import run_verilator, VerilatorError
+        # The harness is another process: compute the golden frames while it runs.
+        golden = threading.Thread(target=lambda: job.golden, daemon=True)
+        golden.start()
         try:
             run = run_verilator(dut, inputs=unit.words(job), out_frames=unit.outputs(job),
                                 runtime=config_values(dut, job.params), seed=seed, idle=stalls,
@@ -34,6 +39,8 @@ def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
             raise CliError(str(e).splitlines()[0]) from None
         except Deadlock as e:
             raise CliError(f"{unit.name} deadlocked: {e}") from None
+        finally:
+            golden.join()
         words, cycles, status = run.outputs, run.cycles, run.status
     elif backend in ("icarus", "ghdl"):
         # cocotb on the exported Verilog (Icarus) or on the generated VHDL (GHDL)
