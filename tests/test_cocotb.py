@@ -66,3 +66,26 @@ def test_simulate_given_words_two_inputs_wide_parameter(simulator):
     assert np.array_equal(got["y"], (left[..., 0].astype(int) + 77) & 255)
     assert np.array_equal(got["s"], left[..., 2] ^ right[..., 2] ^ 0xA5)
     assert run.status == {"count": 15} and run.cycles >= 15
+
+
+def test_verilator_runtime_reused(tmp_path, monkeypatch):
+    """The compiled Verilator runtime is stored after the first cocotb build and put, dated
+    ahead of the makefile the next build writes, into the next design's build folder."""
+    import os
+    import time
+    import sim.cocotb_tb as tb
+    runtime = tmp_path / "runtime"
+    monkeypatch.setattr(tb, "_verilator_runtime_dir", lambda build_args: runtime)
+    first = tmp_path / "a"
+    store = tb._reuse_verilator_runtime(first, ["-O3"])
+    assert not list(first.iterdir())                    # nothing cached yet
+    (first / "verilated.o").write_bytes(b"obj")
+    (first / "verilated.d").write_text("verilated.o: verilated.cpp\n")
+    (first / "Vtop__ALL.o").write_bytes(b"design")
+    store()
+    assert sorted(p.name for p in runtime.iterdir()) == ["verilated.d", "verilated.o"]
+    second = tmp_path / "b"
+    tb._reuse_verilator_runtime(second, ["-O3"])()
+    assert (second / "verilated.o").read_bytes() == b"obj"
+    assert not (second / "Vtop__ALL.o").exists()
+    assert os.stat(second / "verilated.o").st_mtime > time.time() + 60

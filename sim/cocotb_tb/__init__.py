@@ -16,6 +16,7 @@ import os
 import re
 import shutil
 import sys
+import time
 
 from dataclasses import dataclass
 
@@ -68,12 +69,57 @@ def check_simulator(simulator):
 VERILATOR_MAKEFLAGS = "OPT_FAST=-O1 OPT_SLOW=-O0 OPT_GLOBAL=-O0 CFG_CXXFLAGS_PCH_I=-include"
 
 
+def _verilator_runtime_dir(build_args):
+    """Where the compiled Verilator runtime of cocotb's Verilator builds is kept
+    (``verilated*.o``: the same for every design built with the same Verilator, flags and
+    cocotb; two thirds of a small design's build otherwise)."""
+    from sim.verilator import text_hash, verilator_bin
+    import cocotb
+    inc = verilator_bin().parent / "include"
+    key = text_hash((inc / "verilated.mk").read_text(), (inc / "verilated.cpp").read_bytes(),
+                    VERILATOR_MAKEFLAGS, " ".join(build_args), cocotb.__version__)
+    return BUILD / "cocotb" / "verilator" / "_runtime" / key
+
+
+def _reuse_verilator_runtime(build_dir, build_args):
+    """Put the cached runtime objects into ``build_dir`` before the build; returns a function
+    that stores them after the first build.
+
+    verilated.mk makes the runtime objects depend on ``V<top>.mk``, which the runner's
+    Verilator step writes anew just before it runs make, and GNU make takes no ``-o`` (old
+    file) through MAKEFLAGS. So the copies are dated ten minutes ahead: newer than the
+    makefile written meanwhile (make may warn of clock skew). Should the Verilator step take
+    longer, make rebuilds them: slower, never wrong."""
+    runtime = _verilator_runtime_dir(build_args)
+    cached = sorted(runtime.glob("verilated*")) if runtime.is_dir() else []
+    build_dir.mkdir(parents=True, exist_ok=True)
+    ahead = time.time() + 600
+    for f in cached:
+        shutil.copy2(f, build_dir / f.name)
+        os.utime(build_dir / f.name, (ahead, ahead))
+
+    def store():
+        if cached:
+            return
+        part = runtime.with_name(runtime.name + f".tmp{os.getpid()}")
+        part.mkdir(parents=True, exist_ok=True)
+        for f in build_dir.glob("verilated*.[od]"):
+            shutil.copy2(f, part / f.name)
+        try:
+            os.replace(part, runtime)
+        except OSError:                 # another process stored it first
+            shutil.rmtree(part, ignore_errors=True)
+    return store
+
+
 def _build_and_test(runner, simulator, name, source, build_dir, build_args, test_args, timescale,
                     waves, env, base, tag, log):
     (base / f"results{tag}.xml").unlink(missing_ok=True)
     saved = os.environ.get("MAKEFLAGS")
+    store_runtime = None
     if simulator == "verilator":
         os.environ["MAKEFLAGS"] = VERILATOR_MAKEFLAGS
+        store_runtime = _reuse_verilator_runtime(build_dir, build_args)
     try:
         runner.build(sources=[source], hdl_toplevel=name, build_dir=build_dir,
                      build_args=build_args, timescale=timescale, waves=waves,
@@ -83,6 +129,8 @@ def _build_and_test(runner, simulator, name, source, build_dir, build_args, test
             os.environ.pop("MAKEFLAGS", None)
         else:
             os.environ["MAKEFLAGS"] = saved
+    if store_runtime is not None:
+        store_runtime()
     return runner.test(test_module="sim.cocotb_tb.test_stream", hdl_toplevel=name,
                        hdl_toplevel_lang="vhdl" if simulator == "ghdl" else "verilog",
                        build_dir=build_dir, test_dir=build_dir, test_args=test_args,
