@@ -13,7 +13,11 @@ STALL_PROBABILITY = 0.25
 def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
     """Simulate ``unit`` on ``job`` with ``backend``. Returns a dict with ``mismatches``,
     ``cycles`` (first input word offered to last output taken), ``words`` (output words per
-    port), ``status`` (status ports at the end) and ``dut``."""
+    port), ``status`` (status ports at the end), ``simulated_cycles`` and ``seconds`` (every
+    simulated cycle and the simulator's own run time, None where the backend has no such
+    figure) and ``dut``. Backends: ``amaranth``, ``verilator`` (the C++ harness), ``icarus``
+    and ``ghdl`` (cocotb), and ``cocotb-verilator`` (cocotb on Verilator, for speed
+    comparisons)."""
     from .cli import CliError
     stalls = STALL_PROBABILITY if stall_seed is not None else 0.0
     seed = stall_seed or 0
@@ -26,6 +30,7 @@ def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
         except Deadlock as e:
             raise CliError(f"{unit.name} deadlocked: {e}") from None
         words, cycles, status = run.words, run.cycles, {}
+        simulated, seconds = run.cycles, None
     elif backend == "verilator":
         from .verilator import run_verilator, VerilatorError
         # The harness is another process: compute the golden frames while it runs.
@@ -42,11 +47,12 @@ def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
         finally:
             golden.join()
         words, cycles, status = run.outputs, run.cycles, run.status
-    elif backend in ("icarus", "ghdl"):
-        # cocotb on the exported Verilog (Icarus) or on the generated VHDL (GHDL)
+        simulated, seconds = run.total_cycles, run.seconds
+    elif backend in ("icarus", "ghdl", "cocotb-verilator"):
+        # cocotb on the exported Verilog (Icarus, Verilator) or on the generated VHDL (GHDL)
         from .cocotb_tb import simulate, SimulatorMissing
         try:
-            run = simulate(dut, backend, name=unit.name, inputs=unit.words(job),
+            run = simulate(dut, backend.removeprefix("cocotb-"), name=unit.name, inputs=unit.words(job),
                            out_frames=unit.outputs(job), runtime=config_values(dut, job.params),
                            seed=seed, idle=stalls, stall=stalls, timeout=timeout)
         except SimulatorMissing as e:
@@ -54,7 +60,8 @@ def run_unit(unit, job, *, backend="amaranth", stall_seed=None, timeout=100000):
         except Deadlock as e:
             raise CliError(f"{unit.name} deadlocked: {e}") from None
         words, cycles, status = run.outputs, run.cycles, run.status
+        simulated, seconds = run.cycles, run.seconds
     else:
         raise CliError(f"unknown backend {backend!r}")
     return {"mismatches": unit.mismatches(job, words, dut), "cycles": cycles, "words": words,
-            "status": status, "dut": dut}
+            "status": status, "simulated_cycles": simulated, "seconds": seconds, "dut": dut}

@@ -479,8 +479,8 @@ def _scene_pair(frame):
 
 def sim_speed(bench, quick, left, full_frame):
     from golden.pipeline import default_params
+    from sim.backends import run_unit
     from sim.units import UNITS, Job
-    from sim.config import config_values
     w, h, frames = 32, 16, 2
     # the same 32x16 window of the pair in both modes (full-image (300, 200))
     x0, y0 = (300 - QUICK_CROP[2], 200 - QUICK_CROP[3]) if quick else (300, 200)
@@ -492,45 +492,26 @@ def sim_speed(bench, quick, left, full_frame):
     out = {"design": "frontend", "size": [w, h], "frames": frames, "backends": {}}
     if quick:
         out["skipped"] = ["cocotb-verilator", "cocotb-icarus", "cocotb-ghdl"]
+    origins = {
+        "amaranth": "sim.backends.run_unit(backend='amaranth') wall time (elaboration included)",
+        "verilator": ("sim.backends.run_unit(backend='verilator'): harness-reported seconds and "
+                      "total_cycles (wall includes export, build check, process start)")}
     for be in backends:
         job = Job([crop] * frames, [], params)
         print(f"      frontend {w}x{h} x{frames} on {be}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
-            if be == "amaranth":
-                from sim.backends import run_unit
-                res = run_unit(unit, job, backend="amaranth")
-                wall = time.perf_counter() - t0
-                cycles, total, sim_s = res["cycles"], res["cycles"], None
-                mism = res["mismatches"]
-                origin = "sim.backends.run_unit(backend='amaranth') wall time (elaboration included)"
-            elif be == "verilator":
-                from sim.verilator import run_verilator
-                dut = unit.make(job)
-                run = run_verilator(dut, inputs=unit.words(job), out_frames=unit.outputs(job),
-                                    runtime=config_values(dut, params), timeout=100000,
-                                    name="frontend")
-                wall = time.perf_counter() - t0
-                cycles, total, sim_s = run.cycles, run.total_cycles, run.seconds
-                mism = unit.mismatches(job, run.outputs, dut)
-                origin = ("sim.verilator.run_verilator: harness-reported seconds and "
-                          "total_cycles (wall includes export, build check, process start)")
-            else:
-                from sim.cocotb_tb import simulate
-                simulator = be.split("-", 1)[1]
-                dut = unit.make(job)
-                run = simulate(dut, simulator, name="frontend", inputs=unit.words(job),
-                               out_frames=unit.outputs(job), runtime=config_values(dut, params),
-                               timeout=100000)
-                wall = time.perf_counter() - t0
-                cycles, total, sim_s = run.cycles, run.cycles, run.seconds
-                mism = unit.mismatches(job, run.outputs, dut)
-                origin = (f"sim.cocotb_tb.simulate(simulator='{simulator}'): the testbench's "
-                          "run seconds (wall includes export and build)")
+            res = run_unit(unit, job, backend={"cocotb-icarus": "icarus",
+                                               "cocotb-ghdl": "ghdl"}.get(be, be))
         except Exception as e:          # a missing simulator must not sink the whole report
             out["backends"][be] = {"error": str(e).splitlines()[0][:200]}
             bench.source(f"sim_speed.{be}", f"FAILED: {str(e).splitlines()[0][:200]}")
             continue
+        wall = time.perf_counter() - t0
+        cycles, total, sim_s, mism = (res["cycles"], res["simulated_cycles"], res["seconds"],
+                                      res["mismatches"])
+        origin = origins.get(be, f"sim.backends.run_unit(backend='{be}'): the cocotb testbench's "
+                                 "run seconds (wall includes export and build)")
         row = {"cycles": int(cycles), "simulated_cycles": int(total),
                "sim_seconds": round(sim_s, 6) if sim_s is not None else None,
                "wall_seconds": round(wall, 3), "bit_exact": mism == 0,
