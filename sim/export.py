@@ -3,10 +3,8 @@
 A *design* is one entry of :data:`DESIGNS`: a unit of :data:`sim.units.UNITS` (the command
 line's registry, which knows how to build each unit, feed it and what golden expects) with the
 elaboration parameters it is exported with. The Verilator harness, the cocotb testbenches, the
-VHDL conversion and the resource report all iterate over this registry, so a new unit is one
-entry::
-
-    DESIGNS["sobel"] = UnitDesign("sobel")
+VHDL conversion and the resource report all iterate over this registry, which follows
+:data:`sim.units.UNITS`: a new unit is one entry there, and it is a design too.
 
 Ports are found from the component's signature (:func:`ports`): every ``stream.Signature``
 member is a stream port (``In`` = sink the harness drives, ``Out`` = source it drains), every
@@ -33,6 +31,7 @@ from amaranth.hdl import Shape
 from amaranth.lib import data, stream, wiring
 
 from sim.streams import Packer
+from sim.units import UNITS
 
 __all__ = ["ROOT", "BUILD", "source_key", "Design", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
            "elaborate", "verilog_source", "export_verilog", "tool_versions", "main"]
@@ -185,10 +184,8 @@ class UnitDesign:
     frames make a job, the unit's own words, outputs and mismatch count do the rest."""
     unit: str
     params: dict = field(default_factory=lambda: dict(max_width=1024, max_height=1024))
-    doc: str = ""
 
     def _unit(self):
-        from sim.units import UNITS
         return UNITS[self.unit]
 
     def _job(self, left, right, width, height, **params):
@@ -239,15 +236,9 @@ def random_rgb_frames(rng, width, height, frames):
     return out
 
 
-#: Every design exported, converted, simulated and synthesised. Name -> :class:`UnitDesign`.
-DESIGNS = {
-    "color": UnitDesign("color", doc="RGB888 -> Y, H, S colour converter (hdl/color.py)"),
-    "sobel": UnitDesign("sobel", doc="Sobel vertical-edge unit (hdl/sobel.py)"),
-    "ground": UnitDesign("ground", doc="ground model and classifier (hdl/ground.py)"),
-    "frontend": UnitDesign("frontend", doc="one camera's front end (hdl/frontend.py)"),
-    "sad": UnitDesign("sad", doc="SAD block matcher (hdl/matcher.py)"),
-    "pipeline": UnitDesign("pipeline", doc="the stereo pipeline top (hdl/pipeline.py)"),
-}
+#: Every design exported, converted, simulated and synthesised: one per unit of
+#: :data:`sim.units.UNITS`. Name -> :class:`UnitDesign`.
+DESIGNS = {name: UnitDesign(name) for name in UNITS}
 
 
 def design(name):

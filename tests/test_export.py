@@ -42,7 +42,7 @@ def test_read_registers_start_at_zero():
 
 
 def test_unknown_design():
-    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, sobel"):
+    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, frontend, sad, pipeline$"):
         elaborate("nope")
 
 
