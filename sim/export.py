@@ -33,8 +33,9 @@ from amaranth.lib import data, stream, wiring
 from sim.streams import Packer
 from sim.units import UNITS
 
-__all__ = ["ROOT", "BUILD", "source_key", "Design", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
-           "elaborate", "verilog_source", "export_verilog", "tool_versions", "main"]
+__all__ = ["ROOT", "BUILD", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports",
+           "ports", "design", "elaborate", "verilog_source", "export_verilog", "source_key",
+           "write_if_changed", "design_arguments", "chosen_designs", "tool_versions", "main"]
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -336,14 +337,37 @@ def export_verilog(name, component=None, params=None, out_dir=None):
         component, params = registered(name, params)
     params = params or {}
     text = verilog_source(name, component, params)
-    out = Path(out_dir) if out_dir else BUILD / "verilog"
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{name}.v"
+    return write_if_changed(Path(out_dir or BUILD / "verilog") / f"{name}.v", text)
+
+
+def write_if_changed(path, text):
+    """Write ``text`` to ``path`` (creating its folder) unless it holds that text already, so
+    that its time stamp moves only when its content does; atomic, for parallel test workers.
+    Returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists() or path.read_text() != text:
-        tmp = path.with_suffix(f".v.{os.getpid()}.tmp")
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
         tmp.write_text(text)
         os.replace(tmp, path)
     return path
+
+
+def design_arguments(prog, description, out):
+    """The command line the design tools share (``python -m sim.export|vhdl|synth``): ``--out``
+    and a list of design names (default all)."""
+    ap = argparse.ArgumentParser(prog=prog, description=description)
+    ap.add_argument("--out", default=out, help="output folder (default %(default)s)")
+    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    return ap
+
+
+def chosen_designs(ap, args):
+    """The designs named on the command line (all when none), or a usage error."""
+    for name in args.names:
+        if name not in DESIGNS:
+            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+    return args.names or list(DESIGNS)
 
 
 _registered = {}    # (name, params) -> component of a registered design
@@ -379,13 +403,9 @@ def text_hash(*texts):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m sim.export", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default="build/verilog", help="output folder (default %(default)s)")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    ap = design_arguments("python -m sim.export", __doc__.split("\n")[0], "build/verilog")
     args = ap.parse_args(argv)
-    for name in args.names or DESIGNS:
-        if name not in DESIGNS:
-            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+    for name in chosen_designs(ap, args):
         path = export_verilog(name, out_dir=args.out)
         print(path)
     return 0

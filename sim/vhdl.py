@@ -33,8 +33,6 @@ Command line (``make vhdl``)::
 
     python -m sim.vhdl --out build/vhdl [NAME ...]
 """
-import argparse
-import os
 import re
 import shutil
 import subprocess
@@ -42,7 +40,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sim.export import BUILD, DESIGNS, export_verilog
+from sim.export import BUILD, chosen_designs, design_arguments, export_verilog, write_if_changed
 
 __all__ = ["ToolMissing", "ConversionError", "rename_escaped", "fix_initial_processes",
            "fix_output_ports", "fix_sign_extension", "order_units", "direct_instances", "verilog_to_vhdl", "export_vhdl", "check_ghdl", "vhdl_port_name",
@@ -365,14 +363,7 @@ def export_vhdl(name, out_dir=None, params=None, verilog_dir=None, component=Non
                             "(iverilog -tvhdl and fix-ups) from the Verilog of sim/export.py")
     header += "-- VHDL ports: '__' in the Verilog names becomes '_' (i__valid -> i_valid).\n"
     text = header + verilog_to_vhdl(verilog, source_name=vpath.name)
-    out = Path(out_dir) if out_dir else BUILD / "vhdl"
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{name}.vhd"
-    if not path.exists() or path.read_text() != text:
-        tmp = path.with_suffix(f".vhd.{os.getpid()}.tmp")
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    return path
+    return write_if_changed(Path(out_dir or BUILD / "vhdl") / f"{name}.vhd", text)
 
 
 def check_ghdl(path, top, std="08", workdir=None):
@@ -391,15 +382,11 @@ def check_ghdl(path, top, std="08", workdir=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m sim.vhdl", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default="build/vhdl", help="output folder (default %(default)s)")
+    ap = design_arguments("python -m sim.vhdl", __doc__.split("\n")[0], "build/vhdl")
     ap.add_argument("--check", action="store_true", help="analyse and elaborate with GHDL (93 and 08)")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
     args = ap.parse_args(argv)
     try:
-        for name in args.names or DESIGNS:
-            if name not in DESIGNS:
-                ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+        for name in chosen_designs(ap, args):
             path = export_vhdl(name, out_dir=args.out)
             if args.check:
                 for std in ("93", "08"):
