@@ -410,16 +410,11 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     s, g = base.endpoints(blocked, s, g)
     fin = sacodm(blocked, s, g, cfg.saco)
     ref = astar(blocked, s, g)
-    dec = base.decoder
     radio = {
         "frames_sent": channel.sent, "frames_damaged": channel.damaged,
         "corrupted": channel.corrupted, "truncated_sent": channel.truncated,
         "garbage_inserted": channel.garbage,
-        "frames_ok": dec.frames_ok, "bad_checksum": dec.bad_checksum,
-        "bad_length": dec.bad_length, "truncated": dec.truncated,
-        "bad_payload": dec.bad_payload, "garbage_bytes": dec.garbage_bytes,
-        "rejected": dec.errors, "implausible": base.implausible,
-        "packets_used": base.packets, "seq_gaps": base.seq_gaps,
+        **base.link_stats(),
     }
     reasons = {}
     for ev in base.events:

@@ -98,7 +98,7 @@ def main(argv=None) -> int:
         print(f"  -> reached={res.reached} collisions={res.collisions} "
               f"SACOdm {res.path_length_m:.2f} m vs A* {res.astar_length_m:.2f} m "
               f"(x{ratio}) replans={res.replans} radio rejected "
-              f"{summ['radio']['rejected']}/{summ['radio']['frames_sent']} "
+              f"{summ['radio']['rejected_total']}/{summ['radio']['frames_sent']} "
               f"sim {res.time_s:.1f}s wall {res.wall_time_s:.1f}s "
               f"{'OK' if good else 'FAIL'}", flush=True)
     report["all_ok"] = bool(ok_all)
