@@ -274,6 +274,7 @@ class LoopResult:
     spec: WorldSpec | None = None
     appeared_at_s: float | None = None
     pairs: list = field(default_factory=list)      # (left, right, matches) of the first frames
+    radio_bytes: bytes = b""                        # the byte stream the station received
 
     def summary(self) -> dict:
         return {
@@ -324,6 +325,7 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     min_clear = math.inf
     worst_ratio = 1.0
     seen_events = 0
+    radio_log = bytearray()
     path_id = 0
     last_path = None
     reached = False
@@ -354,10 +356,13 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
                                   cfg.min_support)
         x_mm, y_mm, th_u16 = pose_to_wire(robot.pose)
         pkt = RadioPacket(seq=step & 0xFF, frame=step & 0xFFFF, x_mm=x_mm, y_mm=y_mm,
-                          theta_u16=th_u16, width=cfg.width, bands=bands)
+                          theta_u16=th_u16, width=cfg.width, bands=bands,
+                          pose_ms=int(round(t * 1000)))
         wire = encode_api_frame(encode_payload(pkt), dest=0x0001, frame_id=(step % 255) + 1)
         # 4-5: channel and base station
-        base.receive(channel.transmit(wire), t)
+        line = channel.transmit(wire)
+        radio_log += line
+        base.receive(line, t)
         for ev in base.events[seen_events:]:
             if ev.status == "ok" and ev.astar_length_m > 0:
                 worst_ratio = max(worst_ratio, ev.length_m / ev.astar_length_m)
@@ -430,5 +435,5 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
         worst_replan_ratio=worst_ratio, radio=radio, min_clearance_m=min_clear,
         wall_time_s=time.time() - t_wall, trajectory=traj, frames=frames, grid=grid,
         final_path=fin.path, astar_path=ref.path, spec=spec, appeared_at_s=appeared_at,
-        pairs=pairs)
+        pairs=pairs, radio_bytes=bytes(radio_log))
 

@@ -82,6 +82,8 @@ def main(argv=None) -> int:
         summ = res.summary()
         report["worlds"][name] = summ
         world_png(res, out / f"{name}.png")
+        (out / name).mkdir(exist_ok=True)
+        (out / name / "radio.bin").write_bytes(res.radio_bytes)   # python -m station decode
         if cfg.gif_every:
             world_gif(res, out / f"{name}.gif")
         ratio = summ["path_ratio"]

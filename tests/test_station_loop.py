@@ -161,6 +161,11 @@ def test_small_world_with_the_golden_pipeline():
     assert res.reached and res.collisions == 0, s
     assert res.path_length_m <= 1.10 * res.astar_length_m
     assert s["radio"]["rejected_total"] > 0 and s["radio"]["accepted"] > 50
+    # the recorded line (what make demo writes to radio.bin) decodes to the same packets
+    from station.cli import decode_bytes
+    rec = decode_bytes(res.radio_bytes)
+    assert len(rec["accepted"]) == s["radio"]["accepted"]
+    assert rec["link"]["rejected"] == s["radio"]["rejected"]
 
 
 def test_station_reports_an_unreachable_goal_and_keeps_running():

@@ -131,3 +131,14 @@ def test_shortcut_stays_on_graph_and_never_lengthens():
     assert path_length(cut) <= raw.length + 1e-9
     res = PlanResult("ok", cut, path_length(cut))
     _assert_valid(blocked, res, start, goal)
+
+
+def test_fuzzy_cost_orders_paths_by_length_and_effort():
+    from station.planner import fuzzy_path_cost
+    best = fuzzy_path_cost(1.0, 0.0)
+    assert best < fuzzy_path_cost(1.2, 0.0) < fuzzy_path_cost(1.8, 0.0)
+    assert fuzzy_path_cost(1.0, 0.0) < fuzzy_path_cost(1.0, 0.3) < fuzzy_path_cost(1.0, 0.9)
+    assert 0.0 <= best < 0.2 and fuzzy_path_cost(2.0, 1.0) > 0.8
+    b, s, g = MAPS["blocks1"]()
+    res = sacodm(b, s, g, SacoParams(n_iter=8, fuzzy_cost=True))
+    _assert_valid(b, res, s, g)
