@@ -54,7 +54,7 @@ bench: setup
 	$(PY) -m sim.bench --out build/bench
 
 demo: setup
-	$(PY) -m station.demo --out build/demo
+	$(PY) -m sim.closedloop.demo --out build/demo
 
 clean:
 	rm -rf build

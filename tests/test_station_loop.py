@@ -7,7 +7,7 @@ import pytest
 
 from station.base import BaseStation, pose_from_packet, pose_to_wire
 from station.camera import CameraModel
-from station.closedloop import (WORLDS, Channel, LoopConfig, clearance, collides,
+from sim.closedloop.loop import (WORLDS, Channel, LoopConfig, clearance, collides,
                                 run_world)
 from station.grid import OccupancyGrid
 from station.planner import SacoParams
@@ -97,7 +97,7 @@ class _TruthPerceive:
     frame the loop rendered last (the loop calls render, then perceive)."""
 
     def __init__(self):
-        import station.closedloop as cl
+        import sim.closedloop.loop as cl
         self.cl = cl
         self.frame = None
         self._render = cl.render
@@ -132,13 +132,15 @@ def test_small_world_closed_loop_reaches_goal_without_collision():
     radio = s["radio"]
     assert radio["frames_damaged"] > 0
     assert radio["accepted"] == radio["frames_sent"] - radio["frames_damaged"]
-    assert radio["rejected_total"] >= radio["frames_damaged"]
+    # every damaged frame is a counted loss (a frame whose 0x7E was hit is only garbage bytes
+    # to the decoder, so rejections alone may count fewer)
+    assert radio["lost"] == radio["frames_damaged"] - radio["damaged_at_end"]
 
 
 def test_frame_by_frame_golden_pipeline_equals_the_chained_model():
     from golden.pipeline import default_params, pipeline_frames
     from sim.scenes import Rig, render
-    from station.perception import GoldenPipeline
+    from sim.closedloop.perception import GoldenPipeline
     spec = WORLDS["slalom"]
     rig = Rig.scaled(160, 120)
     frames = [render(spec.world(False), rig, pose=(0.2 * k, 0.05 * k, 0.05 * k),

@@ -5,7 +5,7 @@ Every control period (0.1 s, the firmware's packet period):
 1. the world as it is now (an obstacle may appear) is rendered from the robot's true pose by
    ``sim.scenes.render`` (default 160x120, focal length scaled from the 752-px reference);
 2. ``perceive(left, right)`` returns the sparse matches (x, y, d) (the pipeline's golden
-   model by default, ``station.perception``);
+   model by default, ``sim.closedloop.perception``);
 3. the firmware's side: ``station.radio.summarise_matches`` (32 bands, min_support 3), pose
    rounded to mm and 1/65536 turn, ``encode_payload`` and ``encode_api_frame``;
 4. the radio channel (``Channel``) corrupts, truncates or pads some frames with garbage;
@@ -156,6 +156,17 @@ class Channel:
 
     def __post_init__(self):
         self._rng = np.random.default_rng(self.seed)
+        self.damaged_log = []          #: per frame sent: was it corrupted or cut short
+
+    @property
+    def damaged_at_end(self) -> int:
+        """Damaged frames after the last intact one (no later packet reveals their loss)."""
+        n = 0
+        for d in reversed(self.damaged_log):
+            if not d:
+                break
+            n += 1
+        return n
 
     def transmit(self, frame: bytes) -> bytes:
         rng = self._rng
@@ -169,6 +180,7 @@ class Channel:
         elif u < self.p_corrupt + self.p_truncate:
             out = out[:int(rng.integers(1, len(out)))]
             self.truncated += 1
+        self.damaged_log.append(len(out) != len(frame) or out != frame)
         if rng.random() < self.p_garbage:
             g = bytes(int(b) for b in rng.integers(0, 256, int(rng.integers(1, 9))))
             out = bytearray(g) + out
@@ -300,11 +312,11 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     """Drive the robot from ``spec.start`` to ``spec.goal`` in closed loop.
 
     ``perceive(left, right) -> (N, 3) array of (x, y, d)``; None means the pipeline's golden
-    model, a fresh ``station.perception.default_perceiver`` per run (it keeps the ground
+    model, a fresh ``sim.closedloop.perception.default_perceiver`` per run (it keeps the ground
     model's state from frame to frame); the string "truth" the diagnostic ``truth_matches``.
     ``progress(str)`` receives a line now and then."""
     if perceive is None:
-        from station.perception import default_perceiver
+        from sim.closedloop.perception import default_perceiver
         perceive = default_perceiver(cfg.width, cfg.height)
     use_truth = isinstance(perceive, str) and perceive == "truth"
     t_wall = time.time()
@@ -418,7 +430,7 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     radio = {
         "frames_sent": channel.sent, "frames_damaged": channel.damaged,
         "corrupted": channel.corrupted, "truncated_sent": channel.truncated,
-        "garbage_inserted": channel.garbage,
+        "garbage_inserted": channel.garbage, "damaged_at_end": channel.damaged_at_end,
         **base.link_stats(),
     }
     reasons = {}

@@ -1,6 +1,6 @@
-"""Closed-loop demo: ``python -m station.demo --out build/demo [--worlds N] [--quick]``.
+"""Closed-loop demo: ``python -m sim.closedloop.demo --out build/demo [--worlds N] [--quick]``.
 
-Runs the robot through the demo worlds (``station.closedloop.DEMO_WORLDS``: a slalom, a world
+Runs the robot through the demo worlds (``sim.closedloop.loop.DEMO_WORLDS``: a slalom, a world
 where a box appears across the path while the robot drives, a wall with a gap), and writes per
 world ``<name>.png`` (final map, observed obstacles, driven path, final SACOdm and A* plans)
 and ``<name>.gif`` (the run as the base station saw it, beside the left camera image), plus
@@ -11,7 +11,7 @@ or SACOdm is more than 10 % longer than A* on a final map.
 
 ``--quick`` renders without 2x2 supersampling and skips the animations (faster);
 ``--rtl-check N`` runs the pipeline RTL on each world's first N frames afterwards and checks
-that it gives exactly the matches the golden model gave the loop (``station.rtlcheck``);
+that it gives exactly the matches the golden model gave the loop (``sim.closedloop.rtlcheck``);
 ``--perception truth`` swaps the pipeline for an ideal matcher on the renderer's true
 disparity (diagnostics only: it tells perception errors from mapping/planning errors).
 """
@@ -25,15 +25,16 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from station.closedloop import DEMO_WORLDS, WORLDS, Channel, LoopConfig, run_world
+from sim.closedloop.loop import DEMO_WORLDS, WORLDS, Channel, LoopConfig, run_world
+from sim.closedloop.viz import world_gif, world_png
 from station.planner import SacoParams
-from station.viz import world_gif, world_png
 
 RATIO_LIMIT = 1.10
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m station.demo", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m sim.closedloop.demo",
+                                 description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="build/demo", help="output folder (default build/demo)")
     ap.add_argument("--worlds", type=int, default=len(DEMO_WORLDS),
                     help=f"number of demo worlds to run (1..{len(DEMO_WORLDS)})")
@@ -89,7 +90,7 @@ def main(argv=None) -> int:
         ratio = summ["path_ratio"]
         good = res.reached and res.collisions == 0 and ratio is not None and ratio <= RATIO_LIMIT
         if args.rtl_check > 0 and args.perception == "golden":
-            from station.rtlcheck import rtl_check
+            from sim.closedloop.rtlcheck import rtl_check
             print(f"  RTL check: pipeline RTL ({args.rtl_backend}) on the first "
                   f"{len(res.pairs)} frames ...", flush=True)
             rc = rtl_check(res.pairs, w, h, args.rtl_backend)
