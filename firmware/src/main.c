@@ -6,6 +6,7 @@
 #include "app.h"
 #include "hal.h"
 #include "stereo_regs.h"
+#include "xbee.h"
 
 #define REPORT_PERIOD_US 100000u
 #define COLLECT_PERIOD_US 2000u  /**< drain the result FIFO every 2 ms (it holds 512 records) */
@@ -15,6 +16,12 @@ static uint8_t frame_buf[RADIO_MAX_FRAME];
 
 int main(void)
 {
+    static const xbee_config_t radio_cfg = { XBEE_ROBOT_ADDR, XBEE_STATION_ADDR, XBEE_PAN_ID };
+    xbee_io_t radio_io;
+    /* the radio module: API mode 2 at 115200 baud (a failure leaves the reports unheard but
+     * the pipeline running) */
+    xbee_mcs_io(&radio_io);
+    (void)xbee_configure(&radio_io, &radio_cfg, NULL);
     /* decoders first; a failed decoder is reported in app.dec_status and the pipeline
      * still runs on whatever the other camera provides */
     (void)app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
