@@ -15,6 +15,8 @@ int main(void)
     suite_radio();
     printf("# xbee\n");
     suite_xbee();
+    printf("# pose\n");
+    suite_pose();
     printf("%d passed, %d failed\n", fwt_passed, fwt_failed);
     return fwt_failed == 0 ? 0 : 1;
 }
