@@ -28,6 +28,7 @@ still fails leaves the previous path in place and is reported in ``last_result.s
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +64,8 @@ class PlanEvent:
     status: str
     length_m: float
     astar_length_m: float = math.nan     #: A* on the same request, if check_reference
+    plan_s: float = 0.0                  #: host time the planner took
+    raw_length_m: float = math.nan       #: the colony's own path, before post-processing
 
 
 @dataclass
@@ -181,7 +184,9 @@ class BaseStation:
 
     def replan(self, t: float, reason: str) -> PlanResult:
         blocked, start, goal = self.plan_request()
+        t0 = time.perf_counter()
         res = self.plan(blocked, start, goal)
+        plan_s = time.perf_counter() - t0
         ref = math.nan
         if self.check_reference and res.ok:
             a = astar(blocked, *self.endpoints(blocked, start, goal))
@@ -189,7 +194,9 @@ class BaseStation:
         self.last_result = res
         self.last_plan_t = t
         self.events.append(PlanEvent(t, reason, res.status,
-                                     res.length * self.grid.res if res.ok else math.inf, ref))
+                                     res.length * self.grid.res if res.ok else math.inf, ref,
+                                     plan_s, res.raw_length * self.grid.res if res.ok
+                                     else math.inf))
         if res.ok:
             self.path_cells = list(res.path)
             xs, ys = self.grid.cell_to_world([p[0] for p in res.path], [p[1] for p in res.path])

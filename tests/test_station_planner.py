@@ -143,8 +143,10 @@ def test_shortcut_stays_on_graph_and_never_lengthens():
 def test_fuzzy_cost_orders_paths_by_length_and_effort():
     from station.planner import fuzzy_path_cost
     best = fuzzy_path_cost(1.0, 0.0)
-    assert best < fuzzy_path_cost(1.2, 0.0) < fuzzy_path_cost(1.8, 0.0)
-    assert fuzzy_path_cost(1.0, 0.0) < fuzzy_path_cost(1.0, 0.12) < fuzzy_path_cost(1.0, 0.6)
+    assert best < fuzzy_path_cost(1.03, 0.0) < fuzzy_path_cost(1.5, 0.0)      # longer: worse
+    assert best <= fuzzy_path_cost(1.0, 0.12) < fuzzy_path_cost(1.0, 0.6)     # more turning
+    assert fuzzy_path_cost(1.03, 0.0) < fuzzy_path_cost(1.03, 0.6)
+    assert fuzzy_path_cost(1.0, 0.6) < fuzzy_path_cost(1.5, 0.0)              # length first
     assert 0.0 <= best < 0.2 and fuzzy_path_cost(2.0, 1.0) > 0.8
     b, s, g = MAPS["blocks1"]()
     res = sacodm(b, s, g, SacoParams(n_iter=8, fuzzy_cost=True))
