@@ -94,6 +94,7 @@ def _listen(args) -> int:
     except (serial.SerialException, ValueError, OSError) as e:
         raise ValueError(f"cannot open {args.port}: {e}") from None
     lis = _Listener(make_station(goal, extent, *args.camera))
+    print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
     t0 = last = time.monotonic()
     got_any = False
     try:

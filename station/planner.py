@@ -495,7 +495,7 @@ def sacodm(blocked, start, goal, params: SacoParams = SacoParams()) -> PlanResul
                        key=lambda r: r[0])
         best_cost = cost(best_len, best_effort) if best_nodes is not None else (math.inf,) * 2
         if rated[0][0] < best_cost:
-            best_cost, (_c, n0, m0, best_len, best_effort) = rated[0][0], rated[0]
+            best_cost, n0, m0, best_len, best_effort = rated[0]
             best_nodes = (n0, m0)
         if params.rank > 0:
             rated = rated[:params.rank]

@@ -41,7 +41,7 @@ start-up (``firmware/src/xbee.c``). The 802.15.4 air rate (250 kbit/s) is not th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from station import wire
 from station.wire import (API_AT_RESPONSE, API_MODEM_STATUS, API_OVERHEAD, API_RX16,
@@ -153,7 +153,7 @@ def decode_payload(data: bytes) -> RadioPacket:
     """Parse a payload. Raises ``PayloadError`` ("bad_crc" before any field is trusted, then
     "bad_payload" for a wrong type, band count, length or a zero width)."""
     data = bytes(data)
-    if len(data) < PAYLOAD_HEADER_LEN + 1 + CRC_LEN:
+    if len(data) < wire.PAYLOAD_MIN_LEN:
         raise PayloadError("bad_payload", f"payload too short: {len(data)} bytes")
     if crc16(data[:-CRC_LEN]) != int.from_bytes(data[-CRC_LEN:], "big"):
         raise PayloadError("bad_crc", "CRC-16/CCITT-FALSE mismatch")

@@ -104,7 +104,6 @@ API_AT_RESPONSE = 0x88     #: AT Command Response
 API_TX_STATUS = 0x89       #: TX Status
 API_MODEM_STATUS = 0x8A    #: Modem Status
 API_RX_ZB = 0x90           #: Receive Packet (ZigBee / DigiMesh firmware)
-TX16_HEADER = 5            #: API id, frame id, destination (2), options
 API_OVERHEAD = 9           #: 0x7E, length (2), TX16 header (5), checksum: unescaped
 #: escaped frame can at most double everything after the start delimiter
 MAX_ESCAPED_FRAME = 1 + 2 * (API_OVERHEAD - 1 + MAX_RF_DATA)

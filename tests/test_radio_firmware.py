@@ -42,7 +42,7 @@ def test_firmware_bytes_equal_python_bytes_and_decode(lib):
         pkts.append(pkt)
     assert dec.feed(stream) == pkts
     assert dec.frames_ok == 200 and dec.errors == 0
-    print(f"200 firmware frames byte-identical to station.radio and decoded")
+    print("200 firmware frames byte-identical to station.radio and decoded")
 
 
 def test_firmware_crc_equals_wire_crc(lib):

@@ -7,6 +7,7 @@ statistics must count every lost packet."""
 import json
 import os
 import random
+import select
 import subprocess
 import sys
 import termios
@@ -84,7 +85,9 @@ def test_firmware_to_station_over_a_pty_with_a_noisy_line(lib, tmp_path):
          "--baud", str(BAUD), "--out", str(out), "--idle-exit", "1.5", "--duration", "120"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        time.sleep(1.0)                                  # let the station open the port
+        # wait until the station has opened the port (pyserial flushes its input on open)
+        ready, _, _ = select.select([proc.stderr], [], [], 120)
+        assert ready and proc.stderr.readline().startswith("listening on"), "no start"
         for k in range(0, len(line), 256):               # paced like a 115200-baud UART
             os.write(master, line[k:k + 256])
             time.sleep(256 / (BAUD / 10))

@@ -31,7 +31,9 @@ typedef struct {
     uint16_t cam_errors[2];
     uint16_t matcher_errors;
     uint16_t fifo_overflow;
-    uint8_t flags;  /**< RADIO_HEALTH_LEFT_LOCKED, _RIGHT_LOCKED, _PIPELINE_ENABLED, _HUE_FALLBACK */
+    uint8_t flags;  /**< RADIO_HEALTH_LEFT_LOCKED, _RIGHT_LOCKED, _PIPELINE_ENABLED, _HUE_FALLBACK
+                         (bit0 left decoder locked, bit1 right, bit2 pipeline enabled, bit3
+                         hue fallback to luma) */
 } radio_health_t;
 
 typedef struct {
