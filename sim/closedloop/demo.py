@@ -7,7 +7,8 @@ and ``<name>.gif`` (the run as the base station saw it, beside the left camera i
 ``report.json`` with per world ``reached``, ``collisions``, ``path_length`` (SACOdm on the
 final map, start to goal, metres), ``astar_length`` (A* on the same graph), ``replans`` and
 more (radio counters, driven length, times). Exits 1 if a world misses the goal, collides,
-or SACOdm is more than 10 % longer than A* on a final map.
+or SACOdm (after the shortcut, or the colony alone) is more than 10 % longer than A* on a
+final map.
 
 ``--quick`` renders without 2x2 supersampling and skips the animations (faster);
 ``--rtl-check N`` runs the pipeline RTL on each world's first N frames afterwards and checks
@@ -88,7 +89,9 @@ def main(argv=None) -> int:
         if cfg.gif_every:
             world_gif(res, out / f"{name}.gif")
         ratio = summ["path_ratio"]
-        good = res.reached and res.collisions == 0 and ratio is not None and ratio <= RATIO_LIMIT
+        alone = summ["colony_alone_ratio"]
+        good = (res.reached and res.collisions == 0 and ratio is not None
+                and ratio <= RATIO_LIMIT and alone is not None and alone <= RATIO_LIMIT)
         if args.rtl_check > 0 and args.perception == "golden":
             from sim.closedloop.rtlcheck import rtl_check
             print(f"  RTL check: pipeline RTL ({args.rtl_backend}) on the first "
@@ -100,7 +103,8 @@ def main(argv=None) -> int:
         ok_all &= good
         print(f"  -> reached={res.reached} collisions={res.collisions} "
               f"SACOdm {res.path_length_m:.2f} m vs A* {res.astar_length_m:.2f} m "
-              f"(x{ratio}) replans={res.replans} radio rejected "
+              f"(x{ratio}; colony alone x{alone}) replans={res.replans} plan time "
+              f"max {summ['plan_time_s']['max']} s radio rejected "
               f"{summ['radio']['rejected_total']}/{summ['radio']['frames_sent']} "
               f"sim {res.time_s:.1f}s wall {res.wall_time_s:.1f}s "
               f"{'OK' if good else 'FAIL'}", flush=True)

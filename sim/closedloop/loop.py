@@ -275,6 +275,8 @@ class LoopResult:
     replans: int
     replan_reasons: dict
     worst_replan_ratio: float
+    worst_replan_raw_ratio: float
+    plan_times_s: list
     radio: dict
     min_clearance_m: float
     wall_time_s: float
@@ -296,9 +298,15 @@ class LoopResult:
             "path_ratio": round(self.path_length_m / self.astar_length_m, 4)
             if math.isfinite(self.astar_length_m) and self.astar_length_m > 0 else None,
             "sacodm_raw_length": round(self.sacodm_raw_length_m, 3),
+            "colony_alone_ratio": round(self.sacodm_raw_length_m / self.astar_length_m, 4)
+            if math.isfinite(self.astar_length_m) and self.astar_length_m > 0 else None,
             "final_plan_status": self.final_status,
             "replans": self.replans, "replan_reasons": self.replan_reasons,
             "worst_replan_ratio": round(self.worst_replan_ratio, 4),
+            "worst_replan_colony_alone_ratio": round(self.worst_replan_raw_ratio, 4),
+            "plan_time_s": {"mean": round(float(np.mean(self.plan_times_s)), 3),
+                            "max": round(float(np.max(self.plan_times_s)), 3)}
+            if self.plan_times_s else None,
             "driven_length": round(self.driven_length_m, 3),
             "sim_time_s": round(self.time_s, 1),
             "min_clearance_m": round(self.min_clearance_m, 3),
@@ -336,6 +344,7 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     pairs = []
     min_clear = math.inf
     worst_ratio = 1.0
+    worst_raw_ratio = 1.0
     seen_events = 0
     radio_log = bytearray()
     path_id = 0
@@ -378,6 +387,7 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
         for ev in base.events[seen_events:]:
             if ev.status == "ok" and ev.astar_length_m > 0:
                 worst_ratio = max(worst_ratio, ev.length_m / ev.astar_length_m)
+                worst_raw_ratio = max(worst_raw_ratio, ev.raw_length_m / ev.astar_length_m)
             if progress:
                 progress(f"  t={ev.t:5.1f}s replan ({ev.reason}): {ev.status}"
                          + (f", {ev.length_m:.2f} m" if ev.status == "ok" else ""))
@@ -444,7 +454,8 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
         sacodm_raw_length_m=fin.raw_length * grid.res if fin.ok else math.inf,
         astar_length_m=ref.length * grid.res if ref.ok else math.inf,
         final_status=fin.status, replans=base.replans, replan_reasons=reasons,
-        worst_replan_ratio=worst_ratio, radio=radio, min_clearance_m=min_clear,
+        worst_replan_ratio=worst_ratio, worst_replan_raw_ratio=worst_raw_ratio,
+        plan_times_s=[ev.plan_s for ev in base.events], radio=radio, min_clearance_m=min_clear,
         wall_time_s=time.time() - t_wall, trajectory=traj, frames=frames, grid=grid,
         final_path=fin.path, astar_path=ref.path, spec=spec, appeared_at_s=appeared_at,
         pairs=pairs, radio_bytes=bytes(radio_log))
