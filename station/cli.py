@@ -111,6 +111,11 @@ def _listen(args) -> int:
                     break
     except KeyboardInterrupt:
         pass
+    except (serial.SerialException, OSError) as e:
+        lis.station.decoder.flush()
+        write_outputs(lis, Path(args.out))
+        raise ValueError(f"serial port {args.port}: {e} (outputs written to {args.out})") \
+            from None
     lis.station.decoder.flush()
     link = write_outputs(lis, Path(args.out))
     print(json.dumps({k: link[k] for k in ("accepted", "rejected_total", "lost",
