@@ -8,7 +8,8 @@ the link statistics, rejected frames counted by reason (``station.radio.FrameDec
 every byte to a ``BaseStation`` (decode, map, replan) and, at the end (``--idle-exit`` seconds
 without a byte, ``--duration``, or Ctrl-C), writes to ``--out``: ``map.npy`` (log-odds grid),
 ``map.png``, ``path.json`` (the current path in metres) and ``link.json`` (link statistics,
-accepted sequence numbers, replans). The station's clock is the packets' pose timestamp
+accepted sequence numbers, replans); they are also rewritten every ``--write-every`` seconds
+while it runs. The station's clock is the packets' pose timestamp
 (``pose_ms``), so a recording replays to the same map.
 """
 
@@ -95,7 +96,7 @@ def _listen(args) -> int:
         raise ValueError(f"cannot open {args.port}: {e}") from None
     lis = _Listener(make_station(goal, extent, *args.camera))
     print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
-    t0 = last = time.monotonic()
+    t0 = last = last_write = time.monotonic()
     got_any = False
     try:
         with port:
@@ -105,6 +106,9 @@ def _listen(args) -> int:
                 if data:
                     lis.feed(data)
                     got_any, last = True, now
+                if args.write_every and now - last_write >= args.write_every:
+                    write_outputs(lis, Path(args.out))
+                    last_write = now
                 if args.duration and now - t0 >= args.duration:
                     break
                 if args.idle_exit and got_any and now - last >= args.idle_exit:
@@ -138,6 +142,9 @@ def main(argv=None) -> int:
     li.add_argument("--duration", type=float, default=0.0, help="stop after S seconds")
     li.add_argument("--idle-exit", type=float, default=0.0,
                     help="stop S seconds after the last byte")
+    li.add_argument("--write-every", type=float, default=2.0,
+                    help="also write the outputs every S seconds while running (0: only at "
+                         "the end; default 2)")
     args = ap.parse_args(argv)
     try:
         if args.cmd == "decode":
