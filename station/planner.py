@@ -89,7 +89,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["PlanResult", "SacoParams", "astar", "sacodm", "shortcut", "path_length",
-           "fuzzy_path_cost",
+           "fuzzy_path_cost", "path_effort",
            "move_ok", "MOVES", "check_request"]
 
 #: The 8 moves (drow, dcol) and their costs in cells.
