@@ -54,7 +54,7 @@ bench: setup
 	$(PY) -m sim.bench --out build/bench
 
 demo: setup
-	$(PY) -m station.demo --out build/demo
+	$(PY) -m sim.closedloop.demo --out build/demo
 
 # The package as a user gets it: build the wheel, install it into a fresh virtual environment
 # and run the main job from a folder outside the checkout (exit 0 only when bit-exact).

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from station import bench as station_bench
+
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -746,6 +748,7 @@ def write_markdown(path, rep):
           f"{sw['stereobm_7_fps']} |",
           f"| OpenCV StereoBM block 21 | {1e3 * sw['stereobm_21_s']:.2f} | "
           f"{sw['stereobm_21_fps']} |", "",
+          *station_bench.markdown(rep["station"]),
           "## Provenance", ""]
     for k, v in rep["provenance"].items():
         L.append(f"- `{k}`: {v}")
@@ -803,6 +806,9 @@ def main(argv=None):
     bench.progress("software speed: golden pipeline vs OpenCV StereoBM")
     rep["software_speed"] = software_speed(bench, args.quick, left, right)
 
+    bench.progress("base station: radio decoder and SACOdm plan time (station.bench)")
+    rep["station"] = station_bench.link_and_planner(args.quick)
+
     bench.progress("acceptance check and report")
     rep["check"] = acceptance(rep)
     rep["check"]["enforced"] = not args.quick
@@ -813,7 +819,7 @@ def main(argv=None):
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
     keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources",
-            "throughput", "sim_speed", "software_speed", "provenance"]
+            "throughput", "sim_speed", "software_speed", "station", "provenance"]
     ordered = {k: rep[k] for k in keys}
     (out / "report.json").write_text(json.dumps(ordered, indent=1, default=_json) + "\n")
     write_markdown(out / "report.md", rep)

@@ -12,11 +12,11 @@ turns each good packet's pose and band disparities into a map update (``station.
 - "periodic": ``replan_period_s`` (3 s, the seed's figure) since the last plan, so that a
   shorter way that opened up (an obstacle moved away, unknown space seen free) is taken.
 
-Plausibility: the XBee checksum is 8 bits, so about one damaged frame in 256 passes it (a
-frame cut short and completed by the next frame's first bytes, for instance). A packet whose
-band disparities exceed the pipeline's maximum (``max_disparity``, 63) or whose pose jumps
-farther than ``max_speed_mps`` allows since the last packet is dropped and counted in
-``implausible``, before it can put a phantom obstacle on the map.
+Integrity: only packets whose payload passed the decoder's checks (escaping, length, XBee
+checksum, CRC-16/CCITT-FALSE, field ranges, not a duplicate sequence number) arrive here.
+As a last line, a packet whose band disparities exceed the pipeline's maximum
+(``max_disparity``, 63) or whose pose jumps farther than ``max_speed_mps`` allows since the
+last packet is dropped and counted in ``implausible``.
 
 Planning uses the inflated occupancy grid; unknown cells count as free (the robot only
 learns the world by driving towards the goal). If the robot's own cell is blocked after
@@ -28,6 +28,7 @@ still fails leaves the previous path in place and is reported in ``last_result.s
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +64,8 @@ class PlanEvent:
     status: str
     length_m: float
     astar_length_m: float = math.nan     #: A* on the same request, if check_reference
+    plan_s: float = 0.0                  #: host time the planner took
+    raw_length_m: float = math.nan       #: the colony's own path, before post-processing
 
 
 @dataclass
@@ -90,9 +93,7 @@ class BaseStation:
         self.last_result: PlanResult | None = None
         self.events: list[PlanEvent] = []
         self.packets = 0
-        self.seq_gaps = 0
         self.implausible = 0
-        self._last_seq = None
 
     # -- radio side -------------------------------------------------------------------------
     def receive(self, data: bytes, t: float) -> list[RadioPacket]:
@@ -116,9 +117,6 @@ class BaseStation:
         if not self.plausible(pkt, t):
             self.implausible += 1
             return
-        if self._last_seq is not None and pkt.seq != (self._last_seq + 1) & 0xFF:
-            self.seq_gaps += 1
-        self._last_seq = pkt.seq
         self.packets += 1
         pose = pose_from_packet(pkt)
         dt = 0.0 if self.last_t is None else max(0.0, t - self.last_t)
@@ -186,7 +184,9 @@ class BaseStation:
 
     def replan(self, t: float, reason: str) -> PlanResult:
         blocked, start, goal = self.plan_request()
+        t0 = time.perf_counter()
         res = self.plan(blocked, start, goal)
+        plan_s = time.perf_counter() - t0
         ref = math.nan
         if self.check_reference and res.ok:
             a = astar(blocked, *self.endpoints(blocked, start, goal))
@@ -194,7 +194,9 @@ class BaseStation:
         self.last_result = res
         self.last_plan_t = t
         self.events.append(PlanEvent(t, reason, res.status,
-                                     res.length * self.grid.res if res.ok else math.inf, ref))
+                                     res.length * self.grid.res if res.ok else math.inf, ref,
+                                     plan_s, res.raw_length * self.grid.res if res.ok
+                                     else math.inf))
         if res.ok:
             self.path_cells = list(res.path)
             xs, ys = self.grid.cell_to_world([p[0] for p in res.path], [p[1] for p in res.path])
@@ -206,5 +208,10 @@ class BaseStation:
     @property
     def replans(self) -> int:
         return len(self.events)
+
+    def link_stats(self) -> dict:
+        """The decoder's counters plus what the station itself dropped."""
+        return {**self.decoder.stats(), "implausible": self.implausible,
+                "packets_used": self.packets}
 
 

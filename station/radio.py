@@ -1,92 +1,103 @@
-"""Radio link between the robot and the base station: XBee 802.15.4 API frames.
+"""Radio link between the robot and the base station: XBee 802.15.4 API frames, mode 2.
 
-This module is the ONE Python definition of the radio payload. The firmware's C encoder
-(``firmware/src/radio.c``) writes the same bytes; ``tests/test_radio.py`` cross-checks both.
+The payload's layout, constants and CRC are defined once, in ``station.wire`` (which also
+generates the firmware's ``radio_wire.h``); this module encodes and decodes with them, and
+frames them as XBee API frames (Digi XBee 802.15.4 product manual 90000982, "API operation"):
 
-Framing (Digi XBee 802.15.4 "API mode 1", no escaping; Digi product manual 90000982,
-"API frame specifications"):
+    0x7E | length (u16, BE) | frame data (length bytes) | checksum
 
-    0x7E | length (u16, big-endian) | frame data (length bytes) | checksum
+    checksum = 0xFF - (sum of the frame-data bytes & 0xFF).
 
-    checksum = 0xFF - (sum of the frame-data bytes & 0xFF); a receiver checks that
-    (sum(frame data) + checksum) & 0xFF == 0xFF.
+API mode 2 (AP = 2, what the firmware configures): after the start delimiter, every 0x7E,
+0x7D, 0x11 or 0x13 is sent as 0x7D followed by the byte XOR 0x20; length and checksum are
+those of the unescaped bytes. An unescaped 0x7E therefore only ever starts a frame, which is
+how the decoder resynchronises: a frame cut short is ended by the next frame's delimiter and
+that next frame is decoded whole.
 
-The robot sends a *TX Request, 16-bit address* frame (API identifier 0x01):
+The robot's firmware sends *TX Request, 16-bit address* frames (0x01: frame id, destination,
+options, RF data). The base station's XBee hands the RF data to the station as an *RX Packet*
+frame: 0x81 (16-bit source, RSSI, options), 0x80 (64-bit source, RSSI, options) or, on
+ZigBee/DigiMesh modules, 0x90 (64-bit and 16-bit source, options). All four are accepted
+(0x01 is what a sniffer on the robot's UART, or the firmware fed straight to the station,
+sees). TX status (0x89), AT command responses (0x88) and modem status (0x8A) are counted by
+kind; any other API identifier is counted in ``other_api``.
 
-    frame data = 0x01 | frame id (u8) | destination (u16, BE) | options (u8) | RF data (<= 100 bytes)
+Integrity: a frame reaches the map only if its escaping is valid, its length plausible, its
+XBee checksum right, its payload's CRC-16/CCITT-FALSE right and its fields well formed; the
+sequence number then tells losses and duplicates (a duplicate is counted and dropped).
+``FrameDecoder.stats()`` has every counter.
 
-The base station's XBee hands the same RF data to its host in an *RX Packet, 16-bit
-address* frame (API identifier 0x81):
+Link budget at the configured 115200 baud (8N1: 11520 bytes/s, 1152 bytes per 100 ms), per
+100 ms packet, unescaped (escaping adds one byte per 0x7E/0x7D/0x11/0x13, on average 1.6 %
+of random bytes, at most doubling the frame):
 
-    frame data = 0x81 | source (u16, BE) | RSSI (u8, -dBm) | options (u8) | RF data
+    32 bands (default): payload 68 B + 9 B API = 77 B = 6.7 % of the UART (worst case 13 %)
+    64 bands (maximum): payload 100 B + 9 B API = 109 B = 9.5 % (worst case 19 %)
 
-``FrameDecoder`` accepts both: 0x81 is what the base station sees, 0x01 is what a sniffer on
-the robot's UART (or a test fed with the firmware's bytes) sees. Other API identifiers (TX
-status 0x89, AT responses ...) are counted in ``other_api`` and skipped.
-
-RF data (payload), big-endian, version 1 (``PAYLOAD_TYPE`` = 0xA1):
-
-    off  size  field
-    0    1     0xA1: payload type (high nibble 0xA) and version (low nibble 1)
-    1    1     seq: u8, increments per packet, wraps 255 -> 0
-    2    2     frame: u16, low 16 bits of the pipeline's frame counter
-    4    2     x_mm: i16, robot position x in millimetres (two's complement)
-    6    2     y_mm: i16, robot position y in millimetres
-    8    2     theta: u16, heading, 65536 units per full turn (0 = +x axis, counter-clockwise)
-    10   2     width: u16, image width in pixels the bands refer to
-    12   1     n_bands: 1..64 (firmware default 32)
-    13   n     bands[i]: u8, nearest obstacle disparity in column band i, 0 = no obstacle
-
-Band i covers image columns ``[i*width//n_bands, (i+1)*width//n_bands)``. The nearest
-obstacle disparity of a band is the LARGEST disparity d supported by at least ``min_support``
-matched edge pixels (x, y, d) of the frame with x in that band, "supported" meaning having a
-disparity >= d: it is the ``min_support``-th largest disparity in the band (firmware default
-``min_support`` = 3, range 1..8), 0 if the band has fewer matches. Up to ``min_support - 1``
-mismatched pixels with a large disparity therefore cannot create a phantom near obstacle, and
-the summary does not need the true obstacle's pixels to agree on one exact disparity.
-``summarise_matches`` below is the reference for the firmware's ``radio_summarise``.
-
-Link budget (115200 baud, 8N1 = 10 bits per byte = 11520 bytes/s = 1152 bytes per 100 ms):
-API frame overhead is 9 bytes (0x7E, 2 length, API id, frame id, 2 destination, options,
-checksum) and the payload is 13 + n_bands bytes:
-
-    n_bands = 32 (default): 45 + 9 = 54 bytes per 100 ms =  4.7 % of the UART link
-    n_bands = 64 (maximum): 77 + 9 = 86 bytes per 100 ms =  7.5 % of the UART link
-
-The 802.15.4 air rate (250 kbit/s) is far above the UART rate, so the UART is the bottleneck;
-even with one retry per packet the link stays under 16 % busy.
+At the XBee's factory default of 9600 baud (96 bytes per 100 ms) the default packet would use
+80 % of the line and a worst-case escaped one would not fit, hence the AT configuration at
+start-up (``firmware/src/xbee.c``). The 802.15.4 air rate (250 kbit/s) is not the bottleneck.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from station import wire
+from station.wire import (API_AT_RESPONSE, API_MODEM_STATUS, API_OVERHEAD, API_RX16,
+                          API_RX64, API_RX_ZB, API_TX16, API_TX_STATUS, CRC_LEN,
+                          DEFAULT_BANDS, DEFAULT_MIN_SUPPORT, ESCAPE, ESCAPE_XOR, ESCAPED,
+                          MAX_BANDS, MAX_MIN_SUPPORT, MAX_RF_DATA, OFFSETS,
+                          PAYLOAD_HEADER_LEN, PAYLOAD_TYPE, START_DELIMITER, crc16)
+
 __all__ = [
-    "RadioPacket", "encode_payload", "decode_payload", "encode_api_frame", "FrameDecoder",
-    "summarise_matches", "band_of_column",
-    "PAYLOAD_TYPE", "PAYLOAD_HEADER_LEN", "MAX_BANDS", "DEFAULT_BANDS", "DEFAULT_MIN_SUPPORT",
-    "MAX_MIN_SUPPORT",
-    "MAX_RF_DATA", "API_TX16", "API_RX16", "START_DELIMITER", "API_OVERHEAD",
+    "RadioHealth", "RadioPacket", "PayloadError", "encode_payload", "decode_payload",
+    "encode_api_frame", "encode_frame", "escape", "FrameDecoder", "Frame", "REJECT_REASONS",
+    "summarise_matches", "band_of_column", "PAYLOAD_TYPE", "PAYLOAD_HEADER_LEN", "MAX_BANDS",
+    "DEFAULT_BANDS", "DEFAULT_MIN_SUPPORT", "MAX_MIN_SUPPORT", "MAX_RF_DATA", "API_TX16",
+    "API_RX16", "API_RX64", "API_RX_ZB", "START_DELIMITER", "API_OVERHEAD", "CRC_LEN",
 ]
 
-START_DELIMITER = 0x7E
-API_TX16 = 0x01           #: TX Request, 16-bit destination address
-API_RX16 = 0x81           #: RX Packet, 16-bit source address
-MAX_RF_DATA = 100         #: XBee 802.15.4 maximum RF payload per frame
-API_OVERHEAD = 9          #: bytes around the RF data in a TX16 frame
-PAYLOAD_TYPE = 0xA1       #: payload type 0xA, version 1
-PAYLOAD_HEADER_LEN = 13   #: bytes before the band array
-MAX_BANDS = 64
-DEFAULT_BANDS = 32
-DEFAULT_MIN_SUPPORT = 3
-MAX_MIN_SUPPORT = 8
-#: Longest frame-data length any frame we expect can have (RX16: 5 header bytes + 100 RF bytes).
-MAX_FRAME_DATA = 5 + MAX_RF_DATA
+#: Longest frame data any frame we expect has (RX64/0x90: 12 header bytes + 100 RF bytes).
+MAX_FRAME_DATA = 12 + MAX_RF_DATA
+#: Why a frame was rejected, in the order the checks run.
+REJECT_REASONS = ("bad_length", "truncated", "bad_escape", "bad_checksum", "short_frame",
+                  "bad_crc", "bad_payload", "duplicate")
+TX_STATUS_NAMES = {0: "success", 1: "no_ack", 2: "cca_failure", 3: "purged"}
+
+
+@dataclass(frozen=True)
+class RadioHealth:
+    """Twin of the firmware's ``radio_health_t``: saturating counts since the last report and
+    flags (``station.wire.HEALTH_FLAGS``)."""
+    frames: int = 0
+    pairs_ok: int = 0
+    mispaired: int = 0
+    drops: int = 0
+    cam_errors: tuple = (0, 0)
+    matcher_errors: int = 0
+    fifo_overflow: int = 0
+    flags: int = 0
+
+    def wire_values(self):
+        return (self.frames, self.pairs_ok, self.mispaired, self.drops, self.cam_errors[0],
+                self.cam_errors[1], self.matcher_errors, self.fifo_overflow, self.flags)
+
+    @classmethod
+    def from_wire(cls, v):
+        return cls(v[0], v[1], v[2], v[3], (v[4], v[5]), v[6], v[7], v[8])
+
+    def as_dict(self):
+        d = {n: getattr(self, n) for n in ("frames", "pairs_ok", "mispaired", "drops",
+                                           "matcher_errors", "fifo_overflow", "flags")}
+        d["cam_errors"] = list(self.cam_errors)
+        return d
 
 
 @dataclass(frozen=True)
 class RadioPacket:
-    """One decoded payload: pose and per-band nearest obstacle disparity."""
+    """One decoded payload: pose with its timestamp, health and per-band nearest obstacle
+    disparity (layout in ``station.wire``)."""
     seq: int
     frame: int
     x_mm: int
@@ -94,6 +105,16 @@ class RadioPacket:
     theta_u16: int
     width: int
     bands: tuple[int, ...]
+    pose_ms: int = 0
+    health: RadioHealth = RadioHealth()
+
+
+class PayloadError(ValueError):
+    """A payload the station refuses; ``reason`` is "bad_crc" or "bad_payload"."""
+
+    def __init__(self, reason, msg):
+        super().__init__(msg)
+        self.reason = reason
 
 
 def _check_range(name, value, lo, hi):
@@ -103,204 +124,296 @@ def _check_range(name, value, lo, hi):
         raise ValueError(f"{name} must be in {lo}..{hi}, not {value}")
 
 
+def _header_values(pkt):
+    return (PAYLOAD_TYPE, pkt.seq, pkt.frame, pkt.pose_ms, pkt.x_mm, pkt.y_mm, pkt.theta_u16,
+            pkt.width) + pkt.health.wire_values() + (len(pkt.bands),)
+
+
 def encode_payload(pkt: RadioPacket) -> bytes:
-    """Serialise ``pkt`` to the version-1 RF data (big-endian). Raises ValueError if a
-    field does not fit its wire width."""
-    _check_range("seq", pkt.seq, 0, 0xFF)
-    _check_range("frame", pkt.frame, 0, 0xFFFF)
-    _check_range("x_mm", pkt.x_mm, -0x8000, 0x7FFF)
-    _check_range("y_mm", pkt.y_mm, -0x8000, 0x7FFF)
-    _check_range("theta_u16", pkt.theta_u16, 0, 0xFFFF)
-    _check_range("width", pkt.width, 1, 0xFFFF)
+    """Serialise ``pkt`` (big-endian, CRC appended). Raises ValueError if a field does not
+    fit its wire width."""
     bands = tuple(pkt.bands)
     if not 1 <= len(bands) <= MAX_BANDS:
         raise ValueError(f"number of bands must be in 1..{MAX_BANDS}, not {len(bands)}")
+    _check_range("width", pkt.width, 1, 0xFFFF)
+    out = bytearray()
+    for (name, (_off, size, signed)), v in zip(OFFSETS.items(), _header_values(pkt)):
+        lo, hi = (-(1 << (8 * size - 1)), (1 << (8 * size - 1)) - 1) if signed \
+            else (0, (1 << (8 * size)) - 1)
+        _check_range(name, v, lo, hi)
+        out += v.to_bytes(size, "big", signed=signed)
     for i, b in enumerate(bands):
         _check_range(f"bands[{i}]", b, 0, 0xFF)
-    out = bytearray()
-    out.append(PAYLOAD_TYPE)
-    out.append(pkt.seq)
-    out += pkt.frame.to_bytes(2, "big")
-    out += pkt.x_mm.to_bytes(2, "big", signed=True)
-    out += pkt.y_mm.to_bytes(2, "big", signed=True)
-    out += pkt.theta_u16.to_bytes(2, "big")
-    out += pkt.width.to_bytes(2, "big")
-    out.append(len(bands))
     out += bytes(bands)
+    out += crc16(out).to_bytes(2, "big")
     return bytes(out)
 
 
 def decode_payload(data: bytes) -> RadioPacket:
-    """Parse version-1 RF data. Raises ValueError on a wrong type byte, a bad band count,
-    a length that does not match the band count, or a zero width."""
+    """Parse a payload. Raises ``PayloadError`` ("bad_crc" before any field is trusted, then
+    "bad_payload" for a wrong type, band count, length or a zero width)."""
     data = bytes(data)
-    if len(data) < PAYLOAD_HEADER_LEN:
-        raise ValueError(f"payload too short: {len(data)} bytes < {PAYLOAD_HEADER_LEN}")
-    if data[0] != PAYLOAD_TYPE:
-        raise ValueError(f"unknown payload type/version 0x{data[0]:02X}")
-    n = data[12]
+    if len(data) < wire.PAYLOAD_MIN_LEN:
+        raise PayloadError("bad_payload", f"payload too short: {len(data)} bytes")
+    if crc16(data[:-CRC_LEN]) != int.from_bytes(data[-CRC_LEN:], "big"):
+        raise PayloadError("bad_crc", "CRC-16/CCITT-FALSE mismatch")
+    v = {name: int.from_bytes(data[off:off + size], "big", signed=signed)
+         for name, (off, size, signed) in OFFSETS.items()}
+    if v["type"] != PAYLOAD_TYPE:
+        raise PayloadError("bad_payload", f"unknown payload type/version 0x{v['type']:02X}")
+    n = v["n_bands"]
     if not 1 <= n <= MAX_BANDS:
-        raise ValueError(f"n_bands must be in 1..{MAX_BANDS}, not {n}")
-    if len(data) != PAYLOAD_HEADER_LEN + n:
-        raise ValueError(f"payload length {len(data)} does not match n_bands={n} "
-                         f"(expected {PAYLOAD_HEADER_LEN + n})")
-    width = int.from_bytes(data[10:12], "big")
-    if width == 0:
-        raise ValueError("width must not be 0")
-    return RadioPacket(
-        seq=data[1],
-        frame=int.from_bytes(data[2:4], "big"),
-        x_mm=int.from_bytes(data[4:6], "big", signed=True),
-        y_mm=int.from_bytes(data[6:8], "big", signed=True),
-        theta_u16=int.from_bytes(data[8:10], "big"),
-        width=width,
-        bands=tuple(data[13:13 + n]),
-    )
+        raise PayloadError("bad_payload", f"n_bands must be in 1..{MAX_BANDS}, not {n}")
+    if len(data) != PAYLOAD_HEADER_LEN + n + CRC_LEN:
+        raise PayloadError("bad_payload", f"payload length {len(data)} does not match "
+                                          f"n_bands={n}")
+    if v["width"] == 0:
+        raise PayloadError("bad_payload", "width must not be 0")
+    health = RadioHealth.from_wire([v[f"health_{n_}"] for n_, _c, _s in wire.HEALTH_FIELDS])
+    return RadioPacket(seq=v["seq"], frame=v["frame"], x_mm=v["x_mm"], y_mm=v["y_mm"],
+                       theta_u16=v["theta"], width=v["width"],
+                       bands=tuple(data[PAYLOAD_HEADER_LEN:PAYLOAD_HEADER_LEN + n]),
+                       pose_ms=v["pose_ms"], health=health)
 
 
 def _checksum(frame_data: bytes) -> int:
     return 0xFF - (sum(frame_data) & 0xFF)
 
 
+def escape(data: bytes) -> bytes:
+    """API mode 2 escaping of the bytes after the start delimiter."""
+    out = bytearray()
+    for b in data:
+        if b in ESCAPED:
+            out += bytes((ESCAPE, b ^ ESCAPE_XOR))
+        else:
+            out.append(b)
+    return bytes(out)
+
+
+def encode_frame(frame_data: bytes) -> bytes:
+    """Any API frame (mode 2, escaped) around ``frame_data`` (API id first)."""
+    frame_data = bytes(frame_data)
+    if not 1 <= len(frame_data) <= 0xFFFF:
+        raise ValueError(f"frame data must be 1..65535 bytes, not {len(frame_data)}")
+    raw = len(frame_data).to_bytes(2, "big") + frame_data + bytes([_checksum(frame_data)])
+    return bytes([START_DELIMITER]) + escape(raw)
+
+
 def encode_api_frame(rf_data: bytes, dest: int = 0x0001, frame_id: int = 1) -> bytes:
-    """Wrap ``rf_data`` in an XBee TX Request 16-bit address frame (API id 0x01, options 0).
-    ``frame_id`` 0 asks the XBee for no TX status frame."""
+    """Wrap ``rf_data`` in an escaped TX Request 16-bit address frame (API id 0x01, options
+    0). ``frame_id`` 0 asks the XBee for no TX status frame."""
     rf_data = bytes(rf_data)
     if len(rf_data) > MAX_RF_DATA:
         raise ValueError(f"RF data is {len(rf_data)} bytes, more than {MAX_RF_DATA}")
     _check_range("dest", dest, 0, 0xFFFF)
     _check_range("frame_id", frame_id, 0, 0xFF)
-    body = bytes([API_TX16, frame_id, dest >> 8, dest & 0xFF, 0x00]) + rf_data
-    return bytes([START_DELIMITER, len(body) >> 8, len(body) & 0xFF]) + body + bytes([_checksum(body)])
+    return encode_frame(bytes([API_TX16, frame_id, dest >> 8, dest & 0xFF, 0x00]) + rf_data)
+
+
+def _unescape(raw, limit):
+    """Unescape escaped frame bytes up to ``limit`` output bytes. Returns (bytes, raw bytes
+    used, whether an escape or a raw XON/XOFF among them was invalid)."""
+    u = bytearray()
+    bad = False
+    esc = False
+    used = 0
+    for b in raw:
+        if len(u) >= limit:
+            break
+        used += 1
+        if esc:
+            esc = False
+            b ^= ESCAPE_XOR
+            bad |= b not in ESCAPED
+            u.append(b)
+        elif b == ESCAPE:
+            esc = True
+        else:
+            bad |= b == wire.XON or b == wire.XOFF
+            u.append(b)
+    return u, used, bad
+
+
+@dataclass
+class Frame:
+    """One good API frame: its API id, source/destination address, RSSI (-dBm, RX16/RX64
+    only), the RF data and, for data frames with a valid payload, the packet."""
+    api: int
+    address: int | None = None
+    rssi: int | None = None
+    rf: bytes = b""
+    packet: RadioPacket | None = None
+    data: bytes = b""          #: frame data after the API id (AT responses, status frames)
+
+
+#: API id -> (header bytes after the API id, offset and size of the address, RSSI offset)
+_DATA_FRAMES = {
+    API_TX16: (4, 1, 2, None),
+    API_RX16: (4, 0, 2, 2),
+    API_RX64: (10, 0, 8, 8),
+    API_RX_ZB: (11, 0, 8, None),
+}
 
 
 class FrameDecoder:
-    """Incremental decoder of a byte stream of XBee API frames.
+    """Incremental decoder of a raw serial byte stream of escaped XBee API frames.
 
-    ``feed(data)`` returns the packets completed by ``data`` (possibly none). Never raises on
-    bad input. Bytes before a start delimiter are skipped (counted in ``garbage_bytes``). A
-    frame that fails is dropped by skipping only its 0x7E, so a good frame hidden behind a
-    corrupted length field is still found. Counters:
+    ``feed(data)`` returns the packets completed by ``data``; ``feed_frames(data)`` all good
+    frames (``Frame``). Never raises on bad input. A frame is decoded as soon as its last
+    byte arrives, so nothing complete ever waits in the buffer; ``flush()`` at the end of the
+    stream counts the partial frame left, if any, as truncated. Memory is bounded by one
+    escaped maximum-length frame.
 
-    - ``frames_ok``: packets returned;
-    - ``bad_length``: length field 0 or above 105, or too short for its API frame type;
-    - ``bad_checksum``: checksum mismatch (a plausible but wrong length field lands here too,
-      as the checksum is then read from the wrong byte);
-    - ``truncated``: checksum mismatch where a new frame starts inside the failed one (the
-      frame was cut short), or a partial frame thrown away by ``flush()``;
-    - ``bad_payload``: good frame whose RF data ``decode_payload`` rejects;
-    - ``other_api``: good frame with an API id other than 0x01/0x81 (ignored);
-    - ``garbage_bytes``: bytes skipped while looking for 0x7E.
-
-    Memory is bounded: at most one maximum-length frame (109 bytes) is buffered.
+    Counters (``stats()``): ``accepted`` (packets returned), ``accepted_by_api``,
+    ``rejected[reason]`` for every reason in ``REJECT_REASONS``, ``tx_status[name]``,
+    ``at_responses``, ``modem_status``, ``other_api``, ``garbage_bytes`` (bytes outside any
+    frame), ``lost`` (packets missing according to the sequence numbers) and ``duplicates``
+    (same as ``rejected["duplicate"]``).
     """
 
     def __init__(self):
-        self._buf = bytearray()
-        self.frames_ok = 0
-        self.bad_checksum = 0
-        self.bad_length = 0
-        self.truncated = 0
-        self.bad_payload = 0
+        self._buf = bytearray()       # raw bytes of the frame being received, from its 0x7E
+        self._skipping = True         # outside a frame: bytes are garbage until the next 0x7E
+        self.accepted = 0
+        self.accepted_by_api = {}
+        self.rejected = {r: 0 for r in REJECT_REASONS}
+        self.tx_status = {n: 0 for n in TX_STATUS_NAMES.values()}
+        self.tx_status["other"] = 0
+        self.at_responses = 0
+        self.modem_status = 0
         self.other_api = 0
         self.garbage_bytes = 0
-        #: source (0x81) or destination (0x01) address of the last good frame
+        self.lost = 0
+        self._last_seq = None
         self.last_address = None
-        #: RSSI (-dBm) of the last 0x81 frame, None for 0x01 frames
         self.last_rssi = None
+
+    # -- counters ---------------------------------------------------------------------------
+    @property
+    def frames_ok(self) -> int:
+        return self.accepted
 
     @property
     def errors(self) -> int:
-        return self.bad_checksum + self.bad_length + self.truncated + self.bad_payload
+        return sum(self.rejected.values())
 
-    @staticmethod
-    def _plausible_length(length: int) -> bool:
-        return 1 <= length <= MAX_FRAME_DATA
+    @property
+    def duplicates(self) -> int:
+        return self.rejected["duplicate"]
 
-    def _starts_frame_at(self, p: int) -> bool:
-        """Does a plausible frame start at buf[p] (complete and valid, or running past the
-        end of the buffer)?"""
-        buf = self._buf
-        if len(buf) < p + 3:
-            return True
-        length = (buf[p + 1] << 8) | buf[p + 2]
-        if not self._plausible_length(length):
-            return False
-        end = p + 3 + length
-        if len(buf) <= end:
-            return True
-        return (sum(buf[p + 3:end]) + buf[end]) & 0xFF == 0xFF
+    def stats(self) -> dict:
+        return {"accepted": self.accepted,
+                "accepted_by_api": {f"0x{k:02X}": v for k, v in
+                                    sorted(self.accepted_by_api.items())},
+                "rejected": dict(self.rejected), "rejected_total": self.errors,
+                "lost": self.lost, "duplicates": self.duplicates,
+                "tx_status": dict(self.tx_status), "at_responses": self.at_responses,
+                "modem_status": self.modem_status, "other_api": self.other_api,
+                "garbage_bytes": self.garbage_bytes}
 
+    # -- byte stream ------------------------------------------------------------------------
     def feed(self, data: bytes) -> list[RadioPacket]:
+        return [f.packet for f in self.feed_frames(data) if f.packet is not None]
+
+    def feed_frames(self, data: bytes) -> list[Frame]:
         out = []
-        self._buf += bytes(data)
-        buf = self._buf
-        while True:
-            start = buf.find(START_DELIMITER)
-            if start < 0:
-                self.garbage_bytes += len(buf)
-                buf.clear()
+        data = bytes(data)
+        pos = 0
+        while pos < len(data):
+            nxt = data.find(START_DELIMITER, pos)
+            end = len(data) if nxt < 0 else nxt
+            if self._skipping:
+                self.garbage_bytes += end - pos
+            else:
+                self._buf += data[pos:end]
+                self._try_decode(out)
+            if nxt < 0:
                 break
-            if start:
-                self.garbage_bytes += start
-                del buf[:start]
-            if len(buf) < 3:
-                break
-            length = (buf[1] << 8) | buf[2]
-            if not self._plausible_length(length):
-                self.bad_length += 1
-                del buf[:1]
-                continue
-            end = 3 + length                    # index of the checksum byte
-            if len(buf) <= end:
-                break                           # wait for the rest
-            body = bytes(buf[3:end])
-            if (sum(body) + buf[end]) & 0xFF != 0xFF:
-                if any(buf[p] == START_DELIMITER and self._starts_frame_at(p)
-                       for p in range(1, end + 1)):
-                    self.truncated += 1
-                else:
-                    self.bad_checksum += 1
-                del buf[:1]
-                continue
-            del buf[:end + 1]
-            pkt = self._frame(body)
-            if pkt is not None:
-                out.append(pkt)
+            if not self._skipping:
+                self._reject("truncated")       # a new frame starts inside this one
+            self._buf = bytearray(data[nxt:nxt + 1])
+            self._skipping = False
+            pos = nxt + 1
         return out
 
     def flush(self) -> None:
-        """End of stream: count a partially received frame as truncated and drop it."""
-        if self._buf:
-            if self._buf[0] == START_DELIMITER:
-                self.truncated += 1
-            else:
-                self.garbage_bytes += len(self._buf)
-            self._buf.clear()
+        """End of stream: a partial frame left in the buffer is counted as truncated."""
+        if not self._skipping:
+            self._reject("truncated")
+
+    def _reject(self, reason):
+        self.rejected[reason] += 1
+        self._skip()
+
+    def _skip(self):
+        self._buf = bytearray()
+        self._skipping = True
+
+    def _try_decode(self, out):
+        """Decode the frame in the buffer if all of it has arrived (the buffer holds the
+        bytes from its 0x7E up to, not including, the next 0x7E, or what came so far)."""
+        raw = memoryview(self._buf)[1:]
+        head, used, bad_escape = _unescape(raw, 2)
+        if len(head) < 2:
+            return
+        length = (head[0] << 8) | head[1]
+        if not 1 <= length <= MAX_FRAME_DATA:
+            self._reject("bad_length")
+            return
+        rest, used2, bad2 = _unescape(raw[used:], length + 1)
+        if len(rest) < length + 1:
+            return                              # wait for the rest
+        self.garbage_bytes += len(raw) - used - used2
+        self._skip()
+        body, ck = bytes(rest[:length]), rest[length]
+        if bad_escape or bad2:
+            self.rejected["bad_escape"] += 1
+        elif (sum(body) + ck) & 0xFF != 0xFF:
+            self.rejected["bad_checksum"] += 1
+        else:
+            f = self._frame(body)
+            if f is not None:
+                out.append(f)
 
     def _frame(self, body: bytes):
         api = body[0]
-        if api == API_TX16:
-            if len(body) < 5:
-                self.bad_length += 1
+        if api in _DATA_FRAMES:
+            hdr, a_off, a_len, r_off = _DATA_FRAMES[api]
+            if len(body) < 1 + hdr:
+                self.rejected["short_frame"] += 1
                 return None
-            address, rssi, rf = (body[2] << 8) | body[3], None, body[5:]
-        elif api == API_RX16:
-            if len(body) < 5:
-                self.bad_length += 1
+            h = body[1:1 + hdr]
+            f = Frame(api, int.from_bytes(h[a_off:a_off + a_len], "big"),
+                      None if r_off is None else h[r_off], body[1 + hdr:])
+            try:
+                pkt = decode_payload(f.rf)
+            except PayloadError as e:
+                self.rejected[e.reason] += 1
                 return None
-            address, rssi, rf = (body[1] << 8) | body[2], body[3], body[5:]
+            if self._last_seq is not None:
+                gap = (pkt.seq - self._last_seq - 1) & 0xFF
+                if gap == 0xFF:
+                    self.rejected["duplicate"] += 1
+                    return None
+                self.lost += gap
+            self._last_seq = pkt.seq
+            f.packet = pkt
+            self.accepted += 1
+            self.accepted_by_api[api] = self.accepted_by_api.get(api, 0) + 1
+            self.last_address, self.last_rssi = f.address, f.rssi
+            return f
+        f = Frame(api, data=body[1:])
+        if api == API_TX_STATUS and len(body) >= 3:
+            name = TX_STATUS_NAMES.get(body[2], "other")
+            self.tx_status[name] += 1
+        elif api == API_AT_RESPONSE:
+            self.at_responses += 1
+        elif api == API_MODEM_STATUS:
+            self.modem_status += 1
         else:
             self.other_api += 1
-            return None
-        try:
-            pkt = decode_payload(rf)
-        except ValueError:
-            self.bad_payload += 1
-            return None
-        self.frames_ok += 1
-        self.last_address, self.last_rssi = address, rssi
-        return pkt
+        return f
 
 
 def band_of_column(x: int, width: int, n_bands: int) -> int:

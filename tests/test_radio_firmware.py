@@ -5,8 +5,10 @@ import random
 import pytest
 
 from sim.cosim import fwlib
+from station import wire
 from station.radio import (
-    FrameDecoder, RadioPacket, encode_api_frame, encode_payload, summarise_matches,
+    FrameDecoder, RadioHealth, RadioPacket, encode_api_frame, encode_payload,
+    summarise_matches,
 )
 
 
@@ -20,7 +22,10 @@ def random_packet(rng, n_bands):
         seq=rng.randrange(256), frame=rng.randrange(65536),
         x_mm=rng.randrange(-32768, 32768), y_mm=rng.randrange(-32768, 32768),
         theta_u16=rng.randrange(65536), width=rng.randrange(n_bands, 1025),
-        bands=tuple(rng.randrange(256) for _ in range(n_bands)))
+        bands=tuple(rng.randrange(256) for _ in range(n_bands)), pose_ms=rng.randrange(1 << 32),
+        health=RadioHealth(*(rng.randrange(65536) for _ in range(4)),
+                           (rng.randrange(65536), rng.randrange(65536)),
+                           rng.randrange(65536), rng.randrange(65536), rng.randrange(16)))
 
 
 def test_firmware_bytes_equal_python_bytes_and_decode(lib):
@@ -30,13 +35,24 @@ def test_firmware_bytes_equal_python_bytes_and_decode(lib):
     pkts = []
     for i in range(200):
         pkt = random_packet(rng, rng.choice((1, 2, 31, 32, 33, 64)))
+        pkt = RadioPacket(**{**pkt.__dict__, "seq": i})
         fw = fwlib.encode_packet(lib, pkt)
         assert fw == encode_api_frame(encode_payload(pkt), dest=1, frame_id=1)
         stream += fw
         pkts.append(pkt)
     assert dec.feed(stream) == pkts
     assert dec.frames_ok == 200 and dec.errors == 0
-    print(f"200 firmware frames byte-identical to station.radio and decoded")
+    print("200 firmware frames byte-identical to station.radio and decoded")
+
+
+def test_firmware_crc_equals_wire_crc(lib):
+    import ctypes as C
+    rng = random.Random(9)
+    for n in (0, 1, 9, 68, 100):
+        data = bytes(rng.randrange(256) for _ in range(n))
+        buf = (C.c_uint8 * max(n, 1))(*data)
+        assert lib.radio_crc16(buf, n) == wire.crc16(data) == wire.crc16_bitwise(data)
+    assert lib.radio_crc16((C.c_uint8 * 9)(*b"123456789"), 9) == 0x29B1
 
 
 def test_firmware_summary_equals_reference(lib):
@@ -53,7 +69,7 @@ def test_firmware_summary_equals_reference(lib):
 
 def test_corrupted_firmware_stream_is_counted(lib):
     rng = random.Random(2)
-    pkts = [random_packet(rng, 32) for _ in range(20)]
+    pkts = [RadioPacket(**{**random_packet(rng, 32).__dict__, "seq": i}) for i in range(20)]
     frames = [fwlib.encode_packet(lib, p) for p in pkts]
     stream = bytearray()
     expect = []
@@ -73,5 +89,5 @@ def test_corrupted_firmware_stream_is_counted(lib):
     got = dec.feed(bytes(stream))
     assert got == expect
     assert dec.errors >= bad
-    print(f"ok={dec.frames_ok} bad_checksum={dec.bad_checksum} truncated={dec.truncated} "
-          f"bad_length={dec.bad_length} garbage={dec.garbage_bytes}")
+    assert dec.lost == bad           # frame 19 is good: every bad one is counted
+    print(dec.stats())

@@ -7,7 +7,7 @@ import pytest
 
 from sim.scenes import Box, Rig, World, backproject, render
 from station.camera import CameraModel, fill_band_gaps, observe_bands
-from station.closedloop import truth_matches
+from sim.closedloop.loop import truth_matches
 from station.grid import GridParams, OccupancyGrid
 from station.radio import summarise_matches
 

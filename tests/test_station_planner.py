@@ -59,11 +59,18 @@ def _assert_valid(blocked, res, start, goal):
 
 @pytest.mark.parametrize("name", sorted(MAPS))
 def test_sacodm_within_10_percent_of_astar(name):
+    """The colony alone (no shortcut) within 10 % of A*, and after the shortcut too."""
     blocked, start, goal = MAPS[name]()
     ref = astar(blocked, start, goal)
     res = sacodm(blocked, start, goal)
+    alone = sacodm(blocked, start, goal, SacoParams(postprocess=False))
     _assert_valid(blocked, ref, start, goal)
     _assert_valid(blocked, res, start, goal)
+    _assert_valid(blocked, alone, start, goal)
+    print(f"{name}: colony alone {alone.length / ref.length:.3f}x A*, "
+          f"after shortcut {res.length / ref.length:.3f}x")
+    assert alone.length == res.raw_length
+    assert alone.length <= 1.10 * ref.length, (alone.length, ref.length)
     assert res.length <= 1.10 * ref.length, (res.length, ref.length, res.raw_length)
     assert res.length >= ref.length - 1e-9           # A* is optimal on the same graph
     assert res.raw_length >= res.length - 1e-9       # post-processing never lengthens
@@ -131,3 +138,28 @@ def test_shortcut_stays_on_graph_and_never_lengthens():
     assert path_length(cut) <= raw.length + 1e-9
     res = PlanResult("ok", cut, path_length(cut))
     _assert_valid(blocked, res, start, goal)
+
+
+def test_fuzzy_cost_orders_paths_by_length_and_effort():
+    from station.planner import fuzzy_path_cost
+    best = fuzzy_path_cost(1.0, 0.0)
+    assert best < fuzzy_path_cost(1.03, 0.0) < fuzzy_path_cost(1.5, 0.0)      # longer: worse
+    assert best <= fuzzy_path_cost(1.0, 0.12) < fuzzy_path_cost(1.0, 0.6)     # more turning
+    assert fuzzy_path_cost(1.03, 0.0) < fuzzy_path_cost(1.03, 0.6)
+    assert fuzzy_path_cost(1.0, 0.6) < fuzzy_path_cost(1.5, 0.0)              # length first
+    assert 0.0 <= best < 0.2 and fuzzy_path_cost(2.0, 1.0) > 0.8
+    b, s, g = MAPS["blocks1"]()
+    res = sacodm(b, s, g, SacoParams(n_iter=8, fuzzy_cost=True))
+    _assert_valid(b, res, s, g)
+
+
+def test_path_effort_ignores_staircases_and_counts_corners():
+    from station.planner import path_effort
+    w = 100
+    stair = np.array([r * w + c for r, c in
+                      [(i // 2, i - i // 2) for i in range(41)]])         # E, S, E, S ...
+    straight = np.arange(40)
+    corner = np.array([c for c in range(20)] + [r * w + 19 for r in range(1, 21)])
+    assert path_effort(straight, w) == 0.0
+    assert path_effort(stair, w) < 0.02
+    assert path_effort(corner, w) > 0.03

@@ -1,20 +1,13 @@
 /**
  * @file radio.h
- * Radio packets: XBee 802.15.4 API "TX Request, 16-bit address" frames (API id 0x01)
- * carrying pose and a per-column-band obstacle summary. The payload layout (version 1,
- * big-endian) is defined in station/radio.py, the one definition the base station uses;
- * tests/test_radio_firmware.py cross-checks these encoders against it.
+ * Radio packets: XBee 802.15.4 API frames in API mode 2 (escaped), "TX Request, 16-bit
+ * address" (API id 0x01), carrying pose with its timestamp, the SoC's health counters and a
+ * per-column-band obstacle summary, protected by a CRC-16/CCITT-FALSE.
  *
- *   off size field
- *   0   1    0xA1 payload type/version
- *   1   1    seq (u8, wraps)
- *   2   2    frame counter (u16)
- *   4   2    x_mm (i16)
- *   6   2    y_mm (i16)
- *   8   2    theta (u16, 65536 per turn)
- *   10  2    image width (u16)
- *   12  1    n_bands (1..64)
- *   13  n    nearest obstacle disparity per band (u8, 0 = none)
+ * The payload layout, its constants and the CRC parameters are defined once, in
+ * station/wire.py, which generates radio_wire.h (offsets RADIO_OFF_*); the layout table is in
+ * that file's docstring. tests/test_radio_firmware.py checks these encoders byte for byte
+ * against station.radio, and tests/test_radio.py that radio_wire.h is current.
  *
  * Serialisation writes bytes one by one with shifts: the result does not depend on the
  * CPU's byte order (a MicroBlaze may be big- or little-endian).
@@ -24,21 +17,29 @@
 
 #include <stdint.h>
 #include "fw_status.h"
+#include "radio_wire.h"
 
-#define RADIO_PAYLOAD_TYPE      0xA1u
-#define RADIO_HEADER_LEN        13u
-#define RADIO_MAX_BANDS         64u
-#define RADIO_DEFAULT_BANDS     32u
-#define RADIO_MAX_RF_DATA       100u
-#define RADIO_API_TX16          0x01u
-#define RADIO_API_OVERHEAD      9u    /**< 0x7E, length (2), API id, frame id, dest (2), options, checksum */
-#define RADIO_MAX_FRAME         (RADIO_MAX_RF_DATA + RADIO_API_OVERHEAD)
-#define RADIO_DEFAULT_MIN_SUPPORT 3u
-#define RADIO_MAX_MIN_SUPPORT   8u
+/** Largest escaped TX16 frame: the buffer size radio_encode_api_frame needs at most. */
+#define RADIO_MAX_FRAME XBEE_MAX_ESCAPED_FRAME
+
+/** SoC health since the last report (counts saturate at 65535). Filled in by app.c. */
+typedef struct {
+    uint16_t frames;
+    uint16_t pairs_ok;
+    uint16_t mispaired;
+    uint16_t drops;
+    uint16_t cam_errors[2];
+    uint16_t matcher_errors;
+    uint16_t fifo_overflow;
+    uint8_t flags;  /**< RADIO_HEALTH_LEFT_LOCKED, _RIGHT_LOCKED, _PIPELINE_ENABLED, _HUE_FALLBACK
+                         (bit0 left decoder locked, bit1 right, bit2 pipeline enabled, bit3
+                         hue fallback to luma) */
+} radio_health_t;
 
 typedef struct {
     uint8_t seq;
     uint16_t frame;
+    uint32_t pose_ms;    /**< time the pose was taken, ms (robot clock, wraps) */
     int16_t x_mm;
     int16_t y_mm;
     uint16_t theta;      /**< 65536 units per full turn */
@@ -47,12 +48,26 @@ typedef struct {
     uint8_t bands[RADIO_MAX_BANDS];
 } radio_packet_t;
 
-/** Serialise the payload into buf. Returns the length (13 + n_bands), 0 if it does not fit
- *  in cap or n_bands/width is out of range. */
-uint32_t radio_encode_payload(const radio_packet_t *pkt, uint8_t *buf, uint32_t cap);
+/** CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, MSB first, no final XOR) of data. */
+uint16_t radio_crc16(const uint8_t *data, uint32_t len);
 
-/** Wrap rf_data (<= 100 bytes) in an API frame (options 0). Returns the frame length
- *  (rf_len + 9), 0 on error. */
+/** Serialise the payload (health NULL = all zero) into buf, CRC last. Returns the length
+ *  (RADIO_HEADER_LEN + n_bands + RADIO_CRC_LEN), 0 if it does not fit in cap or
+ *  n_bands/width is out of range. */
+uint32_t radio_encode_payload(const radio_packet_t *pkt, const radio_health_t *health,
+                              uint8_t *buf, uint32_t cap);
+
+/** Escape (API mode 2) src[0..len) into dst; 0x7E, 0x7D, 0x11, 0x13 become 0x7D, b ^ 0x20.
+ *  Returns the escaped length, 0 if it does not fit in cap (or len is 0). */
+uint32_t radio_escape(const uint8_t *src, uint32_t len, uint8_t *dst, uint32_t cap);
+
+/** Any API frame (mode 2) around frame_data[0..len) (API id first). Returns the escaped
+ *  frame length, 0 on error. */
+uint32_t radio_encode_frame(const uint8_t *frame_data, uint32_t len, uint8_t *buf,
+                            uint32_t cap);
+
+/** Wrap rf_data (<= 100 bytes) in an escaped TX16 frame (options 0). Returns the frame
+ *  length (rf_len + 9 plus one byte per escaped byte), 0 on error. */
 uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_t dest,
                                 uint8_t frame_id, uint8_t *buf, uint32_t cap);
 

@@ -109,6 +109,7 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     }
     pkt.seq = app->seq;
     pkt.frame = (uint16_t)(STEREO_ReadReg(app->regs_base, STEREO_FRAME_COUNT_OFFSET) & 0xFFFFu);
+    pkt.pose_ms = 0u;
     pkt.x_mm = x_mm;
     pkt.y_mm = y_mm;
     pkt.theta = theta;
@@ -116,7 +117,7 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     pkt.n_bands = app->n_bands;
     radio_summary_finish(&app->summary, pkt.bands);
     app->summary_open = 0u;   /* the next collect starts a new summary */
-    rf_len = radio_encode_payload(&pkt, rf, sizeof rf);
+    rf_len = radio_encode_payload(&pkt, NULL, rf, sizeof rf);
     len = radio_encode_api_frame(rf, rf_len, APP_RADIO_DEST, (uint8_t)(app->seq % 255u + 1u), buf, cap);
     if (rf_len == 0u || len == 0u) {
         return 0u;

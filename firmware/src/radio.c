@@ -1,65 +1,152 @@
 /**
  * @file radio.c
- * XBee API frames and the obstacle payload (layout in radio.h and station/radio.py).
+ * Payload (layout in station/wire.py, offsets in radio_wire.h), CRC-16/CCITT-FALSE and
+ * escaped XBee API frames (API mode 2).
  */
 #include "radio.h"
 #include "hal.h"
 
-static uint32_t put_u16(uint8_t *p, uint16_t v)
+static void put_u16(uint8_t *p, uint16_t v)
 {
     p[0] = (uint8_t)(v >> 8);
     p[1] = (uint8_t)(v & 0xFFu);
-    return 2u;
 }
 
-uint32_t radio_encode_payload(const radio_packet_t *pkt, uint8_t *buf, uint32_t cap)
+static void put_u32(uint8_t *p, uint32_t v)
 {
-    uint32_t n = 0u;
+    put_u16(p, (uint16_t)(v >> 16));
+    put_u16(p + 2, (uint16_t)(v & 0xFFFFu));
+}
+
+uint16_t radio_crc16(const uint8_t *data, uint32_t len)
+{
+    uint16_t crc = RADIO_CRC_INIT;
+    uint32_t i;
+    uint32_t bit;
+    for (i = 0u; i < len; i++) {
+        crc = (uint16_t)(crc ^ ((uint16_t)data[i] << 8));
+        for (bit = 0u; bit < 8u; bit++) {
+            crc = (crc & 0x8000u) != 0u ? (uint16_t)((crc << 1) ^ RADIO_CRC_POLY)
+                                        : (uint16_t)(crc << 1);
+        }
+    }
+    return crc;
+}
+
+uint32_t radio_encode_payload(const radio_packet_t *pkt, const radio_health_t *health,
+                              uint8_t *buf, uint32_t cap)
+{
+    static const radio_health_t none;
+    uint32_t n;
     uint32_t i;
     if (pkt == NULL || buf == NULL || pkt->n_bands == 0u || pkt->n_bands > RADIO_MAX_BANDS ||
-        pkt->width == 0u || cap < RADIO_HEADER_LEN + (uint32_t)pkt->n_bands) {
+        pkt->width == 0u || cap < RADIO_HEADER_LEN + (uint32_t)pkt->n_bands + RADIO_CRC_LEN) {
         return 0u;
     }
-    buf[n++] = RADIO_PAYLOAD_TYPE;
-    buf[n++] = pkt->seq;
-    n += put_u16(&buf[n], pkt->frame);
+    if (health == NULL) {
+        health = &none;
+    }
+    buf[RADIO_OFF_TYPE] = RADIO_PAYLOAD_TYPE;
+    buf[RADIO_OFF_SEQ] = pkt->seq;
+    put_u16(&buf[RADIO_OFF_FRAME], pkt->frame);
+    put_u32(&buf[RADIO_OFF_POSE_MS], pkt->pose_ms);
     /* two's complement by conversion to uint16_t: defined for every int16_t value */
-    n += put_u16(&buf[n], (uint16_t)pkt->x_mm);
-    n += put_u16(&buf[n], (uint16_t)pkt->y_mm);
-    n += put_u16(&buf[n], pkt->theta);
-    n += put_u16(&buf[n], pkt->width);
-    buf[n++] = pkt->n_bands;
+    put_u16(&buf[RADIO_OFF_X_MM], (uint16_t)pkt->x_mm);
+    put_u16(&buf[RADIO_OFF_Y_MM], (uint16_t)pkt->y_mm);
+    put_u16(&buf[RADIO_OFF_THETA], pkt->theta);
+    put_u16(&buf[RADIO_OFF_WIDTH], pkt->width);
+    put_u16(&buf[RADIO_OFF_HEALTH_FRAMES], health->frames);
+    put_u16(&buf[RADIO_OFF_HEALTH_PAIRS_OK], health->pairs_ok);
+    put_u16(&buf[RADIO_OFF_HEALTH_MISPAIRED], health->mispaired);
+    put_u16(&buf[RADIO_OFF_HEALTH_DROPS], health->drops);
+    put_u16(&buf[RADIO_OFF_HEALTH_CAM_ERRORS0], health->cam_errors[0]);
+    put_u16(&buf[RADIO_OFF_HEALTH_CAM_ERRORS1], health->cam_errors[1]);
+    put_u16(&buf[RADIO_OFF_HEALTH_MATCHER_ERRORS], health->matcher_errors);
+    put_u16(&buf[RADIO_OFF_HEALTH_FIFO_OVERFLOW], health->fifo_overflow);
+    buf[RADIO_OFF_HEALTH_FLAGS] = health->flags;
+    buf[RADIO_OFF_N_BANDS] = pkt->n_bands;
+    n = RADIO_HEADER_LEN;
     for (i = 0u; i < pkt->n_bands; i++) {
         buf[n++] = pkt->bands[i];
     }
+    put_u16(&buf[n], radio_crc16(buf, n));
+    return n + RADIO_CRC_LEN;
+}
+
+uint32_t radio_escape(const uint8_t *src, uint32_t len, uint8_t *dst, uint32_t cap)
+{
+    uint32_t n = 0u;
+    uint32_t i;
+    for (i = 0u; i < len; i++) {
+        uint8_t b = src[i];
+        if (b == XBEE_START || b == XBEE_ESCAPE || b == XBEE_XON || b == XBEE_XOFF) {
+            if (n + 2u > cap) {
+                return 0u;
+            }
+            dst[n++] = XBEE_ESCAPE;
+            dst[n++] = (uint8_t)(b ^ XBEE_ESCAPE_XOR);
+        } else {
+            if (n + 1u > cap) {
+                return 0u;
+            }
+            dst[n++] = b;
+        }
+    }
     return n;
+}
+
+uint32_t radio_encode_frame(const uint8_t *frame_data, uint32_t len, uint8_t *buf,
+                            uint32_t cap)
+{
+    uint8_t hdr[2];
+    uint8_t ck;
+    uint8_t sum = 0u;
+    uint32_t n;
+    uint32_t m;
+    uint32_t i;
+    if (frame_data == NULL || buf == NULL || len == 0u || len > 0xFFFFu || cap < 1u) {
+        return 0u;
+    }
+    for (i = 0u; i < len; i++) {
+        sum = (uint8_t)(sum + frame_data[i]);
+    }
+    ck = (uint8_t)(0xFFu - sum);
+    put_u16(hdr, (uint16_t)len);
+    buf[0] = XBEE_START;
+    n = 1u;
+    m = radio_escape(hdr, 2u, &buf[n], cap - n);
+    if (m == 0u) {
+        return 0u;
+    }
+    n += m;
+    m = radio_escape(frame_data, len, &buf[n], cap - n);
+    if (m == 0u) {
+        return 0u;
+    }
+    n += m;
+    m = radio_escape(&ck, 1u, &buf[n], cap - n);
+    if (m == 0u) {
+        return 0u;
+    }
+    return n + m;
 }
 
 uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_t dest,
                                 uint8_t frame_id, uint8_t *buf, uint32_t cap)
 {
-    uint32_t n = 0u;
+    uint8_t data[XBEE_API_OVERHEAD - 4u + RADIO_MAX_RF_DATA]; /* TX16 header + RF data */
     uint32_t i;
-    uint32_t length = 5u + rf_len; /* API id, frame id, dest (2), options, RF data */
-    uint8_t sum = 0u;
-    if (buf == NULL || (rf_data == NULL && rf_len != 0u) || rf_len > RADIO_MAX_RF_DATA ||
-        cap < rf_len + RADIO_API_OVERHEAD) {
+    if ((rf_data == NULL && rf_len != 0u) || rf_len > RADIO_MAX_RF_DATA) {
         return 0u;
     }
-    buf[n++] = 0x7Eu;
-    n += put_u16(&buf[n], (uint16_t)length);
-    buf[n++] = RADIO_API_TX16;
-    buf[n++] = frame_id;
-    n += put_u16(&buf[n], dest);
-    buf[n++] = 0x00u; /* options: ACK enabled, no broadcast PAN */
+    data[0] = XBEE_API_TX16;
+    data[1] = frame_id;
+    put_u16(&data[2], dest);
+    data[4] = 0x00u; /* options: ACK enabled, no broadcast PAN */
     for (i = 0u; i < rf_len; i++) {
-        buf[n++] = rf_data[i];
+        data[5u + i] = rf_data[i];
     }
-    for (i = 3u; i < n; i++) {
-        sum = (uint8_t)(sum + buf[i]);
-    }
-    buf[n++] = (uint8_t)(0xFFu - sum);
-    return n;
+    return radio_encode_frame(data, 5u + rf_len, buf, cap);
 }
 
 uint8_t radio_band_of_column(uint16_t x, uint16_t width, uint8_t n_bands)

@@ -13,6 +13,10 @@ int main(void)
     suite_pipeline();
     printf("# radio\n");
     suite_radio();
+    printf("# xbee\n");
+    suite_xbee();
+    printf("# pose\n");
+    suite_pose();
     printf("%d passed, %d failed\n", fwt_passed, fwt_failed);
     return fwt_failed == 0 ? 0 : 1;
 }

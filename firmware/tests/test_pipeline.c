@@ -126,13 +126,13 @@ static void test_report_builds_frame(void)
     }
     sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 0x12345;
     n = app_report(&app, -5, 7, 0x4000, buf, sizeof buf);
-    FWT_CHECK_EQ(n, 13 + 32 + 9);
+    FWT_CHECK_EQ(n, RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD); /* no byte escaped */
     FWT_CHECK_EQ(sim.uart_n, n);
     FWT_CHECK_EQ(buf[0], 0x7E);
-    FWT_CHECK_EQ(buf[8], 0xA1);
+    FWT_CHECK_EQ(buf[8], RADIO_PAYLOAD_TYPE);
     FWT_CHECK_EQ(buf[10], 0x23); /* frame counter low 16 bits, big-endian */
     FWT_CHECK_EQ(buf[11], 0x45);
-    FWT_CHECK_EQ(buf[8 + 13], 22); /* 3rd largest of 20..24 */
+    FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN], 22); /* 3rd largest of 20..24 */
     FWT_CHECK_EQ(app.results_read, 5);
     for (i = 3; i < n; i++) {
         sum = (uint8_t)(sum + buf[i]);
@@ -156,12 +156,12 @@ static void test_collect_across_frames(void)
     FWT_CHECK_EQ(app_collect(&app), 2);
     sim.result_fifo[sim.result_n++] = record(31, 11, 41);
     FWT_CHECK_EQ(app_collect(&app), 1);
-    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), 54);
-    FWT_CHECK_EQ(buf[8 + 13 + 1], 40);   /* 3rd largest of 41, 40, 40 */
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
+    FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 40);   /* 3rd largest of 41, 40, 40 */
     FWT_CHECK_EQ(app.results_read, 3);
     /* the next report starts empty */
-    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), 54);
-    FWT_CHECK_EQ(buf[8 + 13 + 1], 0);
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
+    FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 0);
 }
 
 void suite_pipeline(void)

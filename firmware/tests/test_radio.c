@@ -4,32 +4,54 @@
 
 #include <string.h>
 
+static void test_crc_check_value(void)
+{
+    /* CRC-16/CCITT-FALSE catalogue check value */
+    FWT_CHECK_EQ(radio_crc16((const uint8_t *)"123456789", 9), 0x29B1);
+    FWT_CHECK_EQ(radio_crc16((const uint8_t *)"", 0), 0xFFFF);
+}
+
 static void test_payload_bytes(void)
 {
     radio_packet_t p;
+    radio_health_t h;
     uint8_t buf[RADIO_MAX_RF_DATA];
-    static const uint8_t expect[] = { 0xA1, 0x12, 0x34, 0x56, 0xFF, 0xFE, 0x12, 0x34, 0xC0,
-                                      0x00, 0x02, 0xF0, 3, 0, 5, 63 };
+    static const uint8_t expect[] = { 0xA2, 0x12, 0x34, 0x56, 0x00, 0x01, 0xE2, 0x40,
+                                      0xFF, 0xFE, 0x12, 0x34, 0xC0, 0x00, 0x02, 0xF0,
+                                      0, 1, 0, 2, 0, 3, 0, 4, 0, 5, 0, 6, 0, 7, 0xFF, 0xFF, 0x0B,
+                                      3, 0, 5, 63 };
+    uint16_t crc;
     memset(&p, 0, sizeof p);
-    p.seq = 0x12; p.frame = 0x3456; p.x_mm = -2; p.y_mm = 0x1234; p.theta = 0xC000;
-    p.width = 752; p.n_bands = 3; p.bands[0] = 0; p.bands[1] = 5; p.bands[2] = 63;
-    FWT_CHECK_EQ(radio_encode_payload(&p, buf, sizeof buf), sizeof expect);
+    p.seq = 0x12; p.frame = 0x3456; p.pose_ms = 123456u; p.x_mm = -2; p.y_mm = 0x1234;
+    p.theta = 0xC000; p.width = 752; p.n_bands = 3; p.bands[0] = 0; p.bands[1] = 5;
+    p.bands[2] = 63;
+    h.frames = 1; h.pairs_ok = 2; h.mispaired = 3; h.drops = 4; h.cam_errors[0] = 5;
+    h.cam_errors[1] = 6; h.matcher_errors = 7; h.fifo_overflow = 0xFFFF;
+    h.flags = RADIO_HEALTH_LEFT_LOCKED | RADIO_HEALTH_RIGHT_LOCKED | RADIO_HEALTH_HUE_FALLBACK;
+    FWT_CHECK_EQ(radio_encode_payload(&p, &h, buf, sizeof buf), sizeof expect + 2);
     FWT_CHECK(memcmp(buf, expect, sizeof expect) == 0);
-    FWT_CHECK_EQ(radio_encode_payload(&p, buf, 15), 0);  /* does not fit */
+    crc = radio_crc16(expect, sizeof expect);
+    FWT_CHECK(buf[sizeof expect] == (crc >> 8) && buf[sizeof expect + 1] == (crc & 0xFF));
+    /* NULL health: all zero */
+    FWT_CHECK_EQ(radio_encode_payload(&p, NULL, buf, sizeof buf), sizeof expect + 2);
+    FWT_CHECK(buf[RADIO_OFF_HEALTH_FRAMES + 1] == 0 && buf[RADIO_OFF_HEALTH_FLAGS] == 0);
+    FWT_CHECK_EQ(radio_encode_payload(&p, &h, buf, sizeof expect + 1), 0);  /* does not fit */
     p.n_bands = 0;
-    FWT_CHECK_EQ(radio_encode_payload(&p, buf, sizeof buf), 0);
+    FWT_CHECK_EQ(radio_encode_payload(&p, &h, buf, sizeof buf), 0);
     p.n_bands = 65;
-    FWT_CHECK_EQ(radio_encode_payload(&p, buf, sizeof buf), 0);
+    FWT_CHECK_EQ(radio_encode_payload(&p, &h, buf, sizeof buf), 0);
     p.n_bands = 64; p.width = 0;
-    FWT_CHECK_EQ(radio_encode_payload(&p, buf, sizeof buf), 0);
+    FWT_CHECK_EQ(radio_encode_payload(&p, &h, buf, sizeof buf), 0);
     p.width = 1024;
-    FWT_CHECK_EQ(radio_encode_payload(&p, buf, sizeof buf), 77);
+    FWT_CHECK_EQ(radio_encode_payload(&p, &h, buf, sizeof buf), 100);
 }
 
 static void test_api_frame(void)
 {
     uint8_t buf[RADIO_MAX_FRAME];
     uint8_t rf[RADIO_MAX_RF_DATA + 1];
+    uint8_t esc[4];
+    static const uint8_t special[] = { 0x7E, 0x7D, 0x11, 0x13 };
     uint32_t n, i;
     uint8_t sum = 0;
     n = radio_encode_api_frame((const uint8_t *)"Hi", 2, 0x1234, 1, buf, sizeof buf);
@@ -41,10 +63,23 @@ static void test_api_frame(void)
         sum = (uint8_t)(sum + buf[i]);
     }
     FWT_CHECK_EQ(sum, 0xFF);
+    /* escaping: every special byte becomes 0x7D, b ^ 0x20 */
+    FWT_CHECK_EQ(radio_escape(special, 4, buf, sizeof buf), 8);
+    FWT_CHECK(buf[0] == 0x7D && buf[1] == 0x5E && buf[2] == 0x7D && buf[3] == 0x5D &&
+              buf[4] == 0x7D && buf[5] == 0x31 && buf[6] == 0x7D && buf[7] == 0x33);
+    FWT_CHECK_EQ(radio_escape(special, 4, esc, 4), 0);            /* does not fit */
+    /* a frame id of 0x7E and destination 0x7D11 are escaped too */
+    n = radio_encode_api_frame((const uint8_t *)"A", 1, 0x7D11, 0x7E, buf, sizeof buf);
+    FWT_CHECK_EQ(n, 10 + 3);
+    for (i = 1; i < n; i++) {
+        FWT_CHECK(buf[i] != 0x7E && buf[i] != 0x11 && buf[i] != 0x13);
+    }
     memset(rf, 0xEE, sizeof rf);
     FWT_CHECK_EQ(radio_encode_api_frame(rf, 100, 1, 1, buf, sizeof buf), 109);
     FWT_CHECK_EQ(radio_encode_api_frame(rf, 101, 1, 1, buf, sizeof buf), 0);
     FWT_CHECK_EQ(radio_encode_api_frame(rf, 100, 1, 1, buf, 108), 0);
+    memset(rf, 0x7E, sizeof rf);                                  /* worst case fits */
+    FWT_CHECK(radio_encode_api_frame(rf, 100, 0x7E7E, 0x7E, buf, sizeof buf) > 200);
 }
 
 static void test_band_of_column(void)
@@ -136,14 +171,15 @@ static void test_summary_outliers_and_params(void)
 
 static void test_link_budget(void)
 {
-    /* 115200 baud 8N1: 11520 bytes/s, 1152 bytes per 100 ms */
-    FWT_CHECK(RADIO_HEADER_LEN + RADIO_DEFAULT_BANDS + RADIO_API_OVERHEAD == 54u);
-    FWT_CHECK(RADIO_HEADER_LEN + RADIO_MAX_BANDS + RADIO_API_OVERHEAD <= 1152u / 10u);
-    FWT_CHECK(RADIO_HEADER_LEN + RADIO_MAX_BANDS <= RADIO_MAX_RF_DATA);
+    /* 115200 baud 8N1: 11520 bytes/s, 1152 bytes per 100 ms; default packet 68 + 9 bytes */
+    FWT_CHECK(RADIO_HEADER_LEN + RADIO_DEFAULT_BANDS + RADIO_CRC_LEN == 68u);
+    FWT_CHECK(RADIO_HEADER_LEN + RADIO_MAX_BANDS + RADIO_CRC_LEN <= RADIO_MAX_RF_DATA);
+    FWT_CHECK(RADIO_MAX_FRAME <= 1152u / 5u);  /* even fully escaped: < 20 % of the line */
 }
 
 void suite_radio(void)
 {
+    FWT_RUN(test_crc_check_value);
     FWT_RUN(test_payload_bytes);
     FWT_RUN(test_api_frame);
     FWT_RUN(test_band_of_column);

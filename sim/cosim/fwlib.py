@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 LIB = ROOT / "build" / "firmware" / "libfirmware.so"
 
 RADIO_MAX_BANDS = 64
-RADIO_MAX_FRAME = 109
+RADIO_MAX_FRAME = 217       # escaped worst case (radio_wire.h XBEE_MAX_ESCAPED_FRAME)
 
 STATUS_NAMES = {0: "OK", -1: "NACK", -2: "TIMEOUT", -3: "BUS_BUSY", -4: "ARBITRATION",
                 -5: "PARAM", -6: "ID", -7: "NO_LOCK", -8: "RX"}
@@ -28,9 +28,17 @@ UART = C.CFUNCTYPE(None, C.c_void_p, C.POINTER(C.c_uint8), C.c_uint32)
 
 
 class RadioPacketC(C.Structure):
-    _fields_ = [("seq", C.c_uint8), ("frame", C.c_uint16), ("x_mm", C.c_int16),
+    _fields_ = [("seq", C.c_uint8), ("frame", C.c_uint16), ("pose_ms", C.c_uint32),
+                ("x_mm", C.c_int16),
                 ("y_mm", C.c_int16), ("theta", C.c_uint16), ("width", C.c_uint16),
                 ("n_bands", C.c_uint8), ("bands", C.c_uint8 * RADIO_MAX_BANDS)]
+
+
+class RadioHealthC(C.Structure):
+    _fields_ = [("frames", C.c_uint16), ("pairs_ok", C.c_uint16), ("mispaired", C.c_uint16),
+                ("drops", C.c_uint16), ("cam_errors", C.c_uint16 * 2),
+                ("matcher_errors", C.c_uint16), ("fifo_overflow", C.c_uint16),
+                ("flags", C.c_uint8)]
 
 
 class RadioSummaryC(C.Structure):
@@ -92,7 +100,9 @@ def load(rebuild: bool = True) -> C.CDLL:
     P = C.POINTER
     sig = {
         "hal_set_bus_hook": (None, [READ32, WRITE32, DELAY, UART, C.c_void_p]),
-        "radio_encode_payload": (C.c_uint32, [P(RadioPacketC), P(C.c_uint8), C.c_uint32]),
+        "radio_encode_payload": (C.c_uint32, [P(RadioPacketC), P(RadioHealthC), P(C.c_uint8),
+                                              C.c_uint32]),
+        "radio_crc16": (C.c_uint16, [P(C.c_uint8), C.c_uint32]),
         "radio_encode_api_frame": (C.c_uint32, [P(C.c_uint8), C.c_uint32, C.c_uint16,
                                                 C.c_uint8, P(C.c_uint8), C.c_uint32]),
         "radio_summary_init": (C.c_int32, [P(RadioSummaryC), C.c_uint16, C.c_uint8, C.c_uint8]),
@@ -130,12 +140,17 @@ def init_table(lib: C.CDLL) -> list[tuple[int, int]]:
 
 def encode_packet(lib: C.CDLL, pkt) -> bytes:
     """Firmware encoding of a station.radio.RadioPacket: the API frame bytes."""
-    c = RadioPacketC(seq=pkt.seq, frame=pkt.frame, x_mm=pkt.x_mm, y_mm=pkt.y_mm,
-                     theta=pkt.theta_u16, width=pkt.width, n_bands=len(pkt.bands))
+    c = RadioPacketC(seq=pkt.seq, frame=pkt.frame, pose_ms=pkt.pose_ms, x_mm=pkt.x_mm,
+                     y_mm=pkt.y_mm, theta=pkt.theta_u16, width=pkt.width,
+                     n_bands=len(pkt.bands))
     for i, b in enumerate(pkt.bands):
         c.bands[i] = b
+    h = pkt.health
+    hc = RadioHealthC(h.frames, h.pairs_ok, h.mispaired, h.drops,
+                      (C.c_uint16 * 2)(*h.cam_errors),
+                      h.matcher_errors, h.fifo_overflow, h.flags)
     rf = (C.c_uint8 * 100)()
-    n = lib.radio_encode_payload(C.byref(c), rf, 100)
+    n = lib.radio_encode_payload(C.byref(c), C.byref(hc), rf, 100)
     if n == 0:
         raise ValueError("firmware refused the packet")
     out = (C.c_uint8 * RADIO_MAX_FRAME)()

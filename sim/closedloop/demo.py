@@ -1,17 +1,18 @@
-"""Closed-loop demo: ``python -m station.demo --out build/demo [--worlds N] [--quick]``.
+"""Closed-loop demo: ``python -m sim.closedloop.demo --out build/demo [--worlds N] [--quick]``.
 
-Runs the robot through the demo worlds (``station.closedloop.DEMO_WORLDS``: a slalom, a world
+Runs the robot through the demo worlds (``sim.closedloop.loop.DEMO_WORLDS``: a slalom, a world
 where a box appears across the path while the robot drives, a wall with a gap), and writes per
 world ``<name>.png`` (final map, observed obstacles, driven path, final SACOdm and A* plans)
 and ``<name>.gif`` (the run as the base station saw it, beside the left camera image), plus
 ``report.json`` with per world ``reached``, ``collisions``, ``path_length`` (SACOdm on the
 final map, start to goal, metres), ``astar_length`` (A* on the same graph), ``replans`` and
 more (radio counters, driven length, times). Exits 1 if a world misses the goal, collides,
-or SACOdm is more than 10 % longer than A* on a final map.
+or SACOdm (after the shortcut, or the colony alone) is more than 10 % longer than A* on a
+final map.
 
 ``--quick`` renders without 2x2 supersampling and skips the animations (faster);
 ``--rtl-check N`` runs the pipeline RTL on each world's first N frames afterwards and checks
-that it gives exactly the matches the golden model gave the loop (``station.rtlcheck``);
+that it gives exactly the matches the golden model gave the loop (``sim.closedloop.rtlcheck``);
 ``--perception truth`` swaps the pipeline for an ideal matcher on the renderer's true
 disparity (diagnostics only: it tells perception errors from mapping/planning errors).
 """
@@ -25,15 +26,16 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from station.closedloop import DEMO_WORLDS, WORLDS, Channel, LoopConfig, run_world
+from sim.closedloop.loop import DEMO_WORLDS, WORLDS, Channel, LoopConfig, run_world
+from sim.closedloop.viz import world_gif, world_png
 from station.planner import SacoParams
-from station.viz import world_gif, world_png
 
 RATIO_LIMIT = 1.10
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m station.demo", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m sim.closedloop.demo",
+                                 description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="build/demo", help="output folder (default build/demo)")
     ap.add_argument("--worlds", type=int, default=len(DEMO_WORLDS),
                     help=f"number of demo worlds to run (1..{len(DEMO_WORLDS)})")
@@ -82,12 +84,16 @@ def main(argv=None) -> int:
         summ = res.summary()
         report["worlds"][name] = summ
         world_png(res, out / f"{name}.png")
+        (out / name).mkdir(exist_ok=True)
+        (out / name / "radio.bin").write_bytes(res.radio_bytes)   # python -m station decode
         if cfg.gif_every:
             world_gif(res, out / f"{name}.gif")
         ratio = summ["path_ratio"]
-        good = res.reached and res.collisions == 0 and ratio is not None and ratio <= RATIO_LIMIT
+        alone = summ["colony_alone_ratio"]
+        good = (res.reached and res.collisions == 0 and ratio is not None
+                and ratio <= RATIO_LIMIT and alone is not None and alone <= RATIO_LIMIT)
         if args.rtl_check > 0 and args.perception == "golden":
-            from station.rtlcheck import rtl_check
+            from sim.closedloop.rtlcheck import rtl_check
             print(f"  RTL check: pipeline RTL ({args.rtl_backend}) on the first "
                   f"{len(res.pairs)} frames ...", flush=True)
             rc = rtl_check(res.pairs, w, h, args.rtl_backend)
@@ -97,8 +103,9 @@ def main(argv=None) -> int:
         ok_all &= good
         print(f"  -> reached={res.reached} collisions={res.collisions} "
               f"SACOdm {res.path_length_m:.2f} m vs A* {res.astar_length_m:.2f} m "
-              f"(x{ratio}) replans={res.replans} radio rejected "
-              f"{summ['radio']['rejected']}/{summ['radio']['frames_sent']} "
+              f"(x{ratio}; colony alone x{alone}) replans={res.replans} plan time "
+              f"max {summ['plan_time_s']['max']} s radio rejected "
+              f"{summ['radio']['rejected_total']}/{summ['radio']['frames_sent']} "
               f"sim {res.time_s:.1f}s wall {res.wall_time_s:.1f}s "
               f"{'OK' if good else 'FAIL'}", flush=True)
     report["all_ok"] = bool(ok_all)

@@ -10,7 +10,7 @@ list) one frame at a time, because the next frame depends on where the robot dri
 parameters of ``golden.pipeline.default_params``.
 
 To run another model (or the RTL) in the loop, pass any callable with the same signature to
-``station.closedloop.run_world``; ``default_perceiver`` is the one line to change for a new
+``sim.closedloop.loop.run_world``; ``default_perceiver`` is the one line to change for a new
 default.
 """
 

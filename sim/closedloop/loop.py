@@ -5,7 +5,7 @@ Every control period (0.1 s, the firmware's packet period):
 1. the world as it is now (an obstacle may appear) is rendered from the robot's true pose by
    ``sim.scenes.render`` (default 160x120, focal length scaled from the 752-px reference);
 2. ``perceive(left, right)`` returns the sparse matches (x, y, d) (the pipeline's golden
-   model by default, ``station.perception``);
+   model by default, ``sim.closedloop.perception``);
 3. the firmware's side: ``station.radio.summarise_matches`` (32 bands, min_support 3), pose
    rounded to mm and 1/65536 turn, ``encode_payload`` and ``encode_api_frame``;
 4. the radio channel (``Channel``) corrupts, truncates or pads some frames with garbage;
@@ -156,6 +156,17 @@ class Channel:
 
     def __post_init__(self):
         self._rng = np.random.default_rng(self.seed)
+        self.damaged_log = []          #: per frame sent: was it corrupted or cut short
+
+    @property
+    def damaged_at_end(self) -> int:
+        """Damaged frames after the last intact one (no later packet reveals their loss)."""
+        n = 0
+        for d in reversed(self.damaged_log):
+            if not d:
+                break
+            n += 1
+        return n
 
     def transmit(self, frame: bytes) -> bytes:
         rng = self._rng
@@ -169,6 +180,7 @@ class Channel:
         elif u < self.p_corrupt + self.p_truncate:
             out = out[:int(rng.integers(1, len(out)))]
             self.truncated += 1
+        self.damaged_log.append(len(out) != len(frame) or out != frame)
         if rng.random() < self.p_garbage:
             g = bytes(int(b) for b in rng.integers(0, 256, int(rng.integers(1, 9))))
             out = bytearray(g) + out
@@ -263,6 +275,8 @@ class LoopResult:
     replans: int
     replan_reasons: dict
     worst_replan_ratio: float
+    worst_replan_raw_ratio: float
+    plan_times_s: list
     radio: dict
     min_clearance_m: float
     wall_time_s: float
@@ -274,6 +288,7 @@ class LoopResult:
     spec: WorldSpec | None = None
     appeared_at_s: float | None = None
     pairs: list = field(default_factory=list)      # (left, right, matches) of the first frames
+    radio_bytes: bytes = b""                        # the byte stream the station received
 
     def summary(self) -> dict:
         return {
@@ -283,9 +298,15 @@ class LoopResult:
             "path_ratio": round(self.path_length_m / self.astar_length_m, 4)
             if math.isfinite(self.astar_length_m) and self.astar_length_m > 0 else None,
             "sacodm_raw_length": round(self.sacodm_raw_length_m, 3),
+            "colony_alone_ratio": round(self.sacodm_raw_length_m / self.astar_length_m, 4)
+            if math.isfinite(self.astar_length_m) and self.astar_length_m > 0 else None,
             "final_plan_status": self.final_status,
             "replans": self.replans, "replan_reasons": self.replan_reasons,
             "worst_replan_ratio": round(self.worst_replan_ratio, 4),
+            "worst_replan_colony_alone_ratio": round(self.worst_replan_raw_ratio, 4),
+            "plan_time_s": {"mean": round(float(np.mean(self.plan_times_s)), 3),
+                            "max": round(float(np.max(self.plan_times_s)), 3)}
+            if self.plan_times_s else None,
             "driven_length": round(self.driven_length_m, 3),
             "sim_time_s": round(self.time_s, 1),
             "min_clearance_m": round(self.min_clearance_m, 3),
@@ -299,11 +320,11 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     """Drive the robot from ``spec.start`` to ``spec.goal`` in closed loop.
 
     ``perceive(left, right) -> (N, 3) array of (x, y, d)``; None means the pipeline's golden
-    model, a fresh ``station.perception.default_perceiver`` per run (it keeps the ground
+    model, a fresh ``sim.closedloop.perception.default_perceiver`` per run (it keeps the ground
     model's state from frame to frame); the string "truth" the diagnostic ``truth_matches``.
     ``progress(str)`` receives a line now and then."""
     if perceive is None:
-        from station.perception import default_perceiver
+        from sim.closedloop.perception import default_perceiver
         perceive = default_perceiver(cfg.width, cfg.height)
     use_truth = isinstance(perceive, str) and perceive == "truth"
     t_wall = time.time()
@@ -323,7 +344,9 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     pairs = []
     min_clear = math.inf
     worst_ratio = 1.0
+    worst_raw_ratio = 1.0
     seen_events = 0
+    radio_log = bytearray()
     path_id = 0
     last_path = None
     reached = False
@@ -354,13 +377,17 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
                                   cfg.min_support)
         x_mm, y_mm, th_u16 = pose_to_wire(robot.pose)
         pkt = RadioPacket(seq=step & 0xFF, frame=step & 0xFFFF, x_mm=x_mm, y_mm=y_mm,
-                          theta_u16=th_u16, width=cfg.width, bands=bands)
+                          theta_u16=th_u16, width=cfg.width, bands=bands,
+                          pose_ms=int(round(t * 1000)))
         wire = encode_api_frame(encode_payload(pkt), dest=0x0001, frame_id=(step % 255) + 1)
         # 4-5: channel and base station
-        base.receive(channel.transmit(wire), t)
+        line = channel.transmit(wire)
+        radio_log += line
+        base.receive(line, t)
         for ev in base.events[seen_events:]:
             if ev.status == "ok" and ev.astar_length_m > 0:
                 worst_ratio = max(worst_ratio, ev.length_m / ev.astar_length_m)
+                worst_raw_ratio = max(worst_raw_ratio, ev.raw_length_m / ev.astar_length_m)
             if progress:
                 progress(f"  t={ev.t:5.1f}s replan ({ev.reason}): {ev.status}"
                          + (f", {ev.length_m:.2f} m" if ev.status == "ok" else ""))
@@ -410,16 +437,11 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     s, g = base.endpoints(blocked, s, g)
     fin = sacodm(blocked, s, g, cfg.saco)
     ref = astar(blocked, s, g)
-    dec = base.decoder
     radio = {
         "frames_sent": channel.sent, "frames_damaged": channel.damaged,
         "corrupted": channel.corrupted, "truncated_sent": channel.truncated,
-        "garbage_inserted": channel.garbage,
-        "frames_ok": dec.frames_ok, "bad_checksum": dec.bad_checksum,
-        "bad_length": dec.bad_length, "truncated": dec.truncated,
-        "bad_payload": dec.bad_payload, "garbage_bytes": dec.garbage_bytes,
-        "rejected": dec.errors, "implausible": base.implausible,
-        "packets_used": base.packets, "seq_gaps": base.seq_gaps,
+        "garbage_inserted": channel.garbage, "damaged_at_end": channel.damaged_at_end,
+        **base.link_stats(),
     }
     reasons = {}
     for ev in base.events:
@@ -432,8 +454,9 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
         sacodm_raw_length_m=fin.raw_length * grid.res if fin.ok else math.inf,
         astar_length_m=ref.length * grid.res if ref.ok else math.inf,
         final_status=fin.status, replans=base.replans, replan_reasons=reasons,
-        worst_replan_ratio=worst_ratio, radio=radio, min_clearance_m=min_clear,
+        worst_replan_ratio=worst_ratio, worst_replan_raw_ratio=worst_raw_ratio,
+        plan_times_s=[ev.plan_s for ev in base.events], radio=radio, min_clearance_m=min_clear,
         wall_time_s=time.time() - t_wall, trajectory=traj, frames=frames, grid=grid,
         final_path=fin.path, astar_path=ref.path, spec=spec, appeared_at_s=appeared_at,
-        pairs=pairs)
+        pairs=pairs, radio_bytes=bytes(radio_log))
 
