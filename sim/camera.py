@@ -96,10 +96,13 @@ class Camera:
         vx, vy, vw, vh = self.valid
         return (x >= vx) & (x < vx + vw) & (y >= vy) & (y < vy + vh)
 
+    def far_disparity(self, d_min):
+        """The smallest disparity from ``d_min`` on with a finite depth (d + doffs > 0)."""
+        return max(d_min, math.floor(-self.doffs_px) + 1)
+
     def depth_range(self, d_min, d_max):
-        """(nearest, farthest) depth in metres that disparities d_min..d_max measure; the
-        farthest is that of max(d_min, 1): d = 0 is a point at infinity."""
-        return float(self.depth(d_max)), float(self.depth(max(d_min, 1)))
+        """(nearest, farthest) finite depth in metres that disparities d_min..d_max measure."""
+        return float(self.depth(d_max)), float(self.depth(self.far_disparity(d_min)))
 
     def summary(self, d_min, d_max):
         near, far = self.depth_range(d_min, d_max)
@@ -107,7 +110,7 @@ class Camera:
                 "cy": self.cy, "baseline_m": self.baseline_m, "height_m": self.height_m,
                 "tilt_deg": self.tilt_deg, "valid": None if self.valid is None else list(self.valid),
                 "doffs_px": self.doffs_px, "depth_range_m": [round(near, 3), round(far, 3)],
-                "disparity_range_px": [d_min, d_max],
+                "disparity_range_px": [d_min, d_max], "far_disparity_px": self.far_disparity(d_min),
                 "depth_step_at_far_m": round(far * far / (self.fx * self.baseline_m), 3)}
 
 

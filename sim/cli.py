@@ -152,24 +152,25 @@ def load_pair(left_path, right_path, crop_spec=None, need_right=True):
 def default_pair(scene, crop_spec=None):
     """The embedded default stereo pairs: a synthetic robot's-eye scene (``--scene NAME`` of
     :mod:`sim.scenes`, default 'mixed') or the Middlebury motorcycle pair (``motorcycle``).
-    Returns (left, right, ground mode, camera, truth frame or None)."""
+    Returns (left, right, ground mode, camera, true depth map or None)."""
     from .camera import MOTORCYCLE, scene_camera
     from .scenes import make_scene, scene_names
     box = _crop_box(crop_spec) if crop_spec else None
     if scene == "motorcycle":
         from .data import motorcycle
-        left, right, _ = motorcycle()
-        camera, truth, ground = MOTORCYCLE, None, "off"
+        left, right, disparity = motorcycle()
+        camera, ground = MOTORCYCLE, "off"
+        truth = camera.depth(np.where(np.isfinite(disparity), disparity, np.nan))
     elif scene in scene_names():
-        truth = make_scene(scene, *REFERENCE_SIZE)
-        left, right, ground = truth.left, truth.right, "hue"
+        frame = make_scene(scene, *REFERENCE_SIZE)
+        left, right, ground, truth = frame.left, frame.right, "hue", frame.depth
         camera = scene_camera(*REFERENCE_SIZE)
     else:
         raise CliError(f"unknown scene {scene!r}: choose from motorcycle, {', '.join(scene_names())}")
     if box:
         left, right = _crop(left, box), _crop(right, box)
         camera = camera.cropped(box[2], box[3])
-        truth = truth.crop(box[2], box[3], box[0], box[1]) if truth is not None else None
+        truth = _crop(truth, box)
     return left, right, ground, camera, truth
 
 
@@ -395,7 +396,7 @@ def cmd_run(args, flags):
     shown = [type(g)(g.left, g.right, rtl_frames[k] if k < len(rtl_frames) else g.records, g.stats)
              for k, g in enumerate(golden)]
     if truth is not None:
-        summary["depth_error"] = depth_error(camera, shown[-1].records, truth.depth)
+        summary["depth_error"] = depth_error(camera, shown[-1].records, truth)
     run = SimpleNamespace(args=args, params=params, job=job, golden=golden, frames=shown,
                           result=result, camera=camera, truth=truth, summary=summary)
     progress(f"writing views to {args.out}")
@@ -445,11 +446,11 @@ def _print_run(summary, last, failure, paths, args):
           f"{'equal' if summary['stats_match'] else 'DIFFER'}")
     cam = summary["camera"]
     near, far = cam["depth_range_m"]
-    print(f"  measurable depth {near:.2f} m to {far:.1f} m (disparity {cam['disparity_range_px'][1]}"
-          f" to {max(1, cam['disparity_range_px'][0])} px; camera: {cam['source']})")
-    if "depth_error" in summary:
-        e = summary["depth_error"]
-        print(f"  depth vs scene truth: median relative error {100 * e['median_rel_contour']:.1f}% "
+    print(f"  measurable depth {near:.3g} m to {far:.3g} m (disparity {cam['disparity_range_px'][1]}"
+          f" to {cam['far_disparity_px']} px; camera: {cam['source']})")
+    e = summary.get("depth_error")
+    if e and e["points"]:
+        print(f"  depth vs the pair's ground truth: median relative error {100 * e['median_rel_contour']:.1f}% "
               f"(nearer surface at the edge), {100 * e['median_rel_pixel']:.1f}% (pixel's own "
               f"surface), over {e['points']} matches")
     print(f"  wrote {', '.join(os.path.basename(p) for p in paths.values())} to {args.out}")

@@ -92,8 +92,10 @@ def _colorbar(fig, mappable, cax, label, fontsize=10):
     bar.set_label(label, fontsize=fontsize)
     norm = mappable.norm
     if isinstance(norm, LogNorm):
-        ticks = [t for t in (0.3, 0.5, 0.7, 1, 1.5, 2, 3, 5, 7, 10, 15, 20, 30, 50, 70, 100)
+        ticks = [t for t in (0.3, 0.4, 0.5, 0.6, 0.8, 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10,
+                             12, 15, 20, 25, 30, 40, 50, 60, 80, 100)
                  if norm.vmin <= t <= norm.vmax]
+        ticks = ticks[::max(1, math.ceil(len(ticks) / 10))]
         bar.ax.minorticks_off()
         bar.set_ticks(ticks, labels=[f"{t:g}" for t in ticks])
     bar.ax.tick_params(labelsize=fontsize - 1)
@@ -259,7 +261,7 @@ def _topview(path, table, camera, params, width):
     ax.set_ylabel("distance ahead on the ground (m)")
     ax.grid(True, linewidth=0.4, alpha=0.6)
     ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
-    ax.set_title(f"top view: {int(ok.sum())} matched points within {reach:g} m"
+    ax.set_title(f"top view: {int(ok.sum())} matched points within {reach:.3g} m"
                  + (f", {beyond} beyond" if beyond else "") + " (no free-space boundary yet)",
                  fontsize=9)
     return _save(fig, path)

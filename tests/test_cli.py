@@ -272,3 +272,13 @@ def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
     lines = r.stderr.strip().splitlines()     # no progress line: nothing was simulated
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], r.stderr
     assert "Traceback" not in r.stderr and r.stdout == ""
+
+
+def test_long_runs_show_progress(capsys):
+    progress = cli.Progress(2, every=0.05)
+    progress("golden model")
+    stop = progress.heartbeat("RTL on amaranth")
+    time.sleep(0.3)
+    stop.set()
+    err = capsys.readouterr().err
+    assert err.startswith("[1/2] golden model (") and "RTL on amaranth: still running after" in err
