@@ -16,6 +16,7 @@ import tempfile
 import threading
 import time
 import traceback
+import warnings
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -27,7 +28,7 @@ from golden.pipeline import default_params
 from .data import crop, parse_crop
 from .errors import (CliError, InternalError, RtlFailure, EXIT_BIT_EXACT, EXIT_MISMATCH,
                      EXIT_USER_ERROR, EXIT_INTERNAL)
-from .flags import pipeline_flags, add_param_flags, apply_flags
+from .flags import pipeline_flags, add_param_flags, apply_flags, flag_value
 
 __all__ = ["main", "CliError", "load_image", "MAX_FRAMES", "MAX_SIZE"]
 
@@ -97,7 +98,10 @@ def load_image(path, role):
     float) are rejected: converting them would hide which bits the pipeline saw."""
     from PIL import Image, UnidentifiedImageError
     try:
-        with Image.open(path) as im:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            im = Image.open(path)
+        with im:
             raw = [t.args if isinstance(t.args, str) else t.args[0] for t in im.tile
                    if t.args] if im.tile else []
             deep = [m for m in [im.mode, *[r for r in raw if isinstance(r, str)]] if _DEEP.search(m)]
@@ -110,6 +114,8 @@ def load_image(path, role):
         raise CliError(f"{role} image {path!r} does not exist") from None
     except IsADirectoryError:
         raise CliError(f"{role} image {path!r} is a directory") from None
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as e:
+        raise CliError(f"{role} image {path!r} is too large: {e}") from None
     except (UnidentifiedImageError, OSError, ValueError) as e:
         raise CliError(f"cannot read {role} image {path!r}: {e}") from None
 
@@ -390,11 +396,13 @@ def cmd_run(args, flags):
         "stats_rtl": stats_rtl,
         "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"] / (pixels * 64), 5),
         "camera": camera.summary(mp.d_min, mp.d_max),
-        "parameters": {f.names[0][2:]: _plain(_get(params, f.path)) for f in flags},
+        "parameters": {f.names[0][2:]: _plain(flag_value(params, f)) for f in flags},
         "simulation_seconds": round(seconds, 1),
     }
     shown = [type(g)(g.left, g.right, rtl_frames[k] if k < len(rtl_frames) else g.records, g.stats)
              for k, g in enumerate(golden)]
+    summary["views_show"] = "RTL records" if len(rtl_frames) >= len(golden) else \
+        f"golden records from frame {len(rtl_frames)} on (the RTL delivered {len(rtl_frames)})"
     if truth is not None:
         summary["depth_error"] = depth_error(camera, shown[-1].records, truth)
     run = SimpleNamespace(args=args, params=params, job=job, golden=golden, frames=shown,
@@ -409,18 +417,13 @@ def cmd_run(args, flags):
     return EXIT_BIT_EXACT if bit_exact else EXIT_MISMATCH
 
 
-def _get(obj, path):
-    for name in path:
-        obj = getattr(obj, name)
-    return obj
-
-
 def _plain(v):
+    """A parameter value for JSON."""
     if isinstance(v, GroundMode):
         return v.name.lower()
-    if isinstance(v, (bool, int, float, str)) or v is None:
-        return v if not isinstance(v, (np.integer,)) else int(v)
-    return str(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    return v if isinstance(v, (bool, int, float, str)) or v is None else str(v)
 
 
 def _print_run(summary, last, failure, paths, args):

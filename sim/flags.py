@@ -25,7 +25,7 @@ from enum import IntEnum
 
 from golden.pipeline import default_params
 
-__all__ = ["Flag", "pipeline_flags", "add_param_flags", "apply_flags"]
+__all__ = ["Flag", "pipeline_flags", "add_param_flags", "apply_flags", "flag_value"]
 
 REFERENCE_SIZE = (752, 480)
 #: Registers of each parameter group (prefix of the register names in hdl/regmap.py).
@@ -142,6 +142,11 @@ def _get(obj, path):
     for name in path:
         obj = getattr(obj, name)
     return obj
+
+
+def flag_value(params, flag):
+    """The value of ``flag``'s field in ``params``."""
+    return _get(params, flag.path)
 
 
 def _register_field(group, name):

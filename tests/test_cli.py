@@ -59,6 +59,8 @@ def pair(tmp_path_factory):
     tifffile.imwrite(paths["be16"], deep.astype(">u2"))
     paths["tall"] = d / "tall.png"                     # 64 x 5000
     Image.fromarray(np.zeros((5000, 64, 3), np.uint8)).save(paths["tall"])
+    paths["huge"] = d / "huge.png"                     # 144 Mpixel: Pillow's bomb limit
+    Image.new("L", (12000, 12000)).save(paths["huge"])
     paths["afile"] = d / "afile"
     paths["afile"].write_text("x")
     paths["camera"] = d / "camera.json"
@@ -237,6 +239,8 @@ def test_no_command_prints_usage_and_one_error_line():
     (["compare", "--unit", "nope", "--left", "{left}"], "unknown unit 'nope'"),
     (["compare", "--unit", "color", "--left", "{missing}"], "does not exist"),
     (["compare", "--unit", "color", "--left", "{text}"], "cannot read left image"),
+    (["compare", "--unit", "color", "--left", "{huge}"], "is too large"),
+    (["compare", "--unit", "color", "--left", "{folder}"], "is a directory"),
     (["compare", "--unit", "color", "--left", "{left}", "--crop", "60x10+10+0"], "falls outside"),
     (["compare", "--unit", "color", "--left", "{left}", "--crop", "10x10"], "WxH+X+Y"),
     (["compare", "--unit", "sad", "--left", "{left}"], "needs a stereo pair"),
@@ -264,7 +268,8 @@ def test_no_command_prints_usage_and_one_error_line():
 ])
 def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
     names = {k: str(v) for k, v in pair.items()}
-    names.update(missing=str(tmp_path / "missing.png"), tmp=str(tmp_path / "out"))
+    names.update(missing=str(tmp_path / "missing.png"), tmp=str(tmp_path / "out"),
+                 folder=str(tmp_path))
     t0 = time.monotonic()
     r = sim(*[a.format(**names) for a in args], timeout=ERROR_SECONDS)
     assert time.monotonic() - t0 < ERROR_SECONDS
