@@ -158,10 +158,11 @@ def load_pair(left_path, right_path, crop_spec=None, need_right=True):
 def default_pair(scene, crop_spec=None):
     """The embedded default stereo pairs: a synthetic robot's-eye scene (``--scene NAME`` of
     :mod:`sim.scenes`, default 'mixed') or the Middlebury motorcycle pair (``motorcycle``).
-    Returns (left, right, ground mode, camera, true depth map or None)."""
+    Returns (left, right, ground mode, camera, true depth map or None, obstacles)."""
     from .camera import MOTORCYCLE, scene_camera
-    from .scenes import make_scene, scene_names
+    from .scenes import SCENES, make_scene, scene_names
     box = _crop_box(crop_spec) if crop_spec else None
+    obstacles = ()
     if scene == "motorcycle":
         from .data import motorcycle
         left, right, disparity = motorcycle()
@@ -171,13 +172,14 @@ def default_pair(scene, crop_spec=None):
         frame = make_scene(scene, *REFERENCE_SIZE)
         left, right, ground, truth = frame.left, frame.right, "hue", frame.depth
         camera = scene_camera(*REFERENCE_SIZE)
+        obstacles = SCENES[scene].obstacles
     else:
         raise CliError(f"unknown scene {scene!r}: choose from motorcycle, {', '.join(scene_names())}")
     if box:
         left, right = _crop(left, box), _crop(right, box)
         camera = camera.cropped(box[2], box[3])
         truth = _crop(truth, box)
-    return left, right, ground, camera, truth
+    return left, right, ground, camera, truth, obstacles
 
 
 def check_size(w, h, args):
@@ -318,7 +320,7 @@ def cmd_compare(args, flags):
 
 
 def _run_inputs(args):
-    """(left, right, grey, ground default, camera, truth, source) of ``run``'s pair."""
+    """(left, right, grey, ground default, camera, truth, obstacles, source) of ``run``'s pair."""
     from .camera import scene_camera
     if args.left or args.right:
         if not (args.left and args.right):
@@ -327,10 +329,10 @@ def _run_inputs(args):
         h, w = left.shape[:2]
         camera = replace(scene_camera(w, h), source="assumed: the default rig scaled to this "
                                                     "width (give --camera FILE.json)")
-        return left, right, grey, "luma" if grey else "hue", camera, None, \
+        return left, right, grey, "luma" if grey else "hue", camera, None, (), \
             {"left": args.left, "right": args.right}
-    left, right, ground, camera, truth = default_pair(args.scene, args.crop)
-    return left, right, False, ground, camera, truth, {"scene": args.scene}
+    left, right, ground, camera, truth, obstacles = default_pair(args.scene, args.crop)
+    return left, right, False, ground, camera, truth, obstacles, {"scene": args.scene}
 
 
 def cmd_run(args, flags):
@@ -338,7 +340,7 @@ def cmd_run(args, flags):
     from .units import UNITS, Job, records_from_words
     from .views import write_outputs
     progress = Progress(5)
-    left, right, grey, ground_default, camera, truth, source = _run_inputs(args)
+    left, right, grey, ground_default, camera, truth, obstacles, source = _run_inputs(args)
     if args.camera:
         camera = load_camera(args.camera)
         if args.crop:
@@ -409,7 +411,7 @@ def cmd_run(args, flags):
                           result=result, camera=camera, truth=truth, summary=summary)
     progress(f"writing views to {args.out}")
     paths = write_outputs(args.out, run.frames, job.left, job.right, camera=camera,
-                          params=params, summary=summary)
+                          params=params, summary=summary, obstacles=obstacles)
     # Further outputs of a run hook in here: they get ``run`` (the last frame's golden data in
     # run.golden[-1], the RTL's in run.result) and write into args.out.
     progress("done")

@@ -223,9 +223,9 @@ def _band(centre, half, n, wrap):
     return [(lo, hi)]
 
 
-def _topview(path, table, camera, params, width):
+def _topview(path, table, camera, params, width, obstacles=()):
     plt = _pyplot()
-    from matplotlib.patches import Rectangle, Wedge
+    from matplotlib.patches import Circle, Rectangle, Wedge
     mp = params.matcher
     near, far = camera.depth_range(mp.d_min, mp.d_max)
     reach = min(far, TOP_VIEW_REACH_M)
@@ -243,6 +243,13 @@ def _topview(path, table, camera, params, width):
     ax.add_patch(Rectangle((-0.15, -0.3), 0.3, 0.3, color="0.3", zorder=3, label="robot"))
     ax.plot([-camera.baseline_m / 2, camera.baseline_m / 2], [0, 0], "o", color="black",
             markersize=3, zorder=4)
+    for k, ob in enumerate(obstacles):     # the scene's true footprints (right = -world y)
+        style = dict(fill=False, edgecolor="black", linewidth=1, linestyle="--", zorder=4,
+                     label="true obstacle footprints" if k == 0 else None)
+        if hasattr(ob, "radius"):
+            ax.add_patch(Circle((-ob.y, ob.x), ob.radius, **style))
+        else:
+            ax.add_patch(Rectangle((-ob.y1, ob.x0), ob.y1 - ob.y0, ob.x1 - ob.x0, **style))
     if camera.height_m is not None:
         up = table["up_m"][ok]
         sc = ax.scatter(lat, fwd, c=up, s=10, cmap="viridis", vmin=0,
@@ -309,11 +316,12 @@ def _depth_limits(z, camera, params):
     return max(near, float(z.min())), min(far, max(float(z.max()), near * 1.5))
 
 
-def write_outputs(out, frames, lefts, rights, *, camera, params, summary):
+def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstacles=()):
     """Write the views of the last of ``frames`` (:class:`golden.pipeline.PipelineFrame`, their
     records may come from the RTL; ``lefts`` / ``rights`` the RGB images), a contact sheet
     when there are several, ``matches.csv`` and ``summary.json`` into ``out``; returns the
-    paths written by name."""
+    paths written by name. ``obstacles``: a synthetic scene's :class:`sim.scenes.Box` and
+    :class:`sim.scenes.Cylinder` objects (robot at the origin), drawn in the top view."""
     os.makedirs(out, exist_ok=True)
     frame, left, right = frames[-1], lefts[-1], rights[-1]
     rec = frame.records
@@ -338,7 +346,7 @@ def write_outputs(out, frames, lefts, rights, *, camera, params, summary):
                                    "left camera: ground")
     paths["right_ground"] = _ground_view(p("right_ground_mask.png"), right, frame.right,
                                          params.right_frontend().ground, "right camera: ground")
-    paths["topview"] = _topview(p("topview.png"), table, camera, params, left.shape[1])
+    paths["topview"] = _topview(p("topview.png"), table, camera, params, left.shape[1], obstacles)
     if len(frames) > 1:
         paths["frames"] = _contact_sheet(p("frames.png"), frames, lefts, camera, vmin, vmax)
     paths["matches"] = p("matches.csv")
