@@ -465,7 +465,7 @@ def _print_run(summary, last, failure, paths, args):
 # The parser
 # ----------------------------------------------------------------------------------------------
 
-def _add_pair_options(p, flags, *, run):
+def _add_pair_options(p, *, run):
     if run:
         p.add_argument("--left", help="left image (default: the embedded pair)")
         p.add_argument("--right", help="right image")
@@ -503,10 +503,10 @@ def _add_pair_options(p, flags, *, run):
                    type=_bounded_int(1, dmax), default=dmax,
                    help=f"largest disparity the matcher is elaborated for [unit: px; range: "
                         f"1..{dmax}, the width of the d_max register; default: {dmax}]")
-    add_param_flags(p, flags)
 
 
-def make_parser(flags):
+def make_parser():
+    """The parser and the pipeline parameter flags it has."""
     from importlib.metadata import version, PackageNotFoundError
     from hdl.regmap import MAP_VERSION
     try:
@@ -525,19 +525,21 @@ def make_parser(flags):
                                    "golden, print one JSON line.", epilog=EXAMPLES,
                        formatter_class=fmt)
     c.add_argument("--unit", required=True, help="color, ground, sobel, frontend, sad, pipeline")
-    _add_pair_options(c, flags, run=False)
+    _add_pair_options(c, run=False)
     r = sub.add_parser("run", help="the stereo pipeline on a pair (default: the embedded pair)",
                        description="The whole pipeline RTL on a stereo pair, checked against "
                                    "golden; writes views, matches.csv and summary.json.",
                        epilog=EXAMPLES, formatter_class=fmt)
-    _add_pair_options(r, flags, run=True)
-    return parser
+    _add_pair_options(r, run=True)
+    flags = pipeline_flags(reserved={*c._option_string_actions, *r._option_string_actions})
+    for p in (c, r):
+        add_param_flags(p, flags)
+    return parser, flags
 
 
 def main(argv=None):
     try:
-        flags = pipeline_flags()
-        parser = make_parser(flags)
+        parser, flags = make_parser()
         args = parser.parse_args(argv)
         if args.command == "compare":
             return cmd_compare(args, flags)

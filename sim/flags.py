@@ -13,7 +13,8 @@ dataclass becomes an option with no edit here. What an option says comes from, i
 
 Option names are the field names with dashes; a name that occurs in two groups takes the
 register's name when that is distinct (``matcher.mode`` -> ``--candidate-mode``), else the group
-as a prefix (``ground.mode`` -> ``--ground-mode``, also ``--ground``). Defaults are those of
+as a prefix (``ground.mode`` -> ``--ground-mode``, also ``--ground``); so does a name the command
+has already (a ground field ``frames`` would be ``--ground-frames``). Defaults are those of
 :func:`golden.pipeline.default_params`; defaults that depend on the image size (the reference
 region) are shown at the reference size 752x480.
 """
@@ -180,8 +181,9 @@ def _unit(doc):
     return ""
 
 
-def pipeline_flags():
-    """The :class:`Flag` of every scalar run-time parameter of the pipeline."""
+def pipeline_flags(reserved=()):
+    """The :class:`Flag` of every scalar run-time parameter of the pipeline. A name in
+    ``reserved`` (the command's own options, such as ``--frames``) takes the group prefix."""
     ref = default_params(*REFERENCE_SIZE)
     other = default_params(REFERENCE_SIZE[0] // 2, REFERENCE_SIZE[1] // 2)
     leaves = list(_leaves(ref))
@@ -202,6 +204,8 @@ def pipeline_flags():
             name = f.name
             if counts[f.name] > 1:
                 name = reg[1].name if reg and reg[1].name != f.name else f"{group}_{f.name}"
+            if f"--{name.replace('_', '-')}" in reserved:
+                name = f"{group or 'pipeline'}_{name}"
         lo, hi = meta.get("range", (None, None))
         if reg and lo is None and hi is None and kind == "int":
             lo, hi = 0, (1 << reg[1].width) - 1

@@ -173,6 +173,7 @@ def test_new_dataclass_fields_become_flags(monkeypatch):
         smoothing: int = dataclasses.field(default=3, metadata={
             "help": "test knob", "unit": "px", "range": (0, 9)})
         quiet: bool = False
+        frames: int = 2          # a name the command line has already
 
     def params(width, height, **kw):
         return dataclasses.replace(default_params(width, height, **kw), matcher=Wider(widen=True))
@@ -188,6 +189,11 @@ def test_new_dataclass_fields_become_flags(monkeypatch):
     assert applied.matcher.smoothing == 5 and applied.matcher.quiet is True
     with pytest.raises(cli.CliError, match="outside 0..9"):
         parser.parse_args(["--smoothing", "10"])
+    parser, flags = cli.make_parser()           # no clash with run's own --frames
+    names = {f.names[0] for f in flags}
+    assert "--matcher-frames" in names and "--frames" not in names
+    args = parser.parse_args(["run", "--frames", "3", "--matcher-frames", "4"])
+    assert args.frames == 3 and sim_flags.apply_flags(params(64, 32), args, flags).matcher.frames == 4
 
 
 def _fail(*_, **__):
@@ -287,3 +293,13 @@ def test_long_runs_show_progress(capsys):
     stop.set()
     err = capsys.readouterr().err
     assert err.startswith("[1/2] golden model (") and "RTL on amaranth: still running after" in err
+
+
+def test_default_pairs_bring_their_camera_truth_and_obstacles():
+    left, _, ground, camera, truth, obstacles = cli.default_pair("motorcycle", "100x50+200+100")
+    assert ground == "off" and left.shape == (50, 100, 3) and truth.shape == (50, 100)
+    assert camera.cx == pytest.approx(311.193 - 200) and camera.doffs_px == pytest.approx(31.086)
+    assert obstacles == () and np.isfinite(truth).mean() > 0.5
+    _, _, ground, camera, truth, obstacles = cli.default_pair("boxes")
+    assert ground == "hue" and camera.fx == 600 and len(obstacles) == 3
+    assert camera.depth_range(0, 63)[0] == pytest.approx(72 / 63)
