@@ -280,7 +280,7 @@ def _contact_sheet(path, frames, lefts, camera, vmin, vmax):
     cols = min(n, 4)
     rows = math.ceil(n / cols)
     h, w = lefts[0].shape[:2]
-    scale = min(1.0, 360 / w)
+    scale = 360 / w                 # every panel 360 px wide
     pw, ph = w * scale, h * scale
     fig = plt.figure(figsize=((cols * (pw + 10) + 90) / DPI, (rows * (ph + 28) + 10) / DPI), dpi=DPI)
     fw, fh = fig.get_size_inches() * DPI
@@ -309,11 +309,15 @@ def _contact_sheet(path, frames, lefts, camera, vmin, vmax):
 
 
 def _depth_limits(z, camera, params):
+    """Colour range of depths ``z``: their extent within the measurable range, at least a
+    factor 2 wide so that a single depth still gets round ticks."""
     near, far = camera.depth_range(params.matcher.d_min, params.matcher.d_max)
     z = z[np.isfinite(z)]
-    if not len(z):
-        return near, far
-    return max(near, float(z.min())), min(far, max(float(z.max()), near * 1.5))
+    lo, hi = (max(near, float(z.min())), min(far, float(z.max()))) if len(z) else (near, far)
+    if hi < 2 * lo:
+        mid = math.sqrt(lo * hi)
+        lo, hi = mid / math.sqrt(2), mid * math.sqrt(2)
+    return lo, hi
 
 
 def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstacles=()):
@@ -348,7 +352,9 @@ def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstac
                                          params.right_frontend().ground, "right camera: ground")
     paths["topview"] = _topview(p("topview.png"), table, camera, params, left.shape[1], obstacles)
     if len(frames) > 1:
-        paths["frames"] = _contact_sheet(p("frames.png"), frames, lefts, camera, vmin, vmax)
+        every = np.concatenate([camera.depth(f.records["d"]) for f in frames])
+        paths["frames"] = _contact_sheet(p("frames.png"), frames, lefts, camera,
+                                         *_depth_limits(every, camera, params))
     paths["matches"] = p("matches.csv")
     with open(paths["matches"], "w", newline="") as f:
         w = csv.writer(f)
