@@ -1,0 +1,112 @@
+"""Camera model (sim/camera.py): depth and positions in metres from matches, checked against the
+synthetic scenes' ray-cast truth; the camera file's checks."""
+import json
+
+import numpy as np
+import pytest
+
+from golden.pipeline import default_params, pipeline_frames
+from sim.camera import (Camera, MOTORCYCLE, contour_depth, depth_error, load_camera,
+                        match_table, scene_camera)
+from sim.errors import CliError
+from sim.scenes import backproject, make_scene, scene_names
+
+#: Issue 15, "Depth is right": median relative error of z_m at the matched points.
+MAX_MEDIAN_DEPTH_ERROR = 0.05
+
+
+@pytest.mark.parametrize("scene", scene_names())
+def test_depth_of_the_matches_is_within_5_percent(scene):
+    frame = make_scene(scene, 752, 480)
+    last = pipeline_frames([frame.left] * 2, [frame.right] * 2, default_params(752, 480))[-1]
+    err = depth_error(scene_camera(752, 480), last.records, frame.depth)
+    print(scene, err)
+    assert err["points"] > 100
+    assert err["median_rel_contour"] <= MAX_MEDIAN_DEPTH_ERROR
+
+
+def test_scene_camera_agrees_with_the_ray_caster():
+    frame = make_scene("boxes", 752, 480)
+    cam = scene_camera(752, 480)
+    seen = np.isfinite(frame.depth) & (frame.disparity > 0)
+    np.testing.assert_allclose(cam.depth(frame.disparity[seen]), frame.depth[seen], rtol=1e-5)
+    rng = np.random.default_rng(1)
+    v, u = np.nonzero(seen)
+    pick = rng.choice(len(u), 200, replace=False)
+    u, v = u[pick], v[pick]
+    z = frame.depth[v, u].astype(np.float64)
+    world = backproject(frame.rig, u, v, z)     # x forward, y left, z up; robot at the origin
+    np.testing.assert_allclose(cam.forward(v, z), world[:, 0], atol=1e-4)
+    np.testing.assert_allclose(cam.lateral(u, z), -world[:, 1], atol=1e-4)
+    np.testing.assert_allclose(cam.up(v, z), world[:, 2], atol=1e-4)
+
+
+def test_crop_moves_the_principal_point_and_the_valid_region():
+    cam = Camera(500.0, 500.0, 300.0, 200.0, 0.1, valid=(10, 20, 580, 360))
+    part = cam.cropped(100, 50)
+    assert part.lateral(150, 2.0) == pytest.approx(cam.lateral(250, 2.0))
+    assert part.forward(10, 2.0) == pytest.approx(cam.forward(60, 2.0))
+    assert part.valid == (-90, -30, 580, 360)
+    assert part.inside(np.array([0, 489, 490]), np.array([0, 0, 0])).tolist() == [True, True, False]
+
+
+def test_matches_table_flags_points_outside_the_valid_region_and_at_infinity():
+    cam = Camera(600.0, 600.0, 32.0, 12.0, 0.12, valid=(8, 0, 40, 24))
+    rec = np.zeros(4, dtype=[("x", "i4"), ("y", "i4"), ("d", "i4"), ("cost", "i4")])
+    rec["x"], rec["y"], rec["d"] = [4, 10, 47, 20], [5, 5, 5, 5], [12, 12, 12, 0]
+    t = match_table(cam, rec)
+    assert t["valid"].tolist() == [False, True, True, False]
+    assert t["z_m"][1] == pytest.approx(6.0) and np.isnan(t["z_m"][3])
+    assert t["x_m"][1] == pytest.approx((10 - 32) * 6.0 / 600 - 0.06)
+
+
+def test_depth_range_and_the_motorcycle_calibration():
+    near, far = scene_camera(752, 480).depth_range(0, 63)
+    assert near == pytest.approx(72 / 63) and far == pytest.approx(72.0)
+    # Middlebury: Z = f B / (d + doffs)
+    assert MOTORCYCLE.depth(40.0) == pytest.approx(994.978 * 0.193001 / (40 + 31.086))
+
+
+def test_contour_depth_takes_the_nearer_neighbour():
+    depth = np.array([[5.0, 5.0, 2.0, 2.0]])
+    rec = np.zeros(2, dtype=[("x", "i4"), ("y", "i4")])
+    rec["x"] = [1, 3]
+    assert contour_depth(depth, rec).tolist() == [2.0, 2.0]
+
+
+def _write(tmp_path, data):
+    p = tmp_path / "cam.json"
+    p.write_text(data if isinstance(data, str) else json.dumps(data))
+    return str(p)
+
+
+GOOD = {"fx": 700, "fy": 701.5, "cx": 320, "cy": 240, "baseline_m": 0.075, "height_m": 0.3,
+        "tilt_deg": 10, "valid": [4, 2, 632, 476], "doffs_px": 1.5}
+
+
+def test_camera_file_round_trip(tmp_path):
+    cam = load_camera(_write(tmp_path, GOOD))
+    assert (cam.fx, cam.fy, cam.baseline_m, cam.tilt_deg, cam.valid, cam.doffs_px) == \
+        (700.0, 701.5, 0.075, 10.0, (4, 2, 632, 476), 1.5)
+    assert cam.depth(68.5) == pytest.approx(700 * 0.075 / 70)
+    cam.check_image(640, 480)
+    with pytest.raises(CliError, match="valid region"):
+        cam.check_image(4, 2)
+
+
+@pytest.mark.parametrize("data, message", [
+    ("{", "is not JSON"),
+    ([1, 2], "one JSON object"),
+    ({k: v for k, v in GOOD.items() if k != "fx"}, "missing fx"),
+    ({**GOOD, "focal": 3}, "unknown key 'focal'"),
+    ({**GOOD, "fx": -1}, "fx must be positive"),
+    ({**GOOD, "baseline_m": "0.1"}, "baseline_m must be a number"),
+    ({**GOOD, "tilt_deg": 95}, "tilt_deg"),
+    ({**GOOD, "valid": [0, 0, 0, 10]}, "valid must be"),
+    ({**GOOD, "valid": [0, 0, 10]}, "valid must be"),
+])
+def test_bad_camera_files(tmp_path, data, message):
+    with pytest.raises(CliError, match=message):
+        load_camera(_write(tmp_path, data))
+    with pytest.raises(CliError, match="does not exist"):
+        load_camera(str(tmp_path / "nope.json"))
