@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.export import BUILD, export_verilog, ports, registered, source_key, text_hash
+from sim.export import BUILD, export_verilog, ports, registered, silenced, source_key, text_hash
 from sim.streams import Deadlock
 
 __all__ = ["VerilatorRun", "VerilatorBuild", "VerilatorError", "verilator_bin", "build",
@@ -286,11 +286,13 @@ def build(name, component=None, params=None, verilog=None, register_params=True)
         skey = text_hash(source_key(name, construction_params(component)),
                          type(component).__qualname__, *p.describe(), harness, *flags)
         if (name, skey) in _built:
+            silenced(component)             # its build is reused: it is never converted
             return _built[(name, skey)]
         index = base / "by-source" / skey
         if index.is_file():
             exe = base / index.read_text().strip() / "harness"
             if exe.exists():
+                silenced(component)         # its build is reused: it is never converted
                 b = VerilatorBuild(name, exe, p, 0.0, True)
                 _built[(name, skey)] = b
                 return b
