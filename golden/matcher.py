@@ -1,4 +1,4 @@
-"""SAD block matcher with adaptive candidates: the bit-exact specification.
+"""SAD block matcher with adaptive candidates: the bit-exact specification, versions 1 and 2.
 
 Inputs are the two front ends' outputs, per camera three (H, W) arrays: luminance ``y``
 (0..255), vertical-edge bit ``edge`` and Gx sign ``neg`` (1 = Gx negative). Both cameras must
@@ -12,19 +12,37 @@ For every LEFT edge pixel ``(x, y)`` in raster order (row by row, left to right)
    inside the image; no other right-side condition is needed because ``x - d + r <= x + r < W``)
    and, by mode:
 
-   * ``adaptive``: the right pixel ``(x - d, y)`` is an edge with the same ``neg``;
-   * ``adaptive`` with ``widen``: some right pixel ``(x - d + k, y)``, ``k`` in {-1, 0, +1} and
-     inside the image, is an edge with the same ``neg``;
-   * ``full``: every ``d`` (``widen`` is ignored).
+   * ``adaptive``: some right pixel ``(x - d + k, y)``, ``|k| <= widen`` and inside the image,
+     is an edge; with ``sign = "same"`` it must also have the left edge's ``neg``
+     (``widen`` = 0: the right pixel ``(x - d, y)`` itself; version 1 uses 0 or 1);
+   * ``full``: every ``d`` (``widen`` and ``sign`` are ignored).
 
    A left edge with no candidate counts in ``no_candidate``.
-3. **Cost** of a candidate: ``SAD(d) = sum |YL(x+i, y+j) - YR(x-d+i, y+j)|`` over
-   ``-r <= i, j <= r`` (at most ``255 * window**2``: 14 bits for W = 7). Each candidate is one
-   ``sad_evaluations``.
+3. **Cost** of a candidate, over ``-r <= i, j <= r``:
+
+   * ``cost = "sad"``: ``SAD(d) = sum |YL(x+i, y+j) - YR(x-d+i, y+j)|`` (at most
+     ``255 * window**2``: 14 bits for W = 7);
+   * ``cost = "census"``: ``sum popcount(CL(x+i, y+j) ^ CR(x-d+i, y+j))`` of the 3x3 census
+     words of golden/census.py (at most ``8 * window**2`` = 392 for W = 7: 9 bits).
+
+   Each candidate is one ``sad_evaluations``.
 4. **Winner takes all**: the smallest cost; on ties the smallest ``d``.
 5. **Uniqueness** (``u`` in 1/256 units, 0..255): the match is rejected (``rejected``) if some
    candidate ``d'`` with ``|d' - d_best| > 1`` has ``SAD(d') * 256 <= SAD(d_best) * (256 + u)``.
-   Otherwise it is emitted as a record ``(x, y, d_best, SAD(d_best))`` (``matches``).
+   ``far_min`` is the smallest such far cost (none: no far candidate).
+6. **Subpixel and confidence** (``subpixel``; records are :data:`RECORD_DTYPE_V2`): with
+   ``c0 = SAD(d)``, ``cm = SAD(d - 1)``, ``cp = SAD(d + 1)``, a neighbour that was not a
+   candidate is evaluated now (counted in ``sad_evaluations``) when ``d +- 1`` lies in
+   ``[d_min, d_max]`` and its right window inside the image; if either neighbour is outside,
+   the offset is 0. Otherwise (:func:`subpixel_offset`, the equiangular fit OpenCV's StereoBM
+   uses): ``den = max(cm, cp) - c0``, offset 0 if ``den <= 0``, else
+   ``sign(cm - cp) * ((16 * |cm - cp| + den) // (2 * den))`` clipped to -8..8, i.e.
+   ``8 (cm - cp) / den`` rounded half away from zero. ``d16 = 16 d + offset`` (1/16 px).
+   ``conf = clip(far_min - 3 c0, 0, 255)``, 0 without a far candidate (:func:`confidence`).
+7. **Consistency** (``consistency = "unique_right"``): among the matches of one row that passed
+   steps 5-6, each right pixel ``x - d`` keeps only the match with the smallest cost, on ties
+   the smallest ``x``; the others count in ``rejected``. The rest are emitted (``matches``) as
+   records ``(x, y, d, cost)`` (+ ``d16``, ``conf``) in raster order.
 
 Statistics per frame: ``edge_pixels`` (all left edges) = ``border`` + ``no_candidate`` +
 ``rejected`` + ``matches`` + ``drops``; ``sad_evaluations``. ``drops`` (left edges the hardware
@@ -34,33 +52,115 @@ The uniqueness test over all far candidates is equivalent to the streaming form 
 uses while it visits candidates in increasing ``d`` (see ``hdl/matcher.py``): keep the best so far
 and the smallest cost among the candidates more than one away from it; a new best at ``d`` takes
 as its far minimum the smallest cost among earlier candidates below ``d - 1``.
+
+Version 1 (the :class:`MatcherParams` defaults, what the RTL implements today): ``sad``,
+``sign = "same"``, ``widen`` 0 or 1, no consistency, no subpixel. Version 2 (:func:`v2_params`,
+``golden.pipeline.default_params(..., version=2)``): ``census``, ``sign = "any"``,
+``widen = 2``, ``uniqueness = 64``, ``unique_right``, ``subpixel``; with front-end thresholds
+128 / 128. golden/matcher_plain.py states every step as loops; the tests check that this
+vectorised form agrees with it on random frames, in both cost forms (dense and sparse).
+
+Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 20 RAMB16 and
+12,000 LUT4, <= 2.3 input cycles per pixel on the motorcycle pair at 50 MHz):
+
+* **Census transform** (per camera): a 3x3 window of luminance. Best taken from the Sobel unit,
+  which already holds it (its two line buffers and 3x3 registers): 8 comparators of 8 bits
+  (~8 x 5 LUT4, 2 carry-chain levels), 8 extra bits per pixel in the front end's output
+  payload, 0 RAMB16, +1 cycle of latency. Standalone in the matcher: 2 line buffers x 8 bits per
+  camera, 1 RAMB16 per camera (1024 x 16), 1 line + 2 pixels of latency. The census word
+  replaces luminance in the line store: same width, so the line store keeps its RAMB16 count.
+* **Census cost**: ``|a - b|`` (8-bit subtract + conditional negate, ~16 LUT4 and a carry chain)
+  becomes XOR + 8-input popcount (8 + ~10 LUT4, 3 levels, no carry) per window pixel; window
+  sums fit 9 bits instead of 14, so the adder tree shrinks by about a third. Cycles per
+  evaluation unchanged (one per candidate per lane).
+* **Candidates** ``widen = 2``, ``sign = "any"``: the right edge map is one bit per pixel instead
+  of two (pos/neg), a 5-bit OR over it; the scanner's candidate mask is the right-edge mask
+  shifted and ORed (no comparators). 1.41 % of dense on the motorcycle pair (version 1 with
+  widen: ~0.9 %): ~0.9 evaluations per input pixel, ~0.45 cycles per pixel with two lanes.
+* **Subpixel**: the costs at ``d - 1`` and ``d + 1`` are the candidate visited just before the
+  best and the one just after it (two registers updated with the best), so with ``widen >= 1``
+  a neighbour is almost never missing (< 0.01 % of dense on the motorcycle pair); a missing one
+  costs one extra evaluation (one lane cycle) after the scan. The offset is an unsigned 4-bit
+  quotient of 9-bit operands: a 4-step restoring divider (4 cycles, ~25 LUT4) per record, or
+  a 2-stage pipelined one; 0 RAMB16.
+* **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, saturation: ~30 LUT4) per
+  record, no extra cycles.
+* **unique_right** (chosen over a left-right check): a table indexed by right x holding the
+  current owner's cost (9 bits) and its slot in a row buffer of records (8 bits) plus a row
+  tag bit: 1024 x 18 = 1 RAMB16; the records of a row wait in a 512 x 36 buffer (two rows of
+  256 records: x 10, d16 10, cost 9, conf 7 bits... or 8 with x and y from the framing):
+  1 RAMB16. One read-modify-write per record (2 cycles, pipelined), the loser's valid bit
+  cleared; at the end of the row the valid records are emitted. Latency: one row. A sparse
+  left-right check over all evaluations (each right pixel's minimum over every evaluated
+  left pixel) caught more (bad-2 5.4 % against 5.9 % with uniqueness 48) but needs a
+  read-modify-write per evaluation, i.e. one table port per lane, and the same row delay.
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["MatcherParams", "match", "RECORD_DTYPE", "STAT_KEYS", "accuracy"]
+from .census import census
 
-#: Record fields, in raster order of ``(y, x)``.
+__all__ = ["MatcherParams", "match", "candidates", "window_costs", "RECORD_DTYPE",
+           "RECORD_DTYPE_V2", "STAT_KEYS", "accuracy", "MAX_DISPARITY", "DISPARITIES",
+           "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "v2_params",
+           "record_dtype"]
+
+#: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``);
+#: disparities are ``DISPARITY_BITS`` wide.
+DISPARITY_BITS = 6
+MAX_DISPARITY = (1 << DISPARITY_BITS) - 1
+#: Number of disparities of a dense matcher over the whole range (the 100 % of ``eval_fraction``).
+DISPARITIES = MAX_DISPARITY + 1
+#: Subpixel disparities ``d16`` are in units of 1 / SUBPIXEL_ONE pixel.
+SUBPIXEL_BITS = 4
+SUBPIXEL_ONE = 1 << SUBPIXEL_BITS
+#: Largest ``widen`` (candidate spread, pixels either side of a right edge).
+MAX_WIDEN = 3
+#: Confidence saturates here (8 bits).
+CONFIDENCE_MAX = 255
+COSTS = ("sad", "census")
+SIGNS = ("same", "any")
+CONSISTENCY = ("none", "unique_right")
+
+#: Record fields, in raster order of ``(y, x)``: the version 1 records (what the RTL emits).
 RECORD_DTYPE = np.dtype([("x", np.int32), ("y", np.int32), ("d", np.int32), ("cost", np.int32)])
+#: Records with ``subpixel``: also the subpixel disparity ``d16`` (1/16 px) and ``conf``.
+RECORD_DTYPE_V2 = np.dtype(RECORD_DTYPE.descr + [("d16", np.int32), ("conf", np.int32)])
 #: Keys of the per-frame statistics, in the order the hardware reports them.
 STAT_KEYS = ("edge_pixels", "border", "no_candidate", "sad_evaluations", "matches",
              "rejected", "drops")
+#: Unset entries of the cost matrix (larger than any window cost: 255 * 15 * 15 < 2**16).
+_NONE = np.int32(1 << 30)
 
 
 @dataclass(frozen=True)
 class MatcherParams:
+    """Matcher parameters. The defaults are version 1, the algorithm the RTL implements;
+    :func:`v2_params` gives version 2."""
     d_min: int = 0
-    d_max: int = 63
+    d_max: int = MAX_DISPARITY
     window: int = 7
     #: Uniqueness margin u / 256 (0..255). 48 = 18.75 %: chosen on the motorcycle pair (see
     #: tests/test_matcher_golden.py): with widen and front-end thresholds 192 (left) / 96
     #: (right) it gives 88.7 % density at 11.7 % bad-2; 32 misses bad-2, 64 costs 2 % density.
     uniqueness: int = 48
     mode: str = "adaptive"
-    widen: bool = False
+    #: Candidate spread: a right edge within ``widen`` pixels makes a candidate (0..3; False
+    #: and True mean 0 and 1, as in version 1).
+    widen: int = 0
+    #: Matched values: ``sad`` = |YL - YR| of luminance, ``census`` = Hamming distance of the
+    #: 3x3 census words (golden/census.py).
+    cost: str = "sad"
+    #: Which right edges make candidates: ``same`` Gx sign as the left edge, or ``any``.
+    sign: str = "same"
+    #: Post-step after the winner: ``none``, or ``unique_right`` (each right pixel of a row is
+    #: matched at most once; the lowest cost wins, on ties the smallest x).
+    consistency: str = "none"
+    #: Subpixel disparity and confidence: records are RECORD_DTYPE_V2.
+    subpixel: bool = False
 
-    def validate(self, max_disparity=63, window=None):
+    def validate(self, max_disparity=MAX_DISPARITY, window=None):
         """Raise :class:`ValueError` unless the parameters are usable on a matcher elaborated for
         ``max_disparity`` (and, when given, for exactly this ``window``)."""
         if not isinstance(self.window, int) or self.window < 3 or self.window % 2 == 0:
@@ -78,7 +178,34 @@ class MatcherParams:
             raise ValueError(f"uniqueness must be in 0..255 (1/256 units), not {self.uniqueness}")
         if self.mode not in ("adaptive", "full"):
             raise ValueError(f"mode must be 'adaptive' or 'full', not {self.mode!r}")
+        if not isinstance(self.widen, (int, np.integer)) or not 0 <= self.widen <= MAX_WIDEN:
+            raise ValueError(f"widen must be an integer in 0..{MAX_WIDEN}, not {self.widen!r}")
+        if self.cost not in COSTS:
+            raise ValueError(f"cost must be one of {COSTS}, not {self.cost!r}")
+        if self.sign not in SIGNS:
+            raise ValueError(f"sign must be one of {SIGNS}, not {self.sign!r}")
+        if self.consistency not in CONSISTENCY:
+            raise ValueError(f"consistency must be one of {CONSISTENCY}, not "
+                             f"{self.consistency!r}")
+        if self.subpixel not in (0, 1, True, False):
+            raise ValueError(f"subpixel must be a boolean, not {self.subpixel!r}")
         return self
+
+
+#: Version 2 (issue 13): census cost, candidates within 2 px of a right edge of either sign,
+#: uniqueness 64 / 256, each right pixel matched once, subpixel d and confidence.
+V2 = dict(uniqueness=64, widen=2, cost="census", sign="any", consistency="unique_right",
+          subpixel=True)
+
+
+def v2_params(**overrides):
+    """The version 2 matcher parameters (:data:`V2`), overridable by keyword."""
+    return MatcherParams(**{**V2, **overrides})
+
+
+def record_dtype(params):
+    """The record layout ``match`` returns for ``params``."""
+    return RECORD_DTYPE_V2 if params.subpixel else RECORD_DTYPE
 
 
 def _field(img, name):
@@ -86,13 +213,21 @@ def _field(img, name):
     return np.asarray(v)
 
 
-def _box_sum(a, r):
-    """Sum of ``a`` over the (2r+1)^2 window centred on each pixel whose window is inside;
-    returns an array of shape (H - 2r, W - 2r) (index [y - r, x - r])."""
-    k = 2 * r + 1
-    c = np.zeros((a.shape[0] + 1, a.shape[1] + 1), dtype=np.int64)
-    np.cumsum(np.cumsum(a, axis=0, dtype=np.int64), axis=1, out=c[1:, 1:])
-    return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
+def matched_values(y, params):
+    """What the window cost compares: luminance (int32) or census words (uint8)."""
+    y = np.asarray(y)
+    if params.cost == "census":
+        return census(y.astype(np.uint8))
+    return y.astype(np.int32)
+
+
+def _spread(a, k):
+    """``out[y, x]`` = any ``a[y, x + i]`` for ``|i| <= k`` inside the image."""
+    out = a.copy()
+    for i in range(1, k + 1):
+        out[:, i:] |= a[:, :-i]
+        out[:, :-i] |= a[:, i:]
+    return out
 
 
 def candidates(left, right, params):
@@ -110,76 +245,243 @@ def candidates(left, right, params):
     xr = xs[:, None] - ds[None, :]                       # right centre column per candidate
     cand = (xr - r >= 0) & inside[:, None]
     if p.mode == "adaptive":
-        pos = er & ~nr
-        neg = er & nr
-        if p.widen:
-            pad = lambda a: np.pad(a, ((0, 0), (1, 1)))
-            pos = pad(pos)[:, :-2] | pos | pad(pos)[:, 2:]
-            neg = pad(neg)[:, :-2] | neg | pad(neg)[:, 2:]
-        same = np.where(nl[ys, xs][:, None], neg[ys[:, None], np.clip(xr, 0, w - 1)],
-                        pos[ys[:, None], np.clip(xr, 0, w - 1)])
-        cand &= same
+        xc = np.clip(xr, 0, w - 1)
+        if p.sign == "any":
+            cand &= _spread(er, int(p.widen))[ys[:, None], xc]
+        else:
+            pos = _spread(er & ~nr, int(p.widen))
+            neg = _spread(er & nr, int(p.widen))
+            cand &= np.where(nl[ys, xs][:, None], neg[ys[:, None], xc], pos[ys[:, None], xc])
     return ys, xs, inside, cand
 
 
-def match(left, right, params=MatcherParams()):
+# ------------------------------------------------------------------ window costs
+
+def _box_sum(a, r):
+    """Sum of ``a`` over the (2r+1)^2 window centred on each pixel whose window is inside;
+    returns an array of shape (H - 2r, W - 2r) (index [y - r, x - r])."""
+    k = 2 * r + 1
+    c = np.zeros((a.shape[0] + 1, a.shape[1] + 1), dtype=np.int64)
+    np.cumsum(np.cumsum(a, axis=0, dtype=np.int64), axis=1, out=c[1:, 1:])
+    return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
+
+
+def _pixel_costs(a, b, cost):
+    if cost == "census":
+        return np.bitwise_count(np.bitwise_xor(a, b))
+    return np.abs(a - b)
+
+
+def _costs_dense(vl, vr, ys, xs, ds, r, cost):
+    """Window costs of the pairs (ys, xs, ds) from one cost map per distinct d (box sums over
+    the whole frame): fast when most pixels have candidates."""
+    w = vl.shape[1]
+    out = np.empty(len(ys), dtype=np.int32)
+    order = np.argsort(ds, kind="stable")
+    bounds = np.flatnonzero(np.diff(ds[order])) + 1
+    for sel in np.split(order, bounds):
+        if len(sel) == 0:
+            continue
+        d = int(ds[sel[0]])
+        box = _box_sum(_pixel_costs(vl[:, d:], vr[:, :w - d], cost), r)   # [y - r, x - d - r]
+        out[sel] = box[ys[sel] - r, xs[sel] - d - r]
+    return out
+
+
+def _packed_columns(v, r):
+    """Census words of the 2r+1 rows around each row packed into uint64 words (8 rows per
+    word): a list of (H - 2r, W) arrays; element [y - r, x] holds rows y - r .. y + r of x."""
+    h = v.shape[0]
+    k = 2 * r + 1
+    words = []
+    for j0 in range(0, k, 8):
+        acc = np.zeros((h - 2 * r, v.shape[1]), dtype=np.uint64)
+        for j in range(j0, min(k, j0 + 8)):
+            acc |= v[j:h - 2 * r + j].astype(np.uint64) << np.uint64(8 * (j - j0))
+        words.append(acc)
+    return words
+
+
+#: Evaluations gathered per step of the sparse form (bounds its memory).
+_CHUNK = 1 << 16
+
+
+def _costs_sparse(vl, vr, ys, xs, ds, r, cost):
+    """Window costs of the pairs (ys, xs, ds) gathered window by window: fast when few pixels
+    have candidates."""
+    w = vl.shape[1]
+    out = np.zeros(len(ys), dtype=np.int32)
+    offs = np.arange(-r, r + 1)
+    if cost == "census":
+        pl, pr = _packed_columns(vl, r), _packed_columns(vr, r)
+        for s in range(0, len(ys), _CHUNK):
+            y, x, d = ys[s:s + _CHUNK], xs[s:s + _CHUNK], ds[s:s + _CHUNK]
+            il = ((y - r) * w + x)[:, None] + offs[None, :]
+            ir = il - d[:, None]
+            acc = np.zeros(len(y), dtype=np.int32)
+            for a, b in zip(pl, pr):
+                acc += np.bitwise_count(a.ravel()[il] ^ b.ravel()[ir]).sum(axis=1,
+                                                                          dtype=np.int32)
+            out[s:s + _CHUNK] = acc
+        return out
+    fl, fr = vl.ravel(), vr.ravel()
+    for s in range(0, len(ys), _CHUNK):
+        y, x, d = ys[s:s + _CHUNK], xs[s:s + _CHUNK], ds[s:s + _CHUNK]
+        acc = np.zeros(len(y), dtype=np.int32)
+        for j in range(-r, r + 1):
+            il = ((y + j) * w + x)[:, None] + offs[None, :]
+            acc += np.abs(fl[il] - fr[il - d[:, None]]).sum(axis=1, dtype=np.int32)
+        out[s:s + _CHUNK] = acc
+    return out
+
+
+#: The dense form is used when the pairs outnumber this fraction of (distinct d) x pixels.
+DENSE_ABOVE = 0.08
+
+
+def window_costs(vl, vr, ys, xs, ds, window, cost, form="auto"):
+    """Window cost of each pair (left centre (xs, ys), disparity ds) whose left and right windows
+    lie inside the image: ``sum over the window of |a - b|`` (``sad``) or of
+    ``popcount(a ^ b)`` (``census``). ``form`` = ``dense``, ``sparse`` or ``auto`` (the faster
+    one by an estimate; both give the same numbers)."""
+    ys, xs, ds = (np.asarray(a, dtype=np.int64) for a in (ys, xs, ds))
+    r = window // 2
+    if len(ys) == 0:
+        return np.zeros(0, dtype=np.int32)
+    if form == "auto":
+        dense_work = len(np.unique(ds)) * vl.size
+        form = "dense" if len(ys) > DENSE_ABOVE * dense_work else "sparse"
+    if form == "dense":
+        return _costs_dense(vl, vr, ys, xs, ds, r, cost)
+    if form == "sparse":
+        return _costs_sparse(vl, vr, ys, xs, ds, r, cost)
+    raise ValueError(f"form must be 'auto', 'dense' or 'sparse', not {form!r}")
+
+
+# ------------------------------------------------------------------ post-steps
+
+def subpixel_offset(cm, c0, cp):
+    """Equiangular (V-shaped) fit through the costs at d - 1, d, d + 1, in 1/16 px (int32 arrays
+    in, int32 out): ``den = max(cm, cp) - c0``; 0 when ``den <= 0``; else
+    ``sign(cm - cp) * ((16 * |cm - cp| + den) // (2 * den))`` clipped to -8..8 (8 (cm - cp) /
+    den rounded half away from zero)."""
+    cm, c0, cp = (np.asarray(a, dtype=np.int64) for a in (cm, c0, cp))
+    den = np.maximum(cm, cp) - c0
+    num = cm - cp
+    q = (SUBPIXEL_ONE * np.abs(num) + den) // np.maximum(2 * den, 1)
+    off = np.where(den > 0, np.sign(num) * np.minimum(q, SUBPIXEL_ONE // 2), 0)
+    return off.astype(np.int32)
+
+
+def confidence(cost, far_min, has_far):
+    """``far_min - 3 * cost`` saturated to 0..255; 0 without a far candidate."""
+    c = np.asarray(far_min, dtype=np.int64) - 3 * np.asarray(cost, dtype=np.int64)
+    return np.where(has_far, np.clip(c, 0, CONFIDENCE_MAX), 0).astype(np.int32)
+
+
+def unique_right(ys, xs, ds, costs):
+    """Which of the matches ``(ys, xs, ds, costs)`` keep their right pixel ``(x - d, y)``: per
+    right pixel the smallest cost, on ties the smallest x. Returns a bool array."""
+    n = len(ys)
+    keep = np.zeros(n, dtype=bool)
+    if n == 0:
+        return keep
+    key = np.asarray(ys, dtype=np.int64) * (1 << 20) + (np.asarray(xs) - np.asarray(ds))
+    order = np.lexsort((xs, costs, key))
+    k = key[order]
+    first = np.ones(n, dtype=bool)
+    first[1:] = k[1:] != k[:-1]
+    keep[order[first]] = True
+    return keep
+
+
+# ------------------------------------------------------------------ the matcher
+
+def match(left, right, params=MatcherParams(), form="auto"):
     """Match one frame. Returns ``(records, stats)``: a structured array of
-    :data:`RECORD_DTYPE` (x, y, d, cost) in raster order and a dict over :data:`STAT_KEYS`."""
+    :func:`record_dtype` in raster order and a dict over :data:`STAT_KEYS`. ``form`` chooses how
+    window costs are computed (:func:`window_costs`); every form gives the same result."""
     p = params.validate()
-    yl = _field(left, "y").astype(np.int32)
-    yr = _field(right, "y").astype(np.int32)
+    yl, yr = _field(left, "y"), _field(right, "y")
     if yl.shape != yr.shape:
         raise ValueError(f"left {yl.shape} and right {yr.shape} frames differ in size")
+    vl, vr = matched_values(yl, p), matched_values(yr, p)
     h, w = yl.shape
     r = p.window // 2
     ys, xs, inside, cand = candidates(left, right, p)
     n, nd = cand.shape
-    big = np.iinfo(np.int64).max // 1024
-    cost = np.full((n, nd), big, dtype=np.int64)
-    for k in range(nd):
-        d = p.d_min + k
-        sel = np.flatnonzero(cand[:, k])
-        if len(sel) == 0:
-            continue
-        # SAD map for this d over centres whose left and right windows are inside.
-        diff = np.abs(yl[:, d:] - yr[:, :w - d])         # column c <-> left x = c + d
-        box = _box_sum(diff, r)                           # [y - r, c - r]
-        cost[sel, k] = box[ys[sel] - r, xs[sel] - d - r]
+    ci, ck = np.nonzero(cand)
+    cost = np.full((n, nd), _NONE, dtype=np.int32)
+    cost[ci, ck] = window_costs(vl, vr, ys[ci], xs[ci], ck + p.d_min, p.window, p.cost, form)
     ncand = cand.sum(axis=1)
     has = ncand > 0
     kbest = np.argmin(cost, axis=1)                        # first minimum: smallest d on ties
-    cbest = cost[np.arange(n), kbest]
+    cbest = cost[np.arange(n), kbest].astype(np.int64)
     far = np.abs(np.arange(nd)[None, :] - kbest[:, None]) > 1
-    far_min = np.where(far & cand, cost, big).min(axis=1)
+    far_min = np.where(far & cand, cost, _NONE).min(axis=1).astype(np.int64)
     unique = far_min * 256 > cbest * (256 + p.uniqueness)
     ok = has & unique
-    recs = np.zeros(int(ok.sum()), dtype=RECORD_DTYPE)
-    recs["x"], recs["y"] = xs[ok], ys[ok]
-    recs["d"], recs["cost"] = kbest[ok] + p.d_min, cbest[ok]
+    evaluations = int(ncand.sum())
+    idx = np.flatnonzero(ok)
+    d = kbest[idx] + p.d_min
+    if p.subpixel:
+        side = []
+        for step in (-1, 1):
+            kn = kbest[idx] + step
+            usable = (kn >= 0) & (kn < nd) & (xs[idx] - (d + step) - r >= 0)
+            knc = np.clip(kn, 0, nd - 1)
+            c = np.where(usable, cost[idx, knc], _NONE)
+            missing = np.flatnonzero(usable & ~cand[idx, knc])       # evaluated now
+            c[missing] = window_costs(vl, vr, ys[idx[missing]], xs[idx[missing]],
+                                      d[missing] + step, p.window, p.cost, form)
+            evaluations += len(missing)
+            side.append((usable, c))
+        (um, cm), (up, cp) = side
+        off = np.where(um & up, subpixel_offset(cm, cbest[idx], cp), 0)
+        conf = confidence(cbest[idx], far_min[idx], far_min[idx] < _NONE)
+    if p.consistency == "unique_right":
+        keep = unique_right(ys[idx], xs[idx], d, cbest[idx])
+    else:
+        keep = np.ones(len(idx), dtype=bool)
+    recs = np.zeros(int(keep.sum()), dtype=record_dtype(p))
+    sel = idx[keep]
+    recs["x"], recs["y"] = xs[sel], ys[sel]
+    recs["d"], recs["cost"] = d[keep], cbest[sel]
+    if p.subpixel:
+        recs["d16"] = d[keep] * SUBPIXEL_ONE + off[keep]
+        recs["conf"] = conf[keep]
     stats = {
         "edge_pixels": int(n),
         "border": int((~inside).sum()),
         "no_candidate": int((inside & ~has).sum()),
-        "sad_evaluations": int(ncand.sum()),
-        "matches": int(ok.sum()),
-        "rejected": int((has & ~unique).sum()),
+        "sad_evaluations": evaluations,
+        "matches": int(keep.sum()),
+        "rejected": int((has & ~unique).sum()) + int((~keep).sum()),
         "drops": 0,
     }
     return recs, stats
 
 
+def record_disparity(records):
+    """Disparities of records as floats: ``d16 / 16`` for version 2 records, else ``d``."""
+    if "d16" in records.dtype.names:
+        return records["d16"] / SUBPIXEL_ONE
+    return records["d"].astype(np.float64)
+
+
 def accuracy(records, stats, left_edge, gt):
     """Accuracy figures of one frame against a float ground truth (``inf``/NaN = unknown):
     ``density`` (matches with ground truth / left edges with ground truth), ``bad1``/``bad2``
-    (fraction of those matches with ``|d - gt|`` > 1 / > 2) and ``eval_fraction``
-    (``sad_evaluations`` / (W * H * 64), the cost of dense matching over 64 disparities)."""
+    (fraction of those matches with ``|d - gt|`` > 1 / > 2, ``d`` subpixel when the records
+    have it), ``within2`` (their number with ``|d - gt| <= 2``) and ``eval_fraction``
+    (``sad_evaluations`` / (W * H * DISPARITIES), the cost of dense matching)."""
     gt = np.asarray(gt, dtype=np.float64)
     h, w = gt.shape
     known = np.isfinite(gt)
     n_edges = int((np.asarray(left_edge).astype(bool) & known).sum())
     g = gt[records["y"], records["x"]]
     k = np.isfinite(g)
-    err = np.abs(records["d"][k] - g[k])
+    err = np.abs(record_disparity(records)[k] - g[k])
     nm = int(k.sum())
     return {
         "edges_with_gt": n_edges,
@@ -187,5 +489,6 @@ def accuracy(records, stats, left_edge, gt):
         "density": nm / max(n_edges, 1),
         "bad1": float((err > 1).mean()) if nm else 0.0,
         "bad2": float((err > 2).mean()) if nm else 0.0,
-        "eval_fraction": stats["sad_evaluations"] / (w * h * 64),
+        "within2": int((err <= 2).sum()),
+        "eval_fraction": stats["sad_evaluations"] / (w * h * DISPARITIES),
     }

@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from golden.frontend import as_rgb
+from golden.matcher import DISPARITIES, MAX_DISPARITY
 from golden.pipeline import default_params
 from .data import crop, parse_crop
 
@@ -92,8 +93,8 @@ def add_common(p):
                    help="ground model mode (default: hue for colour, luma for grayscale)")
     p.add_argument("--d-max", dest="d_max", type=int, help="largest disparity searched")
     p.add_argument("--window", type=int, help="SAD window size (odd)")
-    p.add_argument("--max-disparity", dest="max_disparity", type=int, default=63,
-                   help="largest disparity the matcher is elaborated for (default 63)")
+    p.add_argument("--max-disparity", dest="max_disparity", type=int, default=MAX_DISPARITY,
+                   help="largest disparity the matcher is elaborated for (default %(default)s)")
 
 
 def cmd_compare(args):
@@ -211,7 +212,7 @@ def cmd_run(args):
         "fps_at_50MHz_752x480_same_rate": round(TARGET_CLOCK_HZ * ppc / ref_pixels, 1),
         "matches": int(len(last.records)),
         "stats": {k: int(v) for k, v in last.stats.items()},
-        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"] / (pixels * 64), 5),
+        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"] / (pixels * DISPARITIES), 5),
         "simulation_seconds": round(seconds, 1),
     }
     progress(4, steps, f"writing views to {args.out}")
@@ -262,7 +263,7 @@ def main(argv=None):
                         "off for the motorcycle pair)")
     r.add_argument("--d-max", dest="d_max", type=int, help="largest disparity searched")
     r.add_argument("--window", type=int, help="SAD window size (odd)")
-    r.add_argument("--max-disparity", dest="max_disparity", type=int, default=63)
+    r.add_argument("--max-disparity", dest="max_disparity", type=int, default=MAX_DISPARITY)
     r.add_argument("--backend", default="verilator", choices=("verilator", "amaranth"))
     r.add_argument("--frames", type=int, default=2,
                    help="frames to run (the same pair; the ground band learned on one frame "

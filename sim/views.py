@@ -6,6 +6,8 @@ import os
 
 import numpy as np
 
+from golden.matcher import SUBPIXEL_ONE
+
 __all__ = ["disparity_colours", "write_outputs"]
 
 
@@ -50,8 +52,13 @@ def write_outputs(out, frame, left_rgb, *, d_max, summary):
     paths["matches"] = os.path.join(out, "matches.csv")
     with open(paths["matches"], "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["x", "y", "d", "cost"])
-        w.writerows(np.stack([rec["x"], rec["y"], rec["d"], rec["cost"]], -1).tolist())
+        if "d16" in rec.dtype.names:          # matcher version 2: subpixel d and confidence
+            w.writerow(["x", "y", "d", "cost", "conf"])
+            w.writerows([x, y, f"{d16 / SUBPIXEL_ONE:.4f}", c, k] for x, y, d16, c, k in
+                        zip(*(rec[n].tolist() for n in ("x", "y", "d16", "cost", "conf"))))
+        else:
+            w.writerow(["x", "y", "d", "cost"])
+            w.writerows(np.stack([rec["x"], rec["y"], rec["d"], rec["cost"]], -1).tolist())
     paths["summary"] = os.path.join(out, "summary.json")
     with open(paths["summary"], "w") as f:
         json.dump(summary, f, indent=2)
