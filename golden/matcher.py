@@ -340,7 +340,7 @@ class WindowCosts:
         if len(ys) == 0:
             return np.zeros(0, dtype=np.int32)
         if form == "auto":
-            dense_work = len(np.unique(ds)) * self.vl.size
+            dense_work = np.count_nonzero(np.bincount(ds)) * self.vl.size
             form = "dense" if len(ys) > DENSE_ABOVE[self.cost] * dense_work else "sparse"
         if form == "dense":
             return self.dense(ys, xs, ds)
@@ -440,11 +440,13 @@ def unique_right(ys, xs, ds, costs):
     keep = np.zeros(n, dtype=bool)
     if n == 0:
         return keep
-    key = np.asarray(ys, dtype=np.int64) * (1 << 20) + (np.asarray(xs) - np.asarray(ds))
-    order = np.lexsort((xs, costs, key))
-    k = key[order]
+    ys, xs, ds, costs = (np.asarray(a, dtype=np.int64) for a in (ys, xs, ds, costs))
+    # one sort key: (y, right x), then cost, then x (each field below its bit width)
+    key = (((ys << 12) + (xs - ds)) << 32) + (costs << 12) + xs
+    order = np.argsort(key)
+    group = (key >> 32)[order]
     first = np.ones(n, dtype=bool)
-    first[1:] = k[1:] != k[:-1]
+    first[1:] = group[1:] != group[:-1]
     keep[order[first]] = True
     return keep
 
@@ -466,7 +468,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
     n, nd = cand.shape
     ci, ck = np.nonzero(cand)                  # row-major: grouped by edge, increasing d
     costs = WindowCosts(vl, vr, p.window, p.cost)
-    c = costs(ys[ci], xs[ci], ck + p.d_min, form).astype(np.int64)
+    c = costs(ys[ci], xs[ci], ck + p.d_min, form)
     evaluations = len(c)
     has = np.zeros(n, dtype=bool)
     kbest = np.zeros(n, dtype=np.int64)
@@ -476,10 +478,11 @@ def match(left, right, params=MatcherParams(), form="auto"):
         starts = np.flatnonzero(np.r_[True, ci[1:] != ci[:-1]])
         rows = ci[starts]
         has[rows] = True
-        best = np.minimum.reduceat(c * nd + ck, starts)    # smallest cost, then smallest d
-        kbest[rows], cbest[rows] = best % nd, best // nd
+        best = np.minimum.reduceat(c * np.int32(nd) + ck.astype(np.int32), starts)
+        kbest[rows], cbest[rows] = best % nd, best // nd   # smallest cost, then smallest d
         far = np.abs(ck - kbest[ci]) > 1
         far_min[rows] = np.minimum.reduceat(np.where(far, c, _NONE), starts)
+        c = c.astype(np.int64)
     unique = far_min * 256 > cbest * (256 + p.uniqueness)
     ok = has & unique
     idx = np.flatnonzero(ok)

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sim import bench_matcher
+
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -755,6 +757,7 @@ def write_markdown(path, rep):
           f"{sw['stereobm_7_fps']} |",
           f"| OpenCV StereoBM block 21 | {1e3 * sw['stereobm_21_s']:.2f} | "
           f"{sw['stereobm_21_fps']} |", "",
+          *bench_matcher.markdown(rep["matcher_v2"]),
           "## Provenance", ""]
     for k, v in rep["provenance"].items():
         L.append(f"- `{k}`: {v}")
@@ -769,7 +772,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    bench = Bench(9)
+    bench = Bench(10)
     rep = bench.report
 
     bench.progress("accuracy: golden pipeline (default, adaptive, full) on the motorcycle pair")
@@ -812,6 +815,9 @@ def main(argv=None):
     bench.progress("software speed: golden pipeline vs OpenCV StereoBM")
     rep["software_speed"] = software_speed(bench, args.quick, left, right)
 
+    bench.progress("matcher v2: accuracy, OpenCV at equal counts, hard cases, speed")
+    rep["matcher_v2"] = bench_matcher.run(bench, args.quick)
+
     bench.progress("acceptance check and report")
     rep["check"] = acceptance(rep)
     rep["check"]["enforced"] = not args.quick
@@ -822,7 +828,7 @@ def main(argv=None):
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
     keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources",
-            "throughput", "sim_speed", "software_speed", "provenance"]
+            "throughput", "sim_speed", "software_speed", "matcher_v2", "provenance"]
     ordered = {k: rep[k] for k in keys}
     (out / "report.json").write_text(json.dumps(ordered, indent=1, default=_json) + "\n")
     write_markdown(out / "report.md", rep)
