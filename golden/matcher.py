@@ -75,25 +75,37 @@ Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 
   evaluation unchanged (one per candidate per lane).
 * **Candidates** ``widen = 2``, ``sign = "any"``: the right edge map is one bit per pixel instead
   of two (pos/neg), a 5-bit OR over it; the scanner's candidate mask is the right-edge mask
-  shifted and ORed (no comparators). 1.41 % of dense on the motorcycle pair (version 1 with
-  widen: ~0.9 %): ~0.9 evaluations per input pixel, ~0.45 cycles per pixel with two lanes.
+  shifted and ORed (no comparators). 1.42 % of dense on the motorcycle pair (version 1 with
+  widen: 0.47 %): 0.91 evaluations per input pixel, ~0.45 lane cycles per pixel with two
+  lanes.
 * **Subpixel**: the costs at ``d - 1`` and ``d + 1`` are the candidate visited just before the
   best and the one just after it (two registers updated with the best), so with ``widen >= 1``
-  a neighbour is almost never missing (< 0.01 % of dense on the motorcycle pair); a missing one
-  costs one extra evaluation (one lane cycle) after the scan. The offset is an unsigned 4-bit
-  quotient of 9-bit operands: a 4-step restoring divider (4 cycles, ~25 LUT4) per record, or
-  a 2-stage pipelined one; 0 RAMB16.
+  a neighbour is rarely missing (524 extra evaluations on the motorcycle pair, 0.2 % of its
+  264,000); a missing one costs one extra evaluation (one lane cycle) after the scan, while the
+  window is still in the line store. The offset is an unsigned 4-bit quotient of 9-bit
+  operands: a 4-step restoring divider (4 cycles, ~25 LUT4) per record, or a 2-stage pipelined
+  one; 0 RAMB16.
 * **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, saturation: ~30 LUT4) per
-  record, no extra cycles.
-* **unique_right** (chosen over a left-right check): a table indexed by right x holding the
-  current owner's cost (9 bits) and its slot in a row buffer of records (8 bits) plus a row
-  tag bit: 1024 x 18 = 1 RAMB16; the records of a row wait in a 512 x 36 buffer (two rows of
-  256 records: x 10, d16 10, cost 9, conf 7 bits... or 8 with x and y from the framing):
-  1 RAMB16. One read-modify-write per record (2 cycles, pipelined), the loser's valid bit
-  cleared; at the end of the row the valid records are emitted. Latency: one row. A sparse
-  left-right check over all evaluations (each right pixel's minimum over every evaluated
-  left pixel) caught more (bad-2 5.4 % against 5.9 % with uniqueness 48) but needs a
-  read-modify-write per evaluation, i.e. one table port per lane, and the same row delay.
+  record, no extra cycles. Ranking by it, the 4,496 most confident motorcycle points have
+  bad-2 0.4 % (StereoBM 15 at the same count: 3.1 %; sim/bench_matcher.py).
+* **unique_right** (chosen; measured on the motorcycle pair, version 2, before -> after):
+  removes 164 matches of which 91 % were bad-2, bad-2 6.7 % -> 5.5 %, no extra evaluation.
+  Hardware: a table indexed by right x holding the current owner's cost (9 bits) and its slot
+  in the row's record buffer (8 bits) plus a row-parity bit: 1024 x 18 = 1 RAMB16; the records
+  of a row wait in a buffer of two rows x 256 records x 37 bits (x 10, d16 10, cost 9, conf 8;
+  y from the framing; valid bits in distributed RAM) = 2 RAMB16. The motorcycle pair has at most 53 records (69 left edges) per row. One read-modify-write
+  per record (2 cycles, pipelined), the loser's valid bit cleared; at the end of the row the
+  valid records are emitted. Latency: one row. Alternatives measured: a sparse left-right
+  check (each right pixel's minimum over every evaluated left pixel) removes 322 (77 % bad),
+  bad-2 4.8 %, no extra evaluation, but needs a table read-modify-write per *evaluation* (one
+  table port pair per lane); a full left-right check (the right pixel searches all 64
+  disparities) removes 598 (65 % bad), bad-2 3.8 %, but adds 2.9 % of dense evaluations
+  (4.3 % in all, over the 2 % budget, ~1.9 more cycles per pixel with two lanes).
+* **Budget**: version 2 adds about 3 RAMB16 (unique_right) and 0-2 (census in the front end or
+  standalone), a few hundred LUT4 (census comparators, divider, confidence, table control)
+  and removes a third of the adder tree; lane cycles rise with the evaluations (1.42 % of
+  dense against 0.47 % for version 1 with widen on the motorcycle pair, plus 38 % more left
+  edges at threshold 128: 14,976 against 10,832).
 """
 from dataclasses import dataclass, replace
 

@@ -384,3 +384,21 @@ def test_default_params_versions():
     assert default_params(64, 48, version=2, uniqueness=10).matcher.uniqueness == 10
     with pytest.raises(ValueError, match="version"):
         default_params(64, 48, version=3)
+
+
+def test_v2_matches_csv(tmp_path):
+    # matches.csv of a version 2 run: d decimal (d16 / 16) and the confidence column.
+    import csv
+    from golden.pipeline import default_params, pipeline_frames
+    from sim.scenes import make_scene
+    from sim.views import write_outputs
+    s = make_scene("boxes", 160, 120)
+    f = pipeline_frames([s.left], [s.right], default_params(160, 120, ground="off",
+                                                            version=2))[0]
+    assert len(f.records) > 10
+    paths = write_outputs(tmp_path, f, s.left, d_max=63, summary={})
+    rows = list(csv.reader(open(paths["matches"])))
+    assert rows[0] == ["x", "y", "d", "cost", "conf"] and len(rows) == len(f.records) + 1
+    got = np.array([[float(v) for v in row] for row in rows[1:]])
+    assert np.array_equal(got[:, 2], f.records["d16"] / 16)
+    assert np.array_equal(got[:, 4], f.records["conf"])
