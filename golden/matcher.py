@@ -93,9 +93,10 @@ Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 
   Hardware: a table indexed by right x holding the current owner's cost (9 bits) and its slot
   in the row's record buffer (8 bits) plus a row-parity bit: 1024 x 18 = 1 RAMB16; the records
   of a row wait in a buffer of two rows x 256 records x 37 bits (x 10, d16 10, cost 9, conf 8;
-  y from the framing; valid bits in distributed RAM) = 2 RAMB16. The motorcycle pair has at most 53 records (69 left edges) per row. One read-modify-write
-  per record (2 cycles, pipelined), the loser's valid bit cleared; at the end of the row the
-  valid records are emitted. Latency: one row. Alternatives measured: a sparse left-right
+  y from the framing; valid bits in distributed RAM) = 2 RAMB16. The motorcycle pair has at
+  most 53 records (69 left edges) per row. One read-modify-write per record (2 cycles,
+  pipelined), the loser's valid bit cleared; at the end of the row the valid records are
+  emitted. Latency: one row. Alternatives measured: a sparse left-right
   check (each right pixel's minimum over every evaluated left pixel) removes 322 (77 % bad),
   bad-2 4.8 %, no extra evaluation, but needs a table read-modify-write per *evaluation* (one
   table port pair per lane); a full left-right check (the right pixel searches all 64
@@ -116,7 +117,8 @@ from .census import census
 
 __all__ = ["MatcherParams", "match", "candidates", "window_costs", "RECORD_DTYPE",
            "RECORD_DTYPE_V2", "STAT_KEYS", "accuracy", "MAX_DISPARITY", "DISPARITIES",
-           "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "v2_params", "WindowCosts",
+           "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "v2_params",
+           "WindowCosts",
            "record_dtype"]
 
 #: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``);

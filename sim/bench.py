@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from golden.matcher import DISPARITIES
 from sim import bench_matcher
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
@@ -132,7 +133,7 @@ def pipeline_accuracy(bench, left, right, gt):
                                      f"golden.matcher.accuracy's {ref[name]}")
         m = params.matcher
         r.update(sad_evaluations=f.stats["sad_evaluations"],
-                 sad_eval_fraction=f.stats["sad_evaluations"] / (w * h * 64),
+                 sad_eval_fraction=f.stats["sad_evaluations"] / (w * h * DISPARITIES),
                  mode=m.mode, widen=m.widen, window=m.window, d_max=m.d_max,
                  uniqueness=m.uniqueness, left_threshold=params.frontend.sobel.threshold,
                  right_threshold=params.right_threshold, seconds=round(seconds, 3),
@@ -152,15 +153,15 @@ def stereobm_accuracy(bench, left, right, gt, scored):
     h, w = gt.shape
     out, maps = {}, {}
     for b in BM_BLOCKS:
-        bm = cv2.StereoBM_create(numDisparities=64, blockSize=b)
+        bm = cv2.StereoBM_create(numDisparities=DISPARITIES, blockSize=b)
         raw = bm.compute(yl, yr)
         valid = raw >= 0                       # 16x fixed point; negative = invalid
         ys, xs = np.nonzero(valid)
         r = score(xs, ys, raw[valid] / 16.0, scored, gt)
-        r.update(sad_evaluations=w * h * 64, sad_eval_fraction=1.0, block=b,
-                 num_disparities=64)
+        r.update(sad_evaluations=w * h * DISPARITIES, sad_eval_fraction=1.0, block=b,
+                 num_disparities=DISPARITIES)
         out[f"stereobm_{b}"], maps[b] = r, np.where(valid, raw / 16.0, np.nan)
-        bench.source(f"accuracy.stereobm_{b}", f"cv2.StereoBM_create(numDisparities=64, "
+        bench.source(f"accuracy.stereobm_{b}", f"cv2.StereoBM_create(numDisparities={DISPARITIES}, "
                      f"blockSize={b}).compute(golden.color.luma(L), luma(R)) (OpenCV "
                      f"{cv2.__version__}), scored by sim.bench.score on the same pixels; "
                      "sad_eval_fraction 1.0 by definition (dense)")
@@ -187,7 +188,7 @@ def sweep(bench, left, right, gt):
                 r = score(recs["x"], recs["y"], recs["d"], scored, gt)
                 r.update(threshold=t, window=win, mode=mode,
                          sad_evaluations=stats["sad_evaluations"],
-                         sad_eval_fraction=stats["sad_evaluations"] / (w * h * 64))
+                         sad_eval_fraction=stats["sad_evaluations"] / (w * h * DISPARITIES))
                 rows.append(r)
     bench.source("sweep", "golden.frontend.FrontEndModel (left Sobel threshold swept, right "
                  f"{base.right_threshold}) + golden.matcher.match(MatcherParams(window, mode, "
@@ -456,8 +457,8 @@ def throughput(bench, quick, pair):
                "fps_at_50MHz_752x480": round(TARGET_CLOCK_HZ * ppc / ref_pixels, 1),
                "sad_evaluations_rtl": rstats.get("sad_evaluations"),
                "sad_evaluations_golden": int(gstats["sad_evaluations"]),
-               "sad_evaluations_dense": w * h * 64,
-               "sad_eval_fraction": round(gstats["sad_evaluations"] / (w * h * 64), 5),
+               "sad_evaluations_dense": w * h * DISPARITIES,
+               "sad_eval_fraction": round(gstats["sad_evaluations"] / (w * h * DISPARITIES), 5),
                "edge_pixels": int(gstats["edge_pixels"]), "matches": int(gstats["matches"]),
                "harness_seconds": run.seconds, "harness_total_cycles": run.total_cycles,
                "wall_seconds": round(wall, 2)}
@@ -589,7 +590,7 @@ def software_speed(bench, quick, left, right):
                  f"median of {repeats}; matcher alone: golden.matcher.match")
     yl, yr = luma(l), luma(r)
     for b in (7, 21):
-        bm = cv2.StereoBM_create(numDisparities=64, blockSize=b)
+        bm = cv2.StereoBM_create(numDisparities=DISPARITIES, blockSize=b)
         bm.compute(yl, yr)                      # warm-up
         ts = []
         for _ in range(max(repeats, 20)):
@@ -797,7 +798,7 @@ def main(argv=None):
     bench.progress(f"accuracy sweep: thresholds {SWEEP_THRESHOLDS} x windows {SWEEP_WINDOWS} "
                    f"x modes {tuple(SWEEP_MODES)}")
     rep["sweep"] = sweep(bench, left, right, gt)
-    write_sweep_plot(out / "sweep.png", rep["sweep"], bm, w * h * 64)
+    write_sweep_plot(out / "sweep.png", rep["sweep"], bm, w * h * DISPARITIES)
 
     bench.progress("ground-mask agreement on the synthetic scenes")
     rep["ground_agreement"] = ground_agreement(bench, args.quick)

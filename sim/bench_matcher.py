@@ -21,6 +21,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from golden.matcher import DISPARITIES
+
 __all__ = ["run", "markdown", "HARD_CASES"]
 
 #: Right-image variants of the motorcycle pair: (description, function of the RGB image).
@@ -75,7 +77,6 @@ def _score(recs, scored, gt):
 
 
 def _method_row(f, scored, gt):
-    from golden.matcher import DISPARITIES
     h, w = gt.shape
     r = _score(f.records, scored, gt)
     r["eval_fraction"] = f.stats["sad_evaluations"] / (w * h * DISPARITIES)
@@ -110,7 +111,7 @@ def _luma_pair(left, right):
 
 def _bm(b, ratio=None):
     import cv2
-    bm = cv2.StereoBM_create(numDisparities=64, blockSize=b)
+    bm = cv2.StereoBM_create(numDisparities=DISPARITIES, blockSize=b)
     if ratio is not None:
         bm.setUniquenessRatio(ratio)
     return bm
@@ -119,7 +120,7 @@ def _bm(b, ratio=None):
 def _sgbm(ratio=10):
     import cv2
     b = SGBM_BLOCK
-    return cv2.StereoSGBM_create(minDisparity=0, numDisparities=64, blockSize=b,
+    return cv2.StereoSGBM_create(minDisparity=0, numDisparities=DISPARITIES, blockSize=b,
                                  P1=8 * b * b, P2=32 * b * b, disp12MaxDiff=1,
                                  uniquenessRatio=ratio, speckleWindowSize=100, speckleRange=2)
 
@@ -143,7 +144,7 @@ def opencv_references(left, right, scored, gt):
         rec = np.zeros(len(ys), dtype=[("x", np.int32), ("y", np.int32), ("d", np.float64)])
         rec["x"], rec["y"], rec["d"] = xs, ys, dmap[ys, xs]
         rows[name] = _score_float(rec, scored, gt)
-        rows[name]["settings"] = (f"cv2 {cv2.__version__}, numDisparities 64, " +
+        rows[name]["settings"] = (f"cv2 {cv2.__version__}, numDisparities {DISPARITIES}, " +
                                   ("defaults" if "BM " in name else
                                    f"P1 {8 * SGBM_BLOCK ** 2}, P2 {32 * SGBM_BLOCK ** 2}, "
                                    "uniquenessRatio 10, disp12MaxDiff 1, speckle 100/2"))

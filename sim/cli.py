@@ -212,7 +212,8 @@ def cmd_run(args):
         "fps_at_50MHz_752x480_same_rate": round(TARGET_CLOCK_HZ * ppc / ref_pixels, 1),
         "matches": int(len(last.records)),
         "stats": {k: int(v) for k, v in last.stats.items()},
-        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"] / (pixels * DISPARITIES), 5),
+        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"]
+                                            / (pixels * DISPARITIES), 5),
         "simulation_seconds": round(seconds, 1),
     }
     progress(4, steps, f"writing views to {args.out}")

@@ -132,7 +132,8 @@ def test_widen_and_full():
 @pytest.mark.parametrize("kw, message", [
     ({"window": 4}, "odd"), ({"window": 1}, "odd"), ({"d_min": 5, "d_max": 4}, "greater"),
     ({"d_max": MAX_DISPARITY + 1}, "elaborated"), ({"widen": 4}, "widen"),
-    ({"cost": "ncc"}, "cost"), ({"sign": "both"}, "sign"), ({"consistency": "lr"}, "consistency"), ({"d_min": -1}, "d_min"), ({"uniqueness": 256}, "uniqueness"),
+    ({"cost": "ncc"}, "cost"), ({"sign": "both"}, "sign"), ({"consistency": "lr"}, "consistency"),
+    ({"d_min": -1}, "d_min"), ({"uniqueness": 256}, "uniqueness"),
     ({"mode": "dense"}, "mode"),
 ])
 def test_validate(kw, message):
