@@ -37,6 +37,7 @@ SCENES = ("boxes", "poles", "mixed", "empty")
 SGBM_BLOCK = 5
 BM_BLOCKS = (7, 15)
 RATIO_SWEEP = tuple(range(0, 61, 3))
+UNIQUENESS_SWEEP = (32, 48, 64, 96, 128)
 
 
 def _gain(im, g, o):
@@ -243,6 +244,7 @@ def speed(left, right, quick):
     finally:
         cv2.setNumThreads(threads)
     out["pipeline_v2_over_stereobm_7"] = out["golden_pipeline_v2_s"] / out["stereobm_7_s"]
+    out["matcher_v2_over_stereobm_7"] = out["golden_matcher_v2_s"] / out["stereobm_7_s"]
     return out
 
 
@@ -272,6 +274,10 @@ def run(bench=None, quick=False):
         f = _frame(left, right, replace(p2, matcher=replace(p2.matcher, **kw)))
         methods[label] = _method_row(f, scored, gt)
     rep["methods"] = methods
+    rep["uniqueness_sweep"] = {
+        u: _method_row(_frame(left, right, replace(p2, matcher=replace(p2.matcher,
+                                                                       uniqueness=u))),
+                       scored, gt) for u in UNIQUENESS_SWEEP}
     say("matcher_v2.methods", f"golden.pipeline.default_params(ground='off', version=1|2) "
         f"on the motorcycle pair, scored over v2's left edges (T {V2_THRESHOLD}) with finite gt "
         "by sim.bench_matcher._score (d16/16 for v2)")
@@ -357,6 +363,11 @@ def markdown(rep):
         L.append(f"| {name} | {_acc(r)} | {_pct(r['eval_fraction'], 3)} |")
     for name, r in rep["opencv_same_pixels"].items():
         L.append(f"| {name} ({r['settings']}) | {_acc(r)} | 100 |")
+    L += ["", "Version 2 at other uniqueness margins (u / 256; the default is 64):", "",
+          "| u | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err |",
+          "|---|---|---|---|---|---|---|"]
+    for u, r in rep["uniqueness_sweep"].items():
+        L.append(f"| {u} | {_acc(r)} |")
     c = rep["consistency"]
     cv = rep["coverage"]
     L += ["", f"Consistency (`unique_right`): removes {c['removed']} matches "
@@ -396,7 +407,8 @@ def markdown(rep):
     for k, v in sp.items():
         if k.endswith("_s"):
             L.append(f"| {k[:-2].replace('_', ' ')} | {1e3 * v:.1f} |")
-    L += [f"| golden pipeline v2 / StereoBM 7 | {sp['pipeline_v2_over_stereobm_7']:.1f}x |", ""]
+    L += [f"| golden matcher v2 / StereoBM 7 | {sp['matcher_v2_over_stereobm_7']:.1f}x |",
+          f"| golden pipeline v2 / StereoBM 7 | {sp['pipeline_v2_over_stereobm_7']:.1f}x |", ""]
     return L
 
 
