@@ -351,20 +351,31 @@ class WindowCosts:
 
     def __call__(self, ys, xs, ds, form="auto"):
         ys, xs, ds = (np.asarray(a, dtype=np.int64) for a in (ys, xs, ds))
-        if len(ys) == 0:
+        return self.at(self.origin(ys, xs), ds, form)
+
+    def origin(self, ys, xs):
+        """Flat index of the left window's first pixel, ``(y - r) * W + x - r``."""
+        return (np.asarray(ys, dtype=np.int64) - self.r) * self.vl.shape[1] \
+            + np.asarray(xs, dtype=np.int64) - self.r
+
+    def at(self, il, ds, form="auto"):
+        """Costs of the windows with origins ``il`` (:meth:`origin`) at disparities ``ds``."""
+        il, ds = np.asarray(il, dtype=np.int64), np.asarray(ds, dtype=np.int64)
+        if len(il) == 0:
             return np.zeros(0, dtype=np.int32)
         if form == "auto":
             dense_work = np.count_nonzero(np.bincount(ds)) * self.vl.size
-            form = "dense" if len(ys) > DENSE_ABOVE[self.cost] * dense_work else "sparse"
+            form = "dense" if len(il) > DENSE_ABOVE[self.cost] * dense_work else "sparse"
         if form == "dense":
-            return self.dense(ys, xs, ds)
+            return self.dense(il, ds)
         if form == "sparse":
-            return self.sparse(ys, xs, ds)
+            return self.sparse(il, ds)
         raise ValueError(f"form must be 'auto', 'dense' or 'sparse', not {form!r}")
 
-    def dense(self, ys, xs, ds):
+    def dense(self, il, ds):
         r, w = self.r, self.vl.shape[1]
-        out = np.empty(len(ys), dtype=np.int32)
+        row, col = np.divmod(il, w)                      # y - r, x - r
+        out = np.empty(len(il), dtype=np.int32)
         order = np.argsort(ds, kind="stable")
         bounds = np.flatnonzero(np.diff(ds[order])) + 1
         for sel in np.split(order, bounds):
@@ -373,7 +384,7 @@ class WindowCosts:
                 box = self._census_dense(d)
             else:
                 box = _box_sum(np.abs(self.vl[:, d:] - self.vr[:, :w - d]), r)
-            out[sel] = box[ys[sel] - r, xs[sel] - d - r]           # [y - r, x - d - r]
+            out[sel] = box[row[sel], col[sel] - d]                 # [y - r, x - d - r]
         return out
 
     def _census_dense(self, d):
@@ -384,18 +395,18 @@ class WindowCosts:
             total = total + _row_box_sum(np.bitwise_count(a[:, d:] ^ b[:, :w - d]), r)
         return total
 
-    def sparse(self, ys, xs, ds):
+    def sparse(self, il, ds):
         r, w = self.r, self.vl.shape[1]
-        out = np.zeros(len(ys), dtype=np.int32)
+        n = len(il)
+        out = np.zeros(n, dtype=np.int32)
+        ir = il - ds
         if self.cost == "census":
-            il = (ys - r) * w + xs - r                  # first column of the left window
-            ir = il - ds
             packed = self.packed()
             k = 2 * r + 1
             width = -(-k // 4) * 4
             counts = np.zeros((_CHUNK, width), dtype=np.uint8)
-            for s in range(0, len(ys), _CHUNK):
-                m = min(_CHUNK, len(ys) - s)
+            for s in range(0, n, _CHUNK):
+                m = min(_CHUNK, n - s)
                 for w_, (pl, pr) in enumerate(packed):
                     t = pl[il[s:s + m]]
                     t ^= pr[ir[s:s + m]]
@@ -410,13 +421,14 @@ class WindowCosts:
                         out[s:s + m] += counts[:m, :k].sum(axis=1, dtype=np.int32)
             return out
         fl, fr = self.vl.ravel(), self.vr.ravel()
-        offs = np.arange(-r, r + 1)
-        for s in range(0, len(ys), _CHUNK):
-            y, x, d = ys[s:s + _CHUNK], xs[s:s + _CHUNK], ds[s:s + _CHUNK]
-            acc = np.zeros(len(y), dtype=np.int32)
-            for j in range(-r, r + 1):
-                il = ((y + j) * w + x)[:, None] + offs[None, :]
-                acc += np.abs(fl[il] - fr[il - d[:, None]]).sum(axis=1, dtype=np.int32)
+        offs = np.arange(2 * r + 1)
+        for s in range(0, n, _CHUNK):
+            a, b = il[s:s + _CHUNK], ir[s:s + _CHUNK]
+            acc = np.zeros(len(a), dtype=np.int32)
+            for j in range(2 * r + 1):
+                ia = (a + j * w)[:, None] + offs[None, :]
+                ib = (b + j * w)[:, None] + offs[None, :]
+                acc += np.abs(fl[ia] - fr[ib]).sum(axis=1, dtype=np.int32)
             out[s:s + _CHUNK] = acc
         return out
 
@@ -481,20 +493,21 @@ def match(left, right, params=MatcherParams(), form="auto"):
     ys, xs, inside, cand = candidates(left, right, p)
     n, nd = cand.shape
     ci, ck = np.nonzero(cand)                  # row-major: grouped by edge, increasing d
+    ncand = cand.sum(axis=1)
     costs = WindowCosts(vl, vr, p.window, p.cost)
-    c = costs(ys[ci], xs[ci], ck + p.d_min, form)
+    origin = costs.origin(ys, xs)
+    c = costs.at(np.repeat(origin, ncand), ck + p.d_min, form)
     evaluations = len(c)
-    has = np.zeros(n, dtype=bool)
+    has = ncand > 0
     kbest = np.zeros(n, dtype=np.int64)
     cbest = np.full(n, _NONE, dtype=np.int64)
     far_min = np.full(n, _NONE, dtype=np.int64)
     if len(c):
-        starts = np.flatnonzero(np.r_[True, ci[1:] != ci[:-1]])
-        rows = ci[starts]
-        has[rows] = True
+        rows = np.flatnonzero(has)
+        starts = (np.cumsum(ncand) - ncand)[rows]
         best = np.minimum.reduceat(c * np.int32(nd) + ck.astype(np.int32), starts)
         kbest[rows], cbest[rows] = best % nd, best // nd   # smallest cost, then smallest d
-        far = np.abs(ck - kbest[ci]) > 1
+        far = np.abs(ck - np.repeat(kbest[rows], ncand[rows])) > 1
         far_min[rows] = np.minimum.reduceat(np.where(far, c, _NONE), starts)
         c = c.astype(np.int64)
     unique = far_min * 256 > cbest * (256 + p.uniqueness)
@@ -512,7 +525,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
             found = usable & (lin[pos] == q)
             cn = np.where(found, c[pos], _NONE)
             missing = np.flatnonzero(usable & ~found)          # evaluated now
-            cn[missing] = costs(ys[idx[missing]], xs[idx[missing]], d[missing] + step, form)
+            cn[missing] = costs.at(origin[idx[missing]], d[missing] + step, form)
             evaluations += len(missing)
             side.append((usable, cn))
         (um, cm), (up, cp) = side

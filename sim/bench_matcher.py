@@ -146,7 +146,7 @@ def opencv_references(left, right, scored, gt):
         rec["x"], rec["y"], rec["d"] = xs, ys, dmap[ys, xs]
         rows[name] = _score_float(rec, scored, gt)
         rows[name]["settings"] = (f"cv2 {cv2.__version__}, numDisparities {DISPARITIES}, " +
-                                  ("defaults" if "BM " in name else
+                                  ("defaults" if name.startswith("StereoBM") else
                                    f"P1 {8 * SGBM_BLOCK ** 2}, P2 {32 * SGBM_BLOCK ** 2}, "
                                    "uniquenessRatio 10, disp12MaxDiff 1, speckle 100/2"))
         conf = np.full(gt.shape, -1, dtype=np.int32)
