@@ -38,7 +38,8 @@ For every LEFT edge pixel ``(x, y)`` in raster order (row by row, left to right)
    uses): ``den = max(cm, cp) - c0``, offset 0 if ``den <= 0``, else
    ``sign(cm - cp) * ((16 * |cm - cp| + den) // (2 * den))`` clipped to -8..8, i.e.
    ``8 (cm - cp) / den`` rounded half away from zero. ``d16 = 16 d + offset`` (1/16 px).
-   ``conf = clip(far_min - 3 c0, 0, 255)``, 0 without a far candidate (:func:`confidence`).
+   ``conf = clip(((far_min - 3 c0) >> 1) + 128, 0, 255)`` (``>>`` rounds towards minus
+   infinity), 0 without a far candidate (:func:`confidence`).
 7. **Consistency** (``consistency = "unique_right"``): among the matches of one row that passed
    steps 5-6, each right pixel ``x - d`` keeps only the match with the smallest cost, on ties
    the smallest ``x``; the others count in ``rejected``. The rest are emitted (``matches``) as
@@ -89,9 +90,13 @@ Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 
   window is still in the line store. The offset is an unsigned 4-bit quotient of 9-bit
   operands: a 4-step restoring divider (4 cycles, ~25 LUT4) per record, or a 2-stage pipelined
   one; 0 RAMB16.
-* **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, saturation: ~30 LUT4) per
-  record, no extra cycles. Ranking by it, the 4,496 most confident motorcycle points have
-  bad-2 0.4 % (StereoBM 15 at the same count: 3.1 %; sim/bench_matcher.py).
+* **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, a wire shift, the constant
+  and saturation: ~35 LUT4) per record, no extra cycles. Ranking by it, the 4,496 most
+  confident motorcycle points have bad-2 0.4 % (StereoBM 15 at the same count: 3.1 %;
+  sim/bench_matcher.py). Of the rankings tried (``far_min - k c0`` for k = 1, 2, 3, the ratio
+  ``(far_min - c0) / c0``, the cost alone) k = 3 was best on the motorcycle pair and the
+  synthetic scenes; the half scale and the offset 128 keep its 5-95 % range on the motorcycle
+  (-163..+70) inside 0..255.
 * **unique_right** (chosen; measured on the motorcycle pair, version 2, before -> after):
   removes 164 matches of which 91 % were bad-2, bad-2 6.7 % -> 5.5 %, no extra evaluation.
   Hardware: a table indexed by right x holding the current owner's cost (9 bits) and its slot
@@ -121,9 +126,8 @@ from .census import census
 
 __all__ = ["MatcherParams", "match", "candidates", "window_costs", "RECORD_DTYPE",
            "RECORD_DTYPE_V2", "STAT_KEYS", "accuracy", "MAX_DISPARITY", "DISPARITIES",
-           "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "v2_params",
-           "WindowCosts",
-           "record_dtype"]
+           "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "CONFIDENCE_OFFSET",
+           "v2_params", "WindowCosts", "record_dtype"]
 
 #: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``);
 #: disparities are ``DISPARITY_BITS`` wide.
@@ -136,8 +140,9 @@ SUBPIXEL_BITS = 4
 SUBPIXEL_ONE = 1 << SUBPIXEL_BITS
 #: Largest ``widen`` (candidate spread, pixels either side of a right edge).
 MAX_WIDEN = 3
-#: Confidence saturates here (8 bits).
+#: Confidence saturates here (8 bits); ``far_min - 3 cost`` = 0 is CONFIDENCE_OFFSET.
 CONFIDENCE_MAX = 255
+CONFIDENCE_OFFSET = 128
 COSTS = ("sad", "census")
 SIGNS = ("same", "any")
 CONSISTENCY = ("none", "unique_right")
@@ -458,8 +463,9 @@ def subpixel_offset(cm, c0, cp):
 
 
 def confidence(cost, far_min, has_far):
-    """``far_min - 3 * cost`` saturated to 0..255; 0 without a far candidate."""
-    c = np.asarray(far_min, dtype=np.int64) - 3 * np.asarray(cost, dtype=np.int64)
+    """``((far_min - 3 * cost) >> 1) + 128`` saturated to 0..255; 0 without a far candidate."""
+    c = ((np.asarray(far_min, dtype=np.int64) - 3 * np.asarray(cost, dtype=np.int64)) >> 1) \
+        + CONFIDENCE_OFFSET
     return np.where(has_far, np.clip(c, 0, CONFIDENCE_MAX), 0).astype(np.int32)
 
 

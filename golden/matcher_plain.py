@@ -5,7 +5,7 @@ statistic."""
 import numpy as np
 
 from .census import census_plain
-from .matcher import STAT_KEYS, SUBPIXEL_ONE, CONFIDENCE_MAX, record_dtype
+from .matcher import STAT_KEYS, SUBPIXEL_ONE, CONFIDENCE_MAX, CONFIDENCE_OFFSET, record_dtype
 
 __all__ = ["match_plain"]
 
@@ -87,7 +87,10 @@ def match_plain(left, right, p):
                 if len(nb) == 2:
                     off = _offset(nb[best - 1], cb, nb[best + 1])
                 d16 = best * SUBPIXEL_ONE + off
-                conf = min(max(min(far) - 3 * cb, 0), CONFIDENCE_MAX) if far else 0
+                conf = 0
+                if far:
+                    margin = min(far) - 3 * cb
+                    conf = min(max(margin // 2 + CONFIDENCE_OFFSET, 0), CONFIDENCE_MAX)
             passed.append((x, y, best, cb, d16, conf))
     keep = [True] * len(passed)
     if p.consistency == "unique_right":

@@ -256,9 +256,10 @@ def test_subpixel_offset(cm, c0, cp, want):
 
 
 def test_confidence_rule():
-    got = confidence(np.array([10, 10, 100, 0]), np.array([50, 20, 600, 7]),
-                     np.array([True, True, True, False]))
-    assert got.tolist() == [20, 0, 255, 0]
+    # ((far_min - 3 cost) >> 1) + 128, saturated; 0 without a far candidate.
+    got = confidence(np.array([10, 10, 10, 100, 200, 0]), np.array([50, 20, 19, 900, 10, 7]),
+                     np.array([True, True, True, True, True, False]))
+    assert got.tolist() == [138, 123, 122, 255, 0, 0]
 
 
 def test_unique_right_rule():
