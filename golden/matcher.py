@@ -502,7 +502,8 @@ def match(left, right, params=MatcherParams(), form="auto"):
     r = p.window // 2
     ys, xs, inside, cand = candidates(left, right, p)
     n, nd = cand.shape
-    ci, ck = np.nonzero(cand)                  # row-major: grouped by edge, increasing d
+    lin = np.flatnonzero(cand)                 # row-major: grouped by edge, increasing d
+    ck = lin % nd
     ncand = cand.sum(axis=1)
     costs = WindowCosts(vl, vr, p.window, p.cost)
     origin = costs.origin(ys, xs)
@@ -525,7 +526,6 @@ def match(left, right, params=MatcherParams(), form="auto"):
     idx = np.flatnonzero(ok)
     d = kbest[idx] + p.d_min
     if p.subpixel:
-        lin = ci.astype(np.int64) * nd + ck            # sorted: where each candidate's cost is
         side = []
         for step in (-1, 1):
             kn = kbest[idx] + step
