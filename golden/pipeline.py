@@ -6,11 +6,11 @@ import numpy as np
 
 from .frontend import FrontEndParams, FrontEndFrame, FrontEndModel
 from .ground import GroundMode, GroundParams
-from .matcher import MatcherParams, match
+from .matcher import MAX_DISPARITY, MatcherParams, match, v2_params
 from .sobel import SobelParams
 
 __all__ = ["PipelineParams", "PipelineFrame", "PipelineModel", "pipeline_frames",
-           "default_params", "LEFT_THRESHOLD", "RIGHT_THRESHOLD"]
+           "default_params", "LEFT_THRESHOLD", "RIGHT_THRESHOLD", "V2_THRESHOLD"]
 
 #: Sobel thresholds of the default pipeline. The left image's edges are the pixels matched, so
 #: they should be strong; the right image's edges only say where candidates are, so a weaker
@@ -21,6 +21,10 @@ __all__ = ["PipelineParams", "PipelineFrame", "PipelineModel", "pipeline_frames"
 #: 11.7 % at 88.7 % density (tests/test_matcher_golden.py).
 LEFT_THRESHOLD = 192
 RIGHT_THRESHOLD = 96
+#: Sobel threshold of both cameras with matcher version 2 (``default_params(..., version=2)``):
+#: its census cost, wider candidates and consistency check keep bad-2 below 6 % on the weaker
+#: left edges of 128, which gives more points within 2 px than 192 (sim/bench_matcher.py).
+V2_THRESHOLD = 128
 
 
 @dataclass(frozen=True)
@@ -37,7 +41,7 @@ class PipelineParams:
         return replace(self.frontend, sobel=replace(self.frontend.sobel,
                                                     threshold=self.right_threshold))
 
-    def validate(self, max_disparity=63, window=None):
+    def validate(self, max_disparity=MAX_DISPARITY, window=None):
         self.frontend.validate()
         self.right_frontend().validate()
         self.matcher.validate(max_disparity=max_disparity, window=window)
@@ -52,13 +56,20 @@ class PipelineFrame:
     stats: dict              # STAT_KEYS
 
 
-def default_params(width, height, *, ground="hue", **matcher):
+def default_params(width, height, *, ground="hue", version=1, **matcher):
     """The default pipeline configuration for a width x height pair (what the command line,
     ``make sim`` and the register reset values use): the ground reference region at the bottom
     centre, Sobel thresholds :data:`LEFT_THRESHOLD` / :data:`RIGHT_THRESHOLD`, and the matcher
-    defaults with ``widen`` on (overridable by keyword)."""
+    defaults with ``widen`` on (overridable by keyword). ``version=2``: matcher version 2
+    (:func:`golden.matcher.v2_params`) with both thresholds :data:`V2_THRESHOLD`; the RTL
+    implements version 1."""
     mode = {"hue": GroundMode.HUE, "luma": GroundMode.LUMA, "off": GroundMode.OFF}[ground]
     gp = GroundParams.bottom_centre(width, height, mode=mode)
+    if version == 2:
+        return PipelineParams(FrontEndParams(gp, SobelParams(threshold=V2_THRESHOLD)),
+                              v2_params(**matcher), right_threshold=V2_THRESHOLD)
+    if version != 1:
+        raise ValueError(f"matcher version must be 1 or 2, not {version!r}")
     matcher = {"widen": True, **matcher}
     return PipelineParams(FrontEndParams(gp, SobelParams(threshold=LEFT_THRESHOLD)),
                           MatcherParams(**matcher), right_threshold=RIGHT_THRESHOLD)

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from golden.matcher import DISPARITIES
+from sim import bench_matcher
 from station import bench as station_bench
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
@@ -132,7 +134,7 @@ def pipeline_accuracy(bench, left, right, gt):
                                      f"golden.matcher.accuracy's {ref[name]}")
         m = params.matcher
         r.update(sad_evaluations=f.stats["sad_evaluations"],
-                 sad_eval_fraction=f.stats["sad_evaluations"] / (w * h * 64),
+                 sad_eval_fraction=f.stats["sad_evaluations"] / (w * h * DISPARITIES),
                  mode=m.mode, widen=m.widen, window=m.window, d_max=m.d_max,
                  uniqueness=m.uniqueness, left_threshold=params.frontend.sobel.threshold,
                  right_threshold=params.right_threshold, seconds=round(seconds, 3),
@@ -152,15 +154,15 @@ def stereobm_accuracy(bench, left, right, gt, scored):
     h, w = gt.shape
     out, maps = {}, {}
     for b in BM_BLOCKS:
-        bm = cv2.StereoBM_create(numDisparities=64, blockSize=b)
+        bm = cv2.StereoBM_create(numDisparities=DISPARITIES, blockSize=b)
         raw = bm.compute(yl, yr)
         valid = raw >= 0                       # 16x fixed point; negative = invalid
         ys, xs = np.nonzero(valid)
         r = score(xs, ys, raw[valid] / 16.0, scored, gt)
-        r.update(sad_evaluations=w * h * 64, sad_eval_fraction=1.0, block=b,
-                 num_disparities=64)
+        r.update(sad_evaluations=w * h * DISPARITIES, sad_eval_fraction=1.0, block=b,
+                 num_disparities=DISPARITIES)
         out[f"stereobm_{b}"], maps[b] = r, np.where(valid, raw / 16.0, np.nan)
-        bench.source(f"accuracy.stereobm_{b}", f"cv2.StereoBM_create(numDisparities=64, "
+        bench.source(f"accuracy.stereobm_{b}", f"cv2.StereoBM_create(numDisparities={DISPARITIES}, "
                      f"blockSize={b}).compute(golden.color.luma(L), luma(R)) (OpenCV "
                      f"{cv2.__version__}), scored by sim.bench.score on the same pixels; "
                      "sad_eval_fraction 1.0 by definition (dense)")
@@ -187,7 +189,7 @@ def sweep(bench, left, right, gt):
                 r = score(recs["x"], recs["y"], recs["d"], scored, gt)
                 r.update(threshold=t, window=win, mode=mode,
                          sad_evaluations=stats["sad_evaluations"],
-                         sad_eval_fraction=stats["sad_evaluations"] / (w * h * 64))
+                         sad_eval_fraction=stats["sad_evaluations"] / (w * h * DISPARITIES))
                 rows.append(r)
     bench.source("sweep", "golden.frontend.FrontEndModel (left Sobel threshold swept, right "
                  f"{base.right_threshold}) + golden.matcher.match(MatcherParams(window, mode, "
@@ -457,8 +459,8 @@ def throughput(bench, quick, pair):
                "fps_at_50MHz_752x480": round(TARGET_CLOCK_HZ * ppc / ref_pixels, 1),
                "sad_evaluations_rtl": rstats.get("sad_evaluations"),
                "sad_evaluations_golden": int(gstats["sad_evaluations"]),
-               "sad_evaluations_dense": w * h * 64,
-               "sad_eval_fraction": round(gstats["sad_evaluations"] / (w * h * 64), 5),
+               "sad_evaluations_dense": w * h * DISPARITIES,
+               "sad_eval_fraction": round(gstats["sad_evaluations"] / (w * h * DISPARITIES), 5),
                "edge_pixels": int(gstats["edge_pixels"]), "matches": int(gstats["matches"]),
                "harness_seconds": run.seconds, "harness_total_cycles": run.total_cycles,
                "wall_seconds": round(wall, 2)}
@@ -578,7 +580,7 @@ def software_speed(bench, quick, left, right):
                  f"median of {repeats}; matcher alone: golden.matcher.match")
     yl, yr = luma(l), luma(r)
     for b in (7, 21):
-        bm = cv2.StereoBM_create(numDisparities=64, blockSize=b)
+        bm = cv2.StereoBM_create(numDisparities=DISPARITIES, blockSize=b)
         bm.compute(yl, yr)                      # warm-up
         ts = []
         for _ in range(max(repeats, 20)):
@@ -748,6 +750,7 @@ def write_markdown(path, rep):
           f"{sw['stereobm_7_fps']} |",
           f"| OpenCV StereoBM block 21 | {1e3 * sw['stereobm_21_s']:.2f} | "
           f"{sw['stereobm_21_fps']} |", "",
+          *bench_matcher.markdown(rep["matcher_v2"]),
           *station_bench.markdown(rep["station"]),
           "## Provenance", ""]
     for k, v in rep["provenance"].items():
@@ -763,7 +766,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    bench = Bench(9)
+    bench = Bench(11)
     rep = bench.report
 
     bench.progress("accuracy: golden pipeline (default, adaptive, full) on the motorcycle pair")
@@ -788,7 +791,7 @@ def main(argv=None):
     bench.progress(f"accuracy sweep: thresholds {SWEEP_THRESHOLDS} x windows {SWEEP_WINDOWS} "
                    f"x modes {tuple(SWEEP_MODES)}")
     rep["sweep"] = sweep(bench, left, right, gt)
-    write_sweep_plot(out / "sweep.png", rep["sweep"], bm, w * h * 64)
+    write_sweep_plot(out / "sweep.png", rep["sweep"], bm, w * h * DISPARITIES)
 
     bench.progress("ground-mask agreement on the synthetic scenes")
     rep["ground_agreement"] = ground_agreement(bench, args.quick)
@@ -806,6 +809,9 @@ def main(argv=None):
     bench.progress("software speed: golden pipeline vs OpenCV StereoBM")
     rep["software_speed"] = software_speed(bench, args.quick, left, right)
 
+    bench.progress("matcher v2: accuracy, OpenCV at equal counts, hard cases, speed")
+    rep["matcher_v2"] = bench_matcher.run(bench, args.quick)
+
     bench.progress("base station: radio decoder and SACOdm plan time (station.bench)")
     rep["station"] = station_bench.link_and_planner(args.quick)
 
@@ -819,7 +825,7 @@ def main(argv=None):
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
     keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources",
-            "throughput", "sim_speed", "software_speed", "station", "provenance"]
+            "throughput", "sim_speed", "software_speed", "matcher_v2", "station", "provenance"]
     ordered = {k: rep[k] for k in keys}
     (out / "report.json").write_text(json.dumps(ordered, indent=1, default=_json) + "\n")
     write_markdown(out / "report.md", rep)

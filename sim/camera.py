@@ -176,10 +176,19 @@ MOTORCYCLE = Camera(994.978, 994.978, 311.193, 254.877, 0.193001, None, 0.0, (0,
                     31.086, source="Middlebury 2014 motorcycle (scikit-image calibration)")
 
 
+def disparity(records):
+    """Each record's disparity in pixels: the subpixel ``d16`` / 16 where the matcher gives one
+    (matcher version 2), else the integer ``d``."""
+    from golden.matcher import SUBPIXEL_ONE
+    if "d16" in records.dtype.names:
+        return records["d16"].astype(np.float64) / SUBPIXEL_ONE
+    return records["d"].astype(np.float64)
+
+
 def match_table(camera, records):
     """Per match: z_m, x_m, forward_m, up_m (NaN at infinity) and valid (inside the rectified
     region and at a finite depth)."""
-    z = camera.depth(records["d"])
+    z = camera.depth(disparity(records))
     valid = camera.inside(records["x"], records["y"]) & np.isfinite(z)
     return {"z_m": z, "x_m": camera.lateral(records["x"], z),
             "forward_m": camera.forward(records["y"], z), "up_m": camera.up(records["y"], z),
@@ -200,7 +209,7 @@ def contour_depth(depth, records):
 def depth_error(camera, records, depth):
     """Median relative error of the matches' z against a scene's true depth map: against the
     nearer surface at each edge (:func:`contour_depth`) and against the pixel's own depth."""
-    z = camera.depth(records["d"])
+    z = camera.depth(disparity(records))
     own = np.asarray(depth, dtype=np.float64)[records["y"], records["x"]]
     near = contour_depth(depth, records)
     ok = np.isfinite(z) & np.isfinite(near) & np.isfinite(own)

@@ -24,6 +24,7 @@ import numpy as np
 
 from golden.frontend import as_rgb
 from golden.ground import GroundMode
+from golden.matcher import DISPARITIES
 from golden.pipeline import default_params
 from .data import crop, parse_crop
 from .errors import (CliError, InternalError, RtlFailure, EXIT_BIT_EXACT, EXIT_MISMATCH,
@@ -396,7 +397,8 @@ def cmd_run(args, flags):
         "matches": int(len(last.records)),
         "stats": {k: int(v) for k, v in last.stats.items()},
         "stats_rtl": stats_rtl,
-        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"] / (pixels * 64), 5),
+        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"]
+                                            / (pixels * DISPARITIES), 5),
         "camera": camera.summary(mp.d_min, mp.d_max),
         "parameters": {f.names[0][2:]: _plain(flag_value(params, f)) for f in flags},
         "simulation_seconds": round(seconds, 1),

@@ -7,6 +7,7 @@ from typing import Callable
 
 import numpy as np
 
+from golden.matcher import MAX_DISPARITY
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.frontend import frontend_frames
 from hdl import types
@@ -23,7 +24,7 @@ class Job:
     params: PipelineParams
     max_width: int = 1024
     max_height: int = 1024
-    max_disparity: int = 63
+    max_disparity: int = MAX_DISPARITY
 
     @cached_property
     def golden(self):

@@ -22,11 +22,13 @@ import os
 
 import numpy as np
 
-from .camera import match_table
+from .camera import disparity, match_table
 
-__all__ = ["write_outputs", "MATCH_COLUMNS"]
+__all__ = ["write_outputs", "MATCH_COLUMNS", "MATCH_COLUMNS_V2"]
 
 MATCH_COLUMNS = ("x", "y", "d", "cost", "z_m", "x_m", "forward_m", "valid")
+#: With matcher version 2's records: d is the subpixel disparity (decimal), conf the confidence.
+MATCH_COLUMNS_V2 = ("x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid")
 DPI = 100
 MIN_SHOWN_WIDTH = 480    # smaller images (crops) are shown enlarged by a whole factor
 POINT_SIZE = 16          # scatter marker area in points^2: about 5 px across at DPI 100
@@ -340,7 +342,7 @@ def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstac
         title=f"depth of {n} matches (camera: {camera.source})", norm=_depth_norm(vmin, vmax),
         cmap=_depth_cmap())
     paths["disparity"] = _points_view(
-        p("disparity.png"), left, rec, rec["d"].astype(float), np.ones(n, bool),
+        p("disparity.png"), left, rec, disparity(rec), np.ones(n, bool),
         label="disparity d (px)", title=f"disparity of {n} matches, searched {mp.d_min}..{mp.d_max} px",
         norm=_pyplot().Normalize(mp.d_min, max(mp.d_max, mp.d_min + 1)), cmap="turbo")
     paths["edges"] = _edges_view(p("edges.png"), left, frame.left, "left camera: vertical edges")
@@ -352,15 +354,19 @@ def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstac
                                          params.right_frontend().ground, "right camera: ground")
     paths["topview"] = _topview(p("topview.png"), table, camera, params, left.shape[1], obstacles)
     if len(frames) > 1:
-        every = np.concatenate([camera.depth(f.records["d"]) for f in frames])
+        every = np.concatenate([camera.depth(disparity(f.records)) for f in frames])
         paths["frames"] = _contact_sheet(p("frames.png"), frames, lefts, camera,
                                          *_depth_limits(every, camera, params))
     paths["matches"] = p("matches.csv")
     with open(paths["matches"], "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(MATCH_COLUMNS)
+        v2 = "conf" in rec.dtype.names
+        w.writerow(MATCH_COLUMNS_V2 if v2 else MATCH_COLUMNS)
+        d = disparity(rec)
         for k in range(n):
-            w.writerow([int(rec["x"][k]), int(rec["y"][k]), int(rec["d"][k]), int(rec["cost"][k]),
+            w.writerow([int(rec["x"][k]), int(rec["y"][k]),
+                        f"{d[k]:.4f}" if v2 else int(rec["d"][k]), int(rec["cost"][k]),
+                        *([int(rec["conf"][k])] if v2 else []),
                         *(_metres(table[c][k]) for c in ("z_m", "x_m", "forward_m")),
                         int(table["valid"][k])])
     paths["summary"] = p("summary.json")

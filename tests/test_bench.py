@@ -50,9 +50,21 @@ def test_quick_bench_json_has_the_keys(quick_run):
     assert any(k.startswith("accuracy.stereobm_") for k in rep["provenance"])
 
 
+def test_quick_bench_has_the_matcher_v2_section(quick_run):
+    out, _ = quick_run
+    rep = json.loads((out / "report.json").read_text())["matcher_v2"]
+    assert {"v2", "v2 without consistency"} <= set(rep["methods"])
+    assert {"StereoBM 7", "StereoBM 15", "StereoSGBM 5"} == set(rep["opencv_same_pixels"])
+    for row in rep["equal_counts"]:
+        assert row["ours"]["n"] == row["n"]
+    assert "gain 1.2, offset +10" in rep["hard_cases"] and rep["scenes"]["mixed"]["v2"]
+    assert rep["speed"]["golden_matcher_v2_s"] > 0 and rep["speed"]["stereobm_7_s"] > 0
+    assert "## Matcher v2 (issue 13)" in (out / "report.md").read_text()
+
+
 def test_quick_bench_prints_progress_and_sources(quick_run):
     _, r = quick_run
-    assert "[1/9]" in r.stderr and "[9/9]" in r.stderr
+    assert "[1/11]" in r.stderr and "[11/11]" in r.stderr
     assert "<- accuracy.pipeline_default:" in r.stderr
 
 

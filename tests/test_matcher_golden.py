@@ -1,11 +1,15 @@
-"""Golden SAD matcher (golden/matcher.py): hand cases, rules, a brute-force cross-check and the
-accuracy targets of issue 4 on the Middlebury motorcycle pair."""
+"""Golden SAD matcher (golden/matcher.py, versions 1 and 2): hand cases, rules, the cross-check
+against the plain form (golden/matcher_plain.py) in both cost forms, and the accuracy targets of
+issues 4 (version 1) and 13 (version 2) on the Middlebury motorcycle pair."""
 import time
 
 import numpy as np
 import pytest
 
-from golden.matcher import MatcherParams, match, accuracy, STAT_KEYS
+from golden.census import census, census_plain
+from golden.matcher import (MatcherParams, match, accuracy, v2_params, subpixel_offset,
+                            confidence, unique_right, window_costs, MAX_DISPARITY)
+from golden.matcher_plain import match_plain
 
 # ------------------------------------------------------------------ helpers
 
@@ -17,54 +21,8 @@ def frame(y, edge, neg=None):
     return {"y": y, "edge": edge, "neg": neg}
 
 
-def brute_force(left, right, p):
-    """The specification read literally: loops over pixels and candidates."""
-    yl, yr = left["y"].astype(int), right["y"].astype(int)
-    h, w = yl.shape
-    r = p.window // 2
-    recs = []
-    st = dict.fromkeys(STAT_KEYS, 0)
-
-    def right_edge(x, y, neg):
-        return 0 <= x < w and right["edge"][y, x] and right["neg"][y, x] == neg
-
-    for y in range(h):
-        for x in range(w):
-            if not left["edge"][y, x]:
-                continue
-            st["edge_pixels"] += 1
-            if x < r or x >= w - r or y < r or y >= h - r:
-                st["border"] += 1
-                continue
-            neg = left["neg"][y, x]
-            costs = {}
-            for d in range(p.d_min, p.d_max + 1):
-                if x - d - r < 0:
-                    continue
-                if p.mode == "adaptive":
-                    ks = (-1, 0, 1) if p.widen else (0,)
-                    if not any(right_edge(x - d + k, y, neg) for k in ks):
-                        continue
-                win_l = yl[y - r:y + r + 1, x - r:x + r + 1]
-                win_r = yr[y - r:y + r + 1, x - d - r:x - d + r + 1]
-                costs[d] = int(np.abs(win_l - win_r).sum())
-            st["sad_evaluations"] += len(costs)
-            if not costs:
-                st["no_candidate"] += 1
-                continue
-            best = min(costs, key=lambda d: (costs[d], d))
-            cb = costs[best]
-            if any(abs(d - best) > 1 and c * 256 <= cb * (256 + p.uniqueness)
-                   for d, c in costs.items()):
-                st["rejected"] += 1
-                continue
-            st["matches"] += 1
-            recs.append((x, y, best, cb))
-    return np.array(recs, dtype=np.int64).reshape(-1, 4), st
-
-
 def as_array(recs):
-    return np.stack([recs["x"], recs["y"], recs["d"], recs["cost"]], axis=1).astype(np.int64)
+    return np.stack([recs[n] for n in recs.dtype.names], axis=1).astype(np.int64)
 
 
 def random_pair(seed, h=12, w=40, shift=5, density=0.25):
@@ -173,7 +131,9 @@ def test_widen_and_full():
 
 @pytest.mark.parametrize("kw, message", [
     ({"window": 4}, "odd"), ({"window": 1}, "odd"), ({"d_min": 5, "d_max": 4}, "greater"),
-    ({"d_max": 64}, "elaborated"), ({"d_min": -1}, "d_min"), ({"uniqueness": 256}, "uniqueness"),
+    ({"d_max": MAX_DISPARITY + 1}, "elaborated"), ({"widen": 4}, "widen"),
+    ({"cost": "ncc"}, "cost"), ({"sign": "both"}, "sign"), ({"consistency": "lr"}, "consistency"),
+    ({"d_min": -1}, "d_min"), ({"uniqueness": 256}, "uniqueness"),
     ({"mode": "dense"}, "mode"),
 ])
 def test_validate(kw, message):
@@ -198,19 +158,136 @@ def test_size_mismatch():
               np.zeros((5, 7))))
 
 
+VARIANTS = {
+    "v1 adaptive": lambda s: MatcherParams(d_min=s, d_max=12 + s, window=3, uniqueness=16 * s),
+    "v1 widen": lambda s: MatcherParams(d_max=12, window=5, uniqueness=16 * s, widen=True),
+    "v1 full": lambda s: MatcherParams(d_max=12, window=3, mode="full"),
+    "v1 W7": lambda s: MatcherParams(d_max=12, window=7, uniqueness=16 * s),
+    "v2": lambda s: v2_params(d_max=12, window=3),
+    "v2 W5 d_min": lambda s: v2_params(d_min=s, d_max=12 + s, window=5, uniqueness=16 * s),
+    "v2 same sign": lambda s: v2_params(d_max=12, window=3, sign="same", widen=s % 4),
+    "v2 full": lambda s: v2_params(d_max=12, window=3, mode="full"),
+    "v2 sad": lambda s: v2_params(d_max=12, window=3, cost="sad"),
+    "census no post-steps": lambda s: MatcherParams(d_max=12, window=3, cost="census", widen=2),
+}
+
+
 @pytest.mark.parametrize("seed", range(4))
-@pytest.mark.parametrize("mode, widen, window", [("adaptive", False, 3), ("adaptive", True, 5),
-                                                 ("full", False, 3), ("adaptive", False, 7)])
-def test_against_brute_force(seed, mode, widen, window):
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_against_plain_form(seed, variant):
     left, right = random_pair(seed)
-    p = MatcherParams(d_min=seed, d_max=12 + seed, window=window, uniqueness=16 * seed,
-                      mode=mode, widen=widen)
-    recs, st = match(left, right, p)
-    want, want_st = brute_force(left, right, p)
-    assert np.array_equal(as_array(recs), want)
-    assert st == want_st
+    p = VARIANTS[variant](seed)
+    want, want_st = match_plain(left, right, p)
+    for form in ("dense", "sparse"):
+        recs, st = match(left, right, p, form=form)
+        assert np.array_equal(as_array(recs), want), form
+        assert st == want_st, form
     assert sum(st[k] for k in ("border", "no_candidate", "rejected", "matches", "drops")) \
         == st["edge_pixels"]
+
+
+def test_plain_form_cases_occur():
+    # The random frames above exercise every version 2 rule: consistency losers, subpixel
+    # neighbours evaluated after the scan, non-zero offsets and confidences.
+    lost = post = offsets = conf = 0
+    for seed in range(4):
+        left, right = random_pair(seed)
+        p = v2_params(d_max=12, window=3)
+        recs, st = match(left, right, p)
+        _, st_none = match(left, right, MatcherParams(**{**p.__dict__, "consistency": "none"}))
+        lost += st_none["matches"] - st["matches"]
+        _, st_int = match(left, right, MatcherParams(**{**p.__dict__, "subpixel": False}))
+        post += st["sad_evaluations"] - st_int["sad_evaluations"]
+        offsets += int((recs["d16"] != 16 * recs["d"]).sum())
+        conf += int((recs["conf"] > 0).sum())
+    assert lost > 0 and post > 0 and offsets > 0 and conf > 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_window_cost_forms_agree(seed):
+    rng = np.random.default_rng(seed)
+    h, w = 30, 50
+    ya, yb = rng.integers(0, 256, (2, h, w), dtype=np.uint8)
+    for cost, va, vb in (("sad", ya.astype(np.int32), yb.astype(np.int32)),
+                         ("census", census(ya), census(yb))):
+        for window in (3, 7, 9):
+            r = window // 2
+            n = 500
+            ys = rng.integers(r, h - r, n)
+            xs = rng.integers(r + 12, w - r, n)
+            ds = rng.integers(0, 13, n)
+            dense = window_costs(va, vb, ys, xs, ds, window, cost, form="dense")
+            sparse = window_costs(va, vb, ys, xs, ds, window, cost, form="sparse")
+            assert np.array_equal(dense, sparse)
+            y, x, d = int(ys[0]), int(xs[0]), int(ds[0])
+            wa = va[y - r:y + r + 1, x - r:x + r + 1].astype(np.int64)
+            wb = vb[y - r:y + r + 1, x - d - r:x - d + r + 1].astype(np.int64)
+            one = np.abs(wa - wb).sum() if cost == "sad" else \
+                sum(bin(int(v)).count("1") for v in (wa ^ wb).ravel())
+            assert dense[0] == one
+
+
+def test_census_plain_and_invariance():
+    rng = np.random.default_rng(5)
+    y = rng.integers(20, 200, (9, 13), dtype=np.uint8)
+    c = census(y)
+    assert np.array_equal(c, census_plain(y))
+    assert not c[0].any() and not c[-1].any() and not c[:, 0].any() and not c[:, -1].any()
+    # A gain and offset that clip nothing and keep the order of distinct values keep census.
+    y2 = (y.astype(np.int32) * 6 // 5 + 10).astype(np.uint8)
+    assert np.array_equal(census(y2), c)
+    # Hand case: the centre 5 against 1..9 in raster order: bits set where neighbour < 5.
+    hand = np.array([[1, 2, 3], [4, 5, 6], [7, 8, 9]], dtype=np.uint8)
+    assert census(hand)[1, 1] == 0b00001111
+
+
+@pytest.mark.parametrize("cm, c0, cp, want", [
+    (10, 0, 30, -5),           # 8 * -20 / 30 = -5.33
+    (30, 0, 10, 5),
+    (16, 0, 15, 1),            # 8 * 1 / 16 = 0.5: half away from zero
+    (15, 0, 16, -1),
+    (17, 0, 16, 0),            # 8 / 17 = 0.47
+    (20, 20, 20, 0),           # flat: den = 0
+    (40, 10, 10, 8),           # the right neighbour equals the best: half a pixel
+    (5, 10, 40, -8),           # a post-evaluated neighbour below the best: clipped
+])
+def test_subpixel_offset(cm, c0, cp, want):
+    assert subpixel_offset(np.array([cm]), np.array([c0]), np.array([cp]))[0] == want
+
+
+def test_confidence_rule():
+    # ((far_min - 3 cost) >> 1) + 128, saturated; 0 without a far candidate.
+    got = confidence(np.array([10, 10, 10, 100, 200, 0]), np.array([50, 20, 19, 900, 10, 7]),
+                     np.array([True, True, True, True, True, False]))
+    assert got.tolist() == [138, 123, 122, 255, 0, 0]
+
+
+def test_unique_right_rule():
+    # Row 1: x = 10 (d 3) and x = 12 (d 5) share right pixel 7; the lower cost wins; on equal
+    # cost the smaller x. Row 2 is independent.
+    ys = np.array([1, 1, 1, 2])
+    xs = np.array([10, 12, 14, 12])
+    ds = np.array([3, 5, 4, 5])
+    assert unique_right(ys, xs, ds, np.array([9, 8, 1, 1])).tolist() == [False, True, True, True]
+    assert unique_right(ys, xs, ds, np.array([8, 8, 1, 1])).tolist() == [True, False, True, True]
+
+
+def test_v2_subpixel_on_a_shifted_texture():
+    # A texture shifted by 3 px: the winner d = 3 at cost 0, d16 = 48 + the offset from the
+    # costs at d = 2 and 4, and a positive confidence.
+    rng = np.random.default_rng(1)
+    base = rng.integers(0, 256, (9, 40), dtype=np.uint8)
+    left_y = np.ascontiguousarray(base[:, :32])
+    right_y = np.ascontiguousarray(base[:, 3:35])
+    e_l = np.zeros((9, 32)); e_l[4, 20] = 1
+    e_r = np.ones((9, 32))
+    p = v2_params(d_max=8, window=3)
+    recs, st = match(frame(left_y, e_l), frame(right_y, e_r), p)
+    assert recs["d"].tolist() == [3] and recs["cost"].tolist() == [0]
+    cm, cp = window_costs(census(left_y), census(right_y), [4, 4], [20, 20], [2, 4], 3,
+                          "census")
+    assert recs["d16"][0] == 48 + subpixel_offset([cm], [0], [cp])[0]
+    assert recs["conf"][0] > 0 and st["sad_evaluations"] == 9     # every d, no post-step
 
 
 def test_shifted_texture_recovers_disparity():
@@ -269,3 +346,64 @@ def test_accuracy_motorcycle():
     assert rows["adaptive"]["eval_fraction"] < a["eval_fraction"]
     assert rows["full"]["bad2"] < a["bad2"]
     assert time.time() - t0 < 60
+
+
+def v2_accuracy(right_gain=None):
+    """Version 2 on the motorcycle pair (both thresholds V2_THRESHOLD), optionally with the
+    right image at ``gain, offset`` (clipped to uint8)."""
+    import skimage.data
+    from golden.pipeline import default_params, pipeline_frames
+    left, right, gt = skimage.data.stereo_motorcycle()
+    if right_gain is not None:
+        g, o = right_gain
+        right = np.clip(right.astype(np.float64) * g + o, 0, 255).astype(np.uint8)
+    h, w = gt.shape
+    f = pipeline_frames([left], [right], default_params(w, h, ground="off", version=2))[0]
+    return accuracy(f.records, f.stats, f.left.edge, gt)
+
+
+@pytest.mark.slow
+def test_accuracy_motorcycle_v2():
+    a = v2_accuracy()
+    print(a)
+    assert a["bad2"] <= 0.06 and a["bad1"] <= 0.09
+    assert a["within2"] >= 8000
+    assert a["eval_fraction"] <= 0.02          # post-step evaluations included
+
+
+@pytest.mark.slow
+def test_accuracy_motorcycle_v2_gain():
+    a = v2_accuracy(right_gain=(1.2, 10))
+    print(a)
+    assert a["bad2"] <= 0.08
+
+
+def test_default_params_versions():
+    from golden.pipeline import default_params, V2_THRESHOLD
+    p1, p2 = default_params(64, 48), default_params(64, 48, version=2)
+    assert p1.matcher == MatcherParams(widen=True)
+    assert p2.matcher == v2_params() and p2.frontend.sobel.threshold == V2_THRESHOLD
+    assert default_params(64, 48, version=2, uniqueness=10).matcher.uniqueness == 10
+    with pytest.raises(ValueError, match="version"):
+        default_params(64, 48, version=3)
+
+
+def test_v2_matches_csv(tmp_path):
+    # matches.csv of a version 2 run: d decimal (d16 / 16) and the confidence column.
+    import csv
+    from golden.pipeline import default_params, pipeline_frames
+    from sim.scenes import make_scene
+    from sim.camera import scene_camera
+    from sim.views import write_outputs
+    s = make_scene("boxes", 160, 120)
+    params = default_params(160, 120, ground="off", version=2)
+    f = pipeline_frames([s.left], [s.right], params)[0]
+    assert len(f.records) > 10
+    paths = write_outputs(tmp_path, [f], [s.left], [s.right], camera=scene_camera(160, 120),
+                          params=params, summary={})
+    rows = list(csv.reader(open(paths["matches"])))
+    assert rows[0] == ["x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid"]
+    assert len(rows) == len(f.records) + 1
+    got = np.array([[float(v) for v in row[:5]] for row in rows[1:]])
+    assert np.array_equal(got[:, 2], f.records["d16"] / 16)
+    assert np.array_equal(got[:, 4], f.records["conf"])
