@@ -34,7 +34,7 @@ from amaranth.lib import data, stream, wiring
 
 from sim.streams import Packer
 
-__all__ = ["Design", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
+__all__ = ["Design", "UnitDesign", "SystemDesign", "all_designs", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports", "ports", "design",
            "elaborate", "verilog_source", "export_verilog", "tool_versions", "main"]
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -235,11 +235,34 @@ DESIGNS = {
 }
 
 
+@dataclass
+class SystemDesign:
+    """A design that is not a single stream unit (several clock domains, a CPU bus): exported,
+    converted and synthesised like the others, verified by its own tests (``tests/test_soc.py``,
+    ``python -m sim system``) instead of the per-unit backends. ``make(**params)`` builds it."""
+    make: Callable
+    params: dict = field(default_factory=dict)
+    doc: str = ""
+
+    def build(self, **overrides):
+        return self.make(**{**self.params, **overrides})
+
+
+def _system_designs():
+    from sim.system_designs import SYSTEM_DESIGNS
+    return SYSTEM_DESIGNS
+
+
+def all_designs():
+    """Every design to export and synthesise: :data:`DESIGNS` and the system designs."""
+    return {**DESIGNS, **_system_designs()}
+
+
 def design(name):
     try:
-        return DESIGNS[name]
+        return all_designs()[name]
     except KeyError:
-        raise ValueError(f"unknown design {name!r}; known: {', '.join(DESIGNS)}") from None
+        raise ValueError(f"unknown design {name!r}; known: {', '.join(all_designs())}") from None
 
 
 def elaborate(name, **overrides):
@@ -365,11 +388,12 @@ def text_hash(*texts):
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m sim.export", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="build/verilog", help="output folder (default %(default)s)")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    known = all_designs()
+    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(known)})")
     args = ap.parse_args(argv)
-    for name in args.names or DESIGNS:
-        if name not in DESIGNS:
-            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+    for name in args.names or known:
+        if name not in known:
+            ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
         path = export_verilog(name, out_dir=args.out)
         print(path)
     return 0

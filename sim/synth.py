@@ -31,7 +31,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from sim.export import DESIGNS, ROOT, export_verilog
+from sim.export import DESIGNS, ROOT, all_designs, export_verilog
 
 __all__ = ["BUDGET", "synthesize", "count_cells", "lut_levels", "write_report", "build_ise", "main"]
 
@@ -183,12 +183,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m sim.synth", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="build/synth", help="output folder (default %(default)s)")
     ap.add_argument("--ise", action="store_true", help="also write the ISE build tree")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    known = all_designs()
+    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(known)})")
     args = ap.parse_args(argv)
     results = {}
-    for name in args.names or DESIGNS:
-        if name not in DESIGNS:
-            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+    for name in args.names or known:
+        if name not in known:
+            ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
         print(f"synthesising {name} ...", file=sys.stderr, flush=True)
         results[name] = synthesize(name, args.out)
     path = write_report(results, args.out)

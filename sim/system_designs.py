@@ -1,0 +1,17 @@
+"""The system designs (:class:`sim.export.SystemDesign`): the camera port, the frame pairing and
+the SoC top, registered for ``make verilog``, ``make vhdl`` and ``make synth``."""
+from sim.export import SystemDesign
+
+__all__ = ["SYSTEM_DESIGNS"]
+
+
+def _camera(**params):
+    from hdl.camera import CameraPort
+    return CameraPort(**params)
+
+
+#: Name -> :class:`SystemDesign`.
+SYSTEM_DESIGNS = {
+    "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=512),
+                           "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO (hdl/camera.py)"),
+}
