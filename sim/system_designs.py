@@ -10,8 +10,15 @@ def _camera(**params):
     return CameraPort(**params)
 
 
+def _pairing(**params):
+    from hdl.pairing import FramePairing
+    return FramePairing(**params)
+
+
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
     "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=512),
                            "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO (hdl/camera.py)"),
+    "pairing": SystemDesign(_pairing, dict(skew=1024, max_width=1024, max_height=1024),
+                            "stereo frame pairing (hdl/pairing.py)"),
 }
