@@ -22,7 +22,7 @@ events* (the ``sof`` beats):
 
 So a camera that loses or gains a field start, or delivers an over-long line or noise, costs at
 most the pair it happens in and the partnerless frames it creates; the next pair is again
-(Ln, Rn). The counters saturate at 16 bits.
+(Ln, Rn). The counters are 16 bits wide and wrap (the firmware reports differences).
 
 Model: frames are given per side as :class:`Frame` (the cycle at which the side is ready to
 pair it, i.e. its ``sof`` reaches the head and the side is idle, and whether it is well-formed);
@@ -32,9 +32,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Frame", "Pairing", "pair_frames", "COUNT_MAX"]
+__all__ = ["Frame", "Pairing", "pair_frames", "COUNT_MASK"]
 
-COUNT_MAX = 0xFFFF
+COUNT_MASK = 0xFFFF
 
 
 @dataclass(frozen=True)
@@ -63,16 +63,16 @@ def pair_frames(left: list[Frame], right: list[Frame], *, skew: int) -> Pairing:
             ok = a.ok and b.ok
             res.pairs.append((a.tag, b.tag, ok))
             if ok:
-                res.pairs_ok = min(COUNT_MAX, res.pairs_ok + 1)
+                res.pairs_ok = (res.pairs_ok + 1) & COUNT_MASK
             else:
-                res.mispaired = min(COUNT_MAX, res.mispaired + 1)
+                res.mispaired = (res.mispaired + 1) & COUNT_MASK
             i, j = i + 1, j + 1
         elif a.t < b.t:
             res.dropped_frames.append(a.tag)
-            res.dropped = min(COUNT_MAX, res.dropped + 1)
+            res.dropped = (res.dropped + 1) & COUNT_MASK
             i += 1
         else:
             res.dropped_frames.append(b.tag)
-            res.dropped = min(COUNT_MAX, res.dropped + 1)
+            res.dropped = (res.dropped + 1) & COUNT_MASK
             j += 1
     return res

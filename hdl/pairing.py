@@ -30,7 +30,7 @@ class FramePairing(wiring.Component):
         To the pipeline: the beats of paired frames, unchanged, combinational from the inputs
         (latency 0). A pair's frames start together; each side then runs at its own pace.
     pairs_ok, mispaired, dropped : Out(16)
-        Saturating counts (rule 3, rule 3, rule 2).
+        Counts of rule 3, rule 3 and rule 2 (wrapping).
     pairing : Out(1)
         A pair is being forwarded.
     """
@@ -73,7 +73,7 @@ class FramePairing(wiring.Component):
         L, R = sides["left"], sides["right"]
 
         def inc(counter):
-            return counter.eq(counter + (counter != 0xFFFF))
+            return counter.eq(counter + 1)          # 16 bits, wrapping
 
         start = L["held"] & R["held"]
         fault = Signal()            # the pair being forwarded was abandoned
