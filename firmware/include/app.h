@@ -8,6 +8,7 @@
 
 #include <stdint.h>
 #include "adv7180.h"
+#include "health.h"
 #include "iic.h"
 #include "pipeline.h"
 #include "radio.h"
@@ -28,6 +29,7 @@ typedef struct {
     uint32_t results_read;  /**< results summarised into the last report */
     uint8_t summary_open;   /**< summary holds results collected since the last report */
     radio_summary_t summary;
+    health_snapshot_t health_last; /**< counters at the last app_read_health */
 } app_t;
 
 /** Reset the IIC controller and start both decoders (0x20 then 0x21; the second is set up
@@ -47,5 +49,11 @@ uint32_t app_collect(app_t *app);
  *  summary. Returns the frame length, 0 on error. */
 uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint8_t *buf,
                     uint32_t cap);
+
+/** Read the HEALTH_* registers and fill h with the counts since the previous call (16-bit
+ *  differences, so a wrapped counter still counts right; a saturated one stops counting) and
+ *  the flags. Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block does not
+ *  answer (ID check), FW_OK otherwise. */
+fw_status_t app_read_health(app_t *app, radio_health_t *h);
 
 #endif /* APP_H */

@@ -126,6 +126,59 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     return len;
 }
 
+static uint16_t field16(uint32_t value, uint32_t shift)
+{
+    return (uint16_t)((value >> shift) & 0xFFFFu);
+}
+
+static uint16_t since(uint16_t now, uint16_t *last)
+{
+    uint16_t d = (uint16_t)(now - *last);
+    *last = now;
+    return d;
+}
+
+fw_status_t app_read_health(app_t *app, radio_health_t *h)
+{
+    uint32_t cam, ovf, pairs, drops, status, level, errm, frames;
+    uint32_t overflow;
+    health_snapshot_t *l;
+    if (app == NULL || h == NULL) {
+        return FW_ERR_PARAM;
+    }
+    if (pipeline_check_id(app->regs_base) != FW_OK) {
+        return FW_ERR_ID;
+    }
+    l = &app->health_last;
+    frames = STEREO_ReadReg(app->regs_base, STEREO_FRAME_COUNT_OFFSET);
+    cam = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_CAMERA_OFFSET);
+    ovf = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_OVERFLOW_OFFSET);
+    pairs = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_PAIRS_OFFSET);
+    drops = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_DROPS_OFFSET);
+    status = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_STATUS_OFFSET);
+    level = STEREO_ReadReg(app->regs_base, STEREO_RESULT_LEVEL_OFFSET);
+    errm = STEREO_ReadReg(app->regs_base, STEREO_ERR_MATCH_OFFSET);
+    (void)errm;
+    h->frames = since(field16(frames, 0u), &l->frames);
+    h->pairs_ok = since(field16(pairs, STEREO_HEALTH_PAIRS_PAIRS_OK_SHIFT), &l->pairs_ok);
+    h->mispaired = since(field16(pairs, STEREO_HEALTH_PAIRS_MISPAIRED_SHIFT), &l->mispaired);
+    h->drops = since(field16(drops, STEREO_HEALTH_DROPS_FRAMES_SHIFT), &l->drops);
+    h->cam_errors[0] = since(field16(cam, STEREO_HEALTH_CAMERA_LEFT_ERRORS_SHIFT),
+                             &l->cam_errors[0]);
+    h->cam_errors[1] = since(field16(cam, STEREO_HEALTH_CAMERA_RIGHT_ERRORS_SHIFT),
+                             &l->cam_errors[1]);
+    h->matcher_errors = since(field16(drops, STEREO_HEALTH_DROPS_MATCH_ERRORS_SHIFT),
+                              &l->matcher_errors);
+    overflow = (uint32_t)since(field16(ovf, STEREO_HEALTH_OVERFLOW_LEFT_SHIFT), &l->overflow[0])
+             + since(field16(ovf, STEREO_HEALTH_OVERFLOW_RIGHT_SHIFT), &l->overflow[1])
+             + since(field16(level, STEREO_RESULT_LEVEL_OVERFLOW_SHIFT), &l->result_overflow);
+    h->fifo_overflow = (uint16_t)(overflow > 0xFFFFu ? 0xFFFFu : overflow);
+    h->flags = (uint8_t)(((status & STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK) ? RADIO_HEALTH_LEFT_LOCKED : 0u)
+             | ((status & STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK) ? RADIO_HEALTH_RIGHT_LOCKED : 0u)
+             | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_ENABLED : 0u));
+    return FW_OK;
+}
+
 #ifndef HAL_TARGET
 /** Host builds only: sizeof(app_t), for the co-simulation's ctypes mirror. */
 uint32_t app_sizeof(void);

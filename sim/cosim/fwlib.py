@@ -55,9 +55,16 @@ class PipelineConfigC(C.Structure):
         ("s_min", C.c_uint8), ("ref_x", C.c_uint16), ("ref_y", C.c_uint16),
         ("ref_w", C.c_uint16), ("ref_h", C.c_uint16), ("hue_centre0", C.c_uint8),
         ("luma_centre0", C.c_uint8), ("edge_threshold", C.c_uint16),
-        ("ratio", C.c_uint8), ("nms", C.c_uint8), ("d_min", C.c_uint8),
+        ("ratio", C.c_uint8), ("nms", C.c_uint8), ("right_threshold", C.c_uint16),
+        ("d_min", C.c_uint8),
         ("d_max", C.c_uint8), ("uniqueness", C.c_uint8), ("candidate_mode", C.c_uint8),
         ("widen", C.c_uint8), ("camera_mode_drop", C.c_uint8))]
+
+
+class HealthSnapshotC(C.Structure):
+    _fields_ = [(n, C.c_uint16) for n in ("frames", "pairs_ok", "mispaired", "drops")] + [
+        ("cam_errors", C.c_uint16 * 2), ("matcher_errors", C.c_uint16),
+        ("overflow", C.c_uint16 * 2), ("result_overflow", C.c_uint16)]
 
 
 class AppC(C.Structure):
@@ -65,7 +72,7 @@ class AppC(C.Structure):
                 ("dec_status", C.c_int32 * 2), ("cfg", PipelineConfigC), ("seq", C.c_uint8),
                 ("n_bands", C.c_uint8), ("min_support", C.c_uint8), ("width", C.c_uint16),
                 ("results_read", C.c_uint32), ("summary_open", C.c_uint8),
-                ("summary", RadioSummaryC)]
+                ("summary", RadioSummaryC), ("health_last", HealthSnapshotC)]
 
 
 class RegValC(C.Structure):
