@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["COEFFICIENTS", "ycbcr_to_rgb", "rgb_to_ycbcr", "encode_bt656", "ntsc_stream",
-           "NTSC_LINE_BYTES", "NTSC_FIELD_LINES", "decode_bt656", "Bt656Result"]
+           "NTSC_LINE_BYTES", "timing_code", "NTSC_FIELD_LINES", "decode_bt656", "Bt656Result"]
 
 #: BT.601 YCbCr -> RGB coefficients x 256 (the RTL elaborates from this table).
 COEFFICIENTS = {"y": 298, "r_cr": 409, "g_cb": 100, "g_cr": 208, "b_cb": 516}
@@ -70,7 +70,8 @@ def rgb_to_ycbcr(rgb):
     return tuple(np.clip(v, 1, 254).astype(np.uint8) for v in (y, cb, cr))
 
 
-def _xy(f, v, h):
+def timing_code(f, v, h):
+    """The XY byte of a timing reference code (protection bits per BT.656 table 4)."""
     p3 = v ^ h
     p2 = f ^ h
     p1 = f ^ v
@@ -90,17 +91,17 @@ def encode_bt656(fields, *, blank_lines=2, hblank=8, first_field=0):
         h, w = y.shape
         blanks = blank_lines if isinstance(blank_lines, int) else blank_lines[n]
         for _ in range(blanks):
-            out += bytes([0xFF, 0, 0, _xy(f, 1, 1)]) + filler
-            out += bytes([0xFF, 0, 0, _xy(f, 1, 0)]) + bytes([0x80, 0x10] * w)
+            out += bytes([0xFF, 0, 0, timing_code(f, 1, 1)]) + filler
+            out += bytes([0xFF, 0, 0, timing_code(f, 1, 0)]) + bytes([0x80, 0x10] * w)
         for row in range(h):
-            out += bytes([0xFF, 0, 0, _xy(f, 0, 1)]) + filler
-            out += bytes([0xFF, 0, 0, _xy(f, 0, 0)])
+            out += bytes([0xFF, 0, 0, timing_code(f, 0, 1)]) + filler
+            out += bytes([0xFF, 0, 0, timing_code(f, 0, 0)])
             line = np.empty(2 * w, dtype=np.uint8)
             line[0::4] = cb[row]
             line[1::2] = y[row]
             line[2::4] = cr[row]
             out += line.tobytes()
-    out += bytes([0xFF, 0, 0, _xy((first_field + len(fields)) & 1, 1, 1)]) + filler
+    out += bytes([0xFF, 0, 0, timing_code((first_field + len(fields)) & 1, 1, 1)]) + filler
     return bytes(out)
 
 

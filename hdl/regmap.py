@@ -199,6 +199,10 @@ REGISTERS: tuple[Register, ...] = (
         F("x", 0, 10, 0, "column of the left edge pixel"),
         F("y", 10, 10, 0, "row"),
         F("d", 20, 7, 0, "disparity"),
+        F("eof", 27, 1, 0, "1: an end-of-frame marker, no match (x, y, d = 0): the records "
+                           "since the previous marker are one frame's (SystemSoC)"),
+        F("abort", 28, 1, 0, "with eof: that frame was cut by CTRL.restart_video or "
+                             "VIDEO.video_enable = 0: discard its records"),
         F("valid", 31, 1, 0, "1: a record; 0: the FIFO was empty"),
     )),
     Register("RESULT_LEVEL", 0x84, "ro", "Result FIFO state.", (

@@ -49,8 +49,9 @@ class IOBusSignature(wiring.Signature):
         })
 
 
-#: One result record: the (x, y, d) of a matched obstacle-edge pixel.
-ResultLayout = data.StructLayout({"x": 10, "y": 10, "d": 7})
+#: One result record: the (x, y, d) of a matched obstacle-edge pixel, or an end-of-frame
+#: marker (``eof``; ``abort`` when the frame was cut by a restart of the video path).
+ResultLayout = data.StructLayout({"x": 10, "y": 10, "d": 7, "eof": 1, "abort": 1})
 
 
 def status_port_name(reg: regmap.Register, field: regmap.Field) -> str:
@@ -180,7 +181,8 @@ class RegisterBlock(wiring.Component):
                                      read_value[16:32].eq(overflow)]
                     elif reg.kind == "fifo":
                         m.d.comb += [
-                            read_value.eq(Mux(fifo.r_rdy, Cat(fifo.r_data, Const(0, 4), fifo.r_rdy),
+                            read_value.eq(Mux(fifo.r_rdy, Cat(fifo.r_data, Const(0, 31 - ResultLayout.size),
+                                                                  fifo.r_rdy),
                                               0)),
                             fifo.r_en.eq(do_read),
                         ]

@@ -198,13 +198,25 @@ class SystemSoC(wiring.Component):
         wiring.connect(m, pairing.right_o, pipe.right)
         _connect_parameters(m, regs, pipe)
 
+        # Records and end-of-frame markers into the result FIFO. A restart of the video path
+        # in the middle of a frame (records since the last marker) adds an abort marker, so
+        # the CPU never takes the cut frame's records for a frame of their own.
         rec = pipe.o.payload
+        in_frame = Signal()         # records of a frame went to the FIFO since the last marker
+        abort = Signal()
+        m.d.comb += abort.eq(video_rst & in_frame)
+        with m.If(abort):
+            m.d.sync += in_frame.eq(0)
+        with m.Elif(pipe.o.valid):
+            m.d.sync += in_frame.eq(~rec.eof)
         m.d.comb += [
             pipe.o.ready.eq(1),
-            regs.results.valid.eq(pipe.o.valid & ~rec.eof),
-            regs.results.payload.x.eq(rec.x),
-            regs.results.payload.y.eq(rec.y),
-            regs.results.payload.d.eq(rec.d),
+            regs.results.valid.eq(abort | pipe.o.valid),
+            regs.results.payload.x.eq(Mux(rec.eof | abort, 0, rec.x)),
+            regs.results.payload.y.eq(Mux(rec.eof | abort, 0, rec.y)),
+            regs.results.payload.d.eq(Mux(rec.eof | abort, 0, rec.d)),
+            regs.results.payload.eof.eq(rec.eof | abort),
+            regs.results.payload.abort.eq(abort),
         ]
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst)
         status.update({

@@ -50,6 +50,20 @@ uint32_t app_collect(app_t *app);
 uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint8_t *buf,
                     uint32_t cap);
 
+/** Read each decoder's lock (ADV7180 STATUS1: IN_LOCK and FSC_LOCK) over IIC. Returns
+ *  FW_OK when both are locked, FW_ERR_NO_LOCK when one is not, or the IIC error. */
+fw_status_t app_check_lock(app_t *app);
+
+/** Enable the video path and wait, at most `polls` times APP_LOCK_POLL_US, until both camera
+ *  streams are locked (HEALTH_STATUS); FW_ERR_NO_LOCK (path left enabled) on time-out. */
+fw_status_t app_start_video(app_t *app, uint32_t polls);
+
+#define APP_LOCK_POLL_US 50u
+
+/** Restart the video path (CTRL.restart_video) and re-base the health counts (the restart
+ *  clears the video path's counters). */
+void app_restart_video(app_t *app);
+
 /** Read the HEALTH_* registers and fill h with the counts since the previous call (16-bit
  *  differences, so a wrapped counter still counts right; a saturated one stops counting) and
  *  the flags. Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block does not

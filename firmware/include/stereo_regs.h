@@ -273,6 +273,12 @@
 #define STEREO_RESULT_D_SHIFT                        20u          /**< d: disparity */
 #define STEREO_RESULT_D_MASK                         0x07F00000u  /**< d mask (7 bits) */
 #define STEREO_RESULT_D_RESET                        0u           /**< d reset value */
+#define STEREO_RESULT_EOF_SHIFT                      27u          /**< eof: 1: an end-of-frame marker, no match (x, y, d = 0): the records since the previous marker are one frame's (SystemSoC) */
+#define STEREO_RESULT_EOF_MASK                       0x08000000u  /**< eof mask (1 bits) */
+#define STEREO_RESULT_EOF_RESET                      0u           /**< eof reset value */
+#define STEREO_RESULT_ABORT_SHIFT                    28u          /**< abort: with eof: that frame was cut by CTRL.restart_video or VIDEO.video_enable = 0: discard its records */
+#define STEREO_RESULT_ABORT_MASK                     0x10000000u  /**< abort mask (1 bits) */
+#define STEREO_RESULT_ABORT_RESET                    0u           /**< abort reset value */
 #define STEREO_RESULT_VALID_SHIFT                    31u          /**< valid: 1: a record; 0: the FIFO was empty */
 #define STEREO_RESULT_VALID_MASK                     0x80000000u  /**< valid mask (1 bits) */
 #define STEREO_RESULT_VALID_RESET                    0u           /**< valid reset value */

@@ -6,6 +6,8 @@
 #include "hal.h"
 #include "stereo_regs.h"
 
+#include <string.h>
+
 fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls)
 {
     static const uint8_t addrs[APP_N_DECODERS] = { ADV7180_ADDR_ALSB_LOW, ADV7180_ADDR_ALSB_HIGH };
@@ -82,7 +84,9 @@ uint32_t app_collect(app_t *app)
         uint32_t i;
         uint32_t n = pipeline_read_results(app->regs_base, chunk, ARRAY_SIZE(chunk));
         for (i = 0u; i < n; i++) {
-            radio_summary_add(&app->summary, chunk[i].x, chunk[i].d);
+            if (chunk[i].mark == 0u) {
+                radio_summary_add(&app->summary, chunk[i].x, chunk[i].d);
+            }
         }
         total += n;
         if (n < ARRAY_SIZE(chunk)) {
@@ -124,6 +128,57 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     hal_uart_write(buf, len);
     app->seq = (uint8_t)(app->seq + 1u);
     return len;
+}
+
+fw_status_t app_check_lock(app_t *app)
+{
+    uint32_t i;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    for (i = 0u; i < APP_N_DECODERS; i++) {
+        uint8_t locked = 0u;
+        fw_status_t st = app->dec_status[i];
+        if (st == FW_OK) {
+            st = adv7180_lock_status(&app->dec[i], &locked);
+        }
+        if (st != FW_OK) {
+            return st;
+        }
+        if (!locked) {
+            return FW_ERR_NO_LOCK;
+        }
+    }
+    return FW_OK;
+}
+
+fw_status_t app_start_video(app_t *app, uint32_t polls)
+{
+    const uint32_t both = STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK | STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK;
+    uint32_t n;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    pipeline_video_enable(app->regs_base, 1u);
+    for (n = 0u; n <= polls; n++) {
+        if ((STEREO_ReadReg(app->regs_base, STEREO_HEALTH_STATUS_OFFSET) & both) == both) {
+            return FW_OK;
+        }
+        hal_delay_us(APP_LOCK_POLL_US);
+    }
+    return FW_ERR_NO_LOCK;
+}
+
+void app_restart_video(app_t *app)
+{
+    uint16_t result_overflow;
+    if (app == NULL) {
+        return;
+    }
+    pipeline_restart_video(app->regs_base);
+    result_overflow = app->health_last.result_overflow;   /* the register block keeps it */
+    memset(&app->health_last, 0, sizeof app->health_last);
+    app->health_last.result_overflow = result_overflow;
 }
 
 static uint16_t field16(uint32_t value, uint32_t shift)

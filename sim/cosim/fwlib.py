@@ -75,6 +75,16 @@ class AppC(C.Structure):
                 ("summary", RadioSummaryC), ("health_last", HealthSnapshotC)]
 
 
+class PipelineMatchC(C.Structure):
+    _fields_ = [("x", C.c_uint16), ("y", C.c_uint16), ("d", C.c_uint8), ("mark", C.c_uint8)]
+
+
+class RadioHealthC(C.Structure):
+    _fields_ = [(n, C.c_uint16) for n in ("frames", "pairs_ok", "mispaired", "drops")] + [
+        ("cam_errors", C.c_uint16 * 2), ("matcher_errors", C.c_uint16),
+        ("fifo_overflow", C.c_uint16), ("flags", C.c_uint8)]
+
+
 class RegValC(C.Structure):
     _fields_ = [("reg", C.c_uint8), ("val", C.c_uint8)]
 
