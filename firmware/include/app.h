@@ -14,6 +14,11 @@
 #include "radio.h"
 
 #define APP_N_DECODERS 2u
+/** Frame geometry: one NTSC field of the ADV7180 (BT.656, 720 x 240); the register reset
+ *  values place the ground reference region for it (hdl/regmap.py REF_WIDTH, REF_HEIGHT;
+ *  tests/test_regs.py checks they agree). */
+#define APP_FIELD_WIDTH  720u
+#define APP_FIELD_HEIGHT 240u
 #define APP_RADIO_DEST 0x0001u /**< base station's 16-bit XBee address */
 
 typedef struct {

@@ -54,25 +54,25 @@
 #define STEREO_GROUND_S_MIN_MASK                     0x00FF0000u  /**< s_min mask (8 bits) */
 #define STEREO_GROUND_S_MIN_RESET                    48u          /**< s_min reset value */
 
-/* GROUND_REF_POS (read/write): Reference area (learned as ground): top-left corner. Reset: bottom centre of a 752x480 frame. */
-#define STEREO_GROUND_REF_POS_OFFSET                 0x0Cu        /**< Reference area (learned as ground): top-left corner. Reset: bottom centre of a 752x480 frame. */
-#define STEREO_GROUND_REF_POS_RESET                  0x01A400BCu  /**< GROUND_REF_POS value after reset */
+/* GROUND_REF_POS (read/write): Reference area (learned as ground): top-left corner. Reset: bottom centre of a 720x240 frame. */
+#define STEREO_GROUND_REF_POS_OFFSET                 0x0Cu        /**< Reference area (learned as ground): top-left corner. Reset: bottom centre of a 720x240 frame. */
+#define STEREO_GROUND_REF_POS_RESET                  0x00D200B4u  /**< GROUND_REF_POS value after reset */
 #define STEREO_GROUND_REF_POS_REF_X_SHIFT            0u           /**< ref_x: first column of the reference area */
 #define STEREO_GROUND_REF_POS_REF_X_MASK             0x7FFu       /**< ref_x mask (11 bits) */
-#define STEREO_GROUND_REF_POS_REF_X_RESET            188u         /**< ref_x reset value */
+#define STEREO_GROUND_REF_POS_REF_X_RESET            180u         /**< ref_x reset value */
 #define STEREO_GROUND_REF_POS_REF_Y_SHIFT            16u          /**< ref_y: first row of the reference area */
 #define STEREO_GROUND_REF_POS_REF_Y_MASK             0x07FF0000u  /**< ref_y mask (11 bits) */
-#define STEREO_GROUND_REF_POS_REF_Y_RESET            420u         /**< ref_y reset value */
+#define STEREO_GROUND_REF_POS_REF_Y_RESET            210u         /**< ref_y reset value */
 
 /* GROUND_REF_SIZE (read/write): Reference area: size. */
 #define STEREO_GROUND_REF_SIZE_OFFSET                0x10u        /**< Reference area: size. */
-#define STEREO_GROUND_REF_SIZE_RESET                 0x003C0178u  /**< GROUND_REF_SIZE value after reset */
+#define STEREO_GROUND_REF_SIZE_RESET                 0x001E0168u  /**< GROUND_REF_SIZE value after reset */
 #define STEREO_GROUND_REF_SIZE_REF_W_SHIFT           0u           /**< ref_w: width in pixels */
 #define STEREO_GROUND_REF_SIZE_REF_W_MASK            0x7FFu       /**< ref_w mask (11 bits) */
-#define STEREO_GROUND_REF_SIZE_REF_W_RESET           376u         /**< ref_w reset value */
+#define STEREO_GROUND_REF_SIZE_REF_W_RESET           360u         /**< ref_w reset value */
 #define STEREO_GROUND_REF_SIZE_REF_H_SHIFT           16u          /**< ref_h: height in rows */
 #define STEREO_GROUND_REF_SIZE_REF_H_MASK            0x07FF0000u  /**< ref_h mask (11 bits) */
-#define STEREO_GROUND_REF_SIZE_REF_H_RESET           60u          /**< ref_h reset value */
+#define STEREO_GROUND_REF_SIZE_REF_H_RESET           30u          /**< ref_h reset value */
 
 /* GROUND_INIT (read/write): Ground band centres used before the first frame is learned. */
 #define STEREO_GROUND_INIT_OFFSET                    0x14u        /**< Ground band centres used before the first frame is learned. */

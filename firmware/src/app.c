@@ -21,7 +21,7 @@ fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeou
     app->summary_open = 0u;
     app->n_bands = RADIO_DEFAULT_BANDS;
     app->min_support = RADIO_DEFAULT_MIN_SUPPORT;
-    app->width = 752u;
+    app->width = APP_FIELD_WIDTH;
     st = iic_init(&app->iic, iic_base, iic_timeout_polls);
     if (st != FW_OK) {
         return st;
@@ -125,7 +125,9 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     if (rf_len == 0u || len == 0u) {
         return 0u;
     }
-    hal_uart_write(buf, len);
+    if (hal_uart_write(buf, len) != FW_OK) {
+        return 0u;
+    }
     app->seq = (uint8_t)(app->seq + 1u);
     return len;
 }

@@ -112,6 +112,47 @@ static void test_results_and_status(void)
     FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 0);
 }
 
+static void test_health_counts_since_last_read(void)
+{
+    static app_t app;
+    radio_health_t h;
+    setup();
+    memset(&app, 0, sizeof app);
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 10;
+    sim.regfile[STEREO_HEALTH_PAIRS_OFFSET / 4] = 9u | 1u << 16;
+    sim.regfile[STEREO_HEALTH_CAMERA_OFFSET / 4] = 3u | 4u << 16;
+    sim.regfile[STEREO_HEALTH_DROPS_OFFSET / 4] = 2u | 5u << 16;
+    sim.regfile[STEREO_HEALTH_OVERFLOW_OFFSET / 4] = 7u;
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x7u;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.frames == 10 && h.pairs_ok == 9 && h.mispaired == 1 && h.drops == 2);
+    FWT_CHECK(h.cam_errors[0] == 3 && h.cam_errors[1] == 4 && h.matcher_errors == 5);
+    FWT_CHECK(h.fifo_overflow == 7 && h.flags == 0x7u);
+    /* differences since the last read, across a wrap of the 16-bit counter */
+    sim.regfile[STEREO_HEALTH_PAIRS_OFFSET / 4] = 2u | 1u << 16;
+    app.health_last.pairs_ok = 0xFFF0u;
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x1u;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.frames == 0 && h.pairs_ok == 0x12 && h.mispaired == 0 && h.flags == 0x1u);
+    FWT_CHECK_EQ(app_read_health(&app, NULL), FW_ERR_PARAM);
+    sim_uninstall();
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_ERR_ID);
+}
+
+static void test_start_video_is_bounded(void)
+{
+    static app_t app;
+    setup();
+    memset(&app, 0, sizeof app);
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x1u;        /* right never locks */
+    FWT_CHECK_EQ(app_start_video(&app, 5u), FW_ERR_NO_LOCK);
+    FWT_CHECK_EQ(sim.regfile[STEREO_VIDEO_OFFSET / 4], 1u);     /* enabled */
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x3u;
+    FWT_CHECK_EQ(app_start_video(&app, 5u), FW_OK);
+}
+
 static void test_report_builds_frame(void)
 {
     static app_t app;
@@ -167,6 +208,8 @@ static void test_collect_across_frames(void)
 void suite_pipeline(void)
 {
     FWT_RUN(test_id);
+    FWT_RUN(test_health_counts_since_last_read);
+    FWT_RUN(test_start_video_is_bounded);
     FWT_RUN(test_defaults_match_reset_values);
     FWT_RUN(test_configure_roundtrip);
     FWT_RUN(test_configure_rejects_bad_values);
