@@ -1,6 +1,8 @@
-"""UART for the radio (XBee, 8N1) on the MicroBlaze I/O bus.
+"""UART (8N1) for the radio on the MicroBlaze I/O bus, and the byte-level transmitter and
+receiver it is made of (also used by the UART register bridge, ``hdl/bridge.py``).
 
-Registers (window of 0x10 bytes at ``base``; :data:`UART_REGS`), latency 1 cycle, never stalls:
+Registers of :class:`UART` (window of 0x10 bytes at ``base``; :data:`UART_REGS`), latency 1
+cycle, never stalls:
 
 =======  ======  ==========================================================================
 offset   name    meaning
@@ -19,20 +21,93 @@ bit after the falling edge and samples each bit in its middle; a missing stop bi
 byte.
 """
 from amaranth.hdl import Cat, Module, Mux, Signal
-from amaranth.lib import wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
 from .regs import IOBusSignature
 
-__all__ = ["UART", "UART_REGS"]
+__all__ = ["UART", "UART_REGS", "UartTx", "UartRx", "check_divisor"]
 
 UART_REGS = {"DATA": 0x0, "STATUS": 0x4}
 UART_WINDOW = 0x10
 
 
+def check_divisor(unit, divisor):
+    if not isinstance(divisor, int) or divisor < 4:
+        unit._MustUse__silence = True
+        raise ValueError(f"divisor must be an integer >= 4, not {divisor!r}")
+
+
+class UartTx(wiring.Component):
+    """8N1 transmitter. ``i``: bytes (ready while idle; a byte is sent in 10 bit times);
+    ``tx``: the line (idle high); ``busy``: a byte is being sent."""
+
+    i: In(stream.Signature(8))
+    tx: Out(1, init=1)
+    busy: Out(1)
+
+    def __init__(self, *, divisor):
+        check_divisor(self, divisor)
+        self._divisor = divisor
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        div = self._divisor
+        shift = Signal(10)
+        count = Signal(range(11))
+        timer = Signal(range(div))
+        m.d.comb += [self.busy.eq(count != 0), self.i.ready.eq(count == 0)]
+        with m.If(count != 0):
+            with m.If(timer == div - 1):
+                m.d.sync += [timer.eq(0), count.eq(count - 1), shift.eq(Cat(shift[1:], 1)),
+                             self.tx.eq(shift[1])]
+            with m.Else():
+                m.d.sync += timer.eq(timer + 1)
+        with m.Elif(self.i.valid):
+            m.d.sync += [shift.eq(Cat(0, self.i.payload, 1)), count.eq(10), timer.eq(0),
+                         self.tx.eq(0)]
+        return m
+
+
+class UartRx(wiring.Component):
+    """8N1 receiver. ``rx``: the line (asynchronous, idle high); ``o``: received bytes, one-cycle
+    ``valid`` pulses (no backpressure: the consumer must take them)."""
+
+    rx: In(1, init=1)
+    o: Out(stream.Signature(8))
+
+    def __init__(self, *, divisor):
+        check_divisor(self, divisor)
+        self._divisor = divisor
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        div = self._divisor
+        rx = Signal(init=1)
+        m.submodules.sync = FFSynchronizer(self.rx, rx, init=1)
+        shift = Signal(9)
+        count = Signal(range(11))
+        timer = Signal(range(div))
+        m.d.sync += self.o.valid.eq(0)
+        with m.If(count == 0):
+            with m.If(~rx):
+                m.d.sync += [count.eq(10), timer.eq(div // 2)]
+        with m.Elif(timer == div - 1):
+            m.d.sync += [timer.eq(0), count.eq(count - 1), shift.eq(Cat(shift[1:], rx))]
+            with m.If((count == 10) & rx):              # a glitch, not a start bit
+                m.d.sync += count.eq(0)
+            with m.If((count == 1) & rx):               # the stop bit
+                m.d.sync += [self.o.payload.eq(shift[1:]), self.o.valid.eq(1)]
+        with m.Else():
+            m.d.sync += timer.eq(timer + 1)
+        return m
+
+
 class UART(wiring.Component):
-    """8N1 UART with a one-byte buffer each way.
+    """8N1 UART with a one-byte buffer each way, on the I/O bus.
 
     Parameters (keyword-only): ``divisor`` (core cycles per bit, >= 4), ``base`` (bus address,
     aligned to 0x10).
@@ -42,9 +117,7 @@ class UART(wiring.Component):
     """
 
     def __init__(self, *, divisor=434, base=0xC002_0000):
-        if not isinstance(divisor, int) or divisor < 4:
-            self._MustUse__silence = True
-            raise ValueError(f"divisor must be an integer >= 4, not {divisor!r}")
+        check_divisor(self, divisor)
         if not isinstance(base, int) or base % UART_WINDOW:
             self._MustUse__silence = True
             raise ValueError(f"base must be aligned to 0x{UART_WINDOW:X}, not {base!r}")
@@ -58,58 +131,32 @@ class UART(wiring.Component):
         bits = (UART_WINDOW - 1).bit_length()
         hit = bus.addr_strobe & (bus.address[bits:] == self._base >> bits)
         offset = bus.address[:bits] & ~0b11
-        div = self._divisor
+        m.submodules.tx = tx = UartTx(divisor=self._divisor)
+        m.submodules.rx = rx = UartRx(divisor=self._divisor)
+        m.d.comb += [self.tx.eq(tx.tx), rx.rx.eq(self.rx)]
 
-        # transmitter
         tx_hold = Signal(8)
         tx_full = Signal()
-        tx_shift = Signal(10)
-        tx_count = Signal(range(11))
-        tx_timer = Signal(range(div))
-        tx_busy = tx_count != 0
-        with m.If(tx_busy):
-            with m.If(tx_timer == div - 1):
-                m.d.sync += [tx_timer.eq(0), tx_count.eq(tx_count - 1),
-                             tx_shift.eq(Cat(tx_shift[1:], 1)), self.tx.eq(tx_shift[1])]
-            with m.Else():
-                m.d.sync += tx_timer.eq(tx_timer + 1)
-        with m.Elif(tx_full):
-            m.d.sync += [tx_shift.eq(Cat(0, tx_hold, 1)), tx_count.eq(10), tx_timer.eq(0),
-                         self.tx.eq(0), tx_full.eq(0)]
+        m.d.comb += [tx.i.valid.eq(tx_full), tx.i.payload.eq(tx_hold)]
+        with m.If(tx.i.ready & tx_full):
+            m.d.sync += tx_full.eq(0)
 
-        # receiver
-        rx = Signal(init=1)
-        m.submodules.rx_sync = FFSynchronizer(self.rx, rx, init=1)
         rx_hold = Signal(8)
         rx_valid = Signal()
         rx_overrun = Signal()
-        rx_shift = Signal(9)
-        rx_count = Signal(range(11))
-        rx_timer = Signal(range(div))
-        # bus
+
         m.d.sync += [bus.ready.eq(hit & (bus.read_strobe | bus.write_strobe)), bus.read_data.eq(0)]
         with m.If(hit & bus.write_strobe & (offset == UART_REGS["DATA"]) & ~tx_full):
             m.d.sync += [tx_hold.eq(bus.write_data[:8]), tx_full.eq(1)]
         with m.If(hit & bus.read_strobe):
             with m.If(offset == UART_REGS["DATA"]):
-                m.d.sync += bus.read_data.eq(Mux(rx_valid, Cat(rx_hold, 1), 0))
-                m.d.sync += [rx_valid.eq(0), rx_overrun.eq(0)]
+                m.d.sync += [bus.read_data.eq(Mux(rx_valid, Cat(rx_hold, 1), 0)),
+                             rx_valid.eq(0), rx_overrun.eq(0)]
             with m.Elif(offset == UART_REGS["STATUS"]):
-                m.d.sync += bus.read_data.eq(Cat(~tx_full, rx_valid, tx_busy | tx_full, rx_overrun))
-        # receiver (after the bus: a byte completing during a DATA read is kept)
-        with m.If(rx_count == 0):
-            with m.If(~rx):
-                m.d.sync += [rx_count.eq(10), rx_timer.eq(div // 2)]
-        with m.Elif(rx_timer == div - 1):
-            m.d.sync += [rx_timer.eq(0), rx_count.eq(rx_count - 1), rx_shift.eq(Cat(rx_shift[1:], rx))]
-            with m.If(rx_count == 10):                # middle of the start bit
-                with m.If(rx):
-                    m.d.sync += rx_count.eq(0)        # a glitch, not a start bit
-            with m.If(rx_count == 1):                 # middle of the stop bit
-                with m.If(rx):
-                    m.d.sync += [rx_hold.eq(rx_shift[1:]), rx_valid.eq(1),
-                                 rx_overrun.eq(rx_overrun | rx_valid)]
-        with m.Else():
-            m.d.sync += rx_timer.eq(rx_timer + 1)
-
+                m.d.sync += bus.read_data.eq(Cat(~tx_full, rx_valid, tx.busy | tx_full,
+                                                 rx_overrun))
+        # after the bus: a byte completing during a DATA read is kept
+        with m.If(rx.o.valid):
+            m.d.sync += [rx_hold.eq(rx.o.payload), rx_valid.eq(1),
+                         rx_overrun.eq(rx_overrun | rx_valid)]
         return m
