@@ -9,7 +9,7 @@ SYSTEM_STAMP := build/.system-packages
 # command is missing; needs root or sudo, as on the project's machines).
 DEBIAN_PACKAGES := iverilog ghdl g++ make
 
-.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo clean
+.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo bitstream clean
 
 setup: $(STAMP) $(SYSTEM_STAMP)
 
@@ -55,6 +55,10 @@ bench: setup
 
 demo: setup
 	$(PY) -m station.demo --out build/demo
+
+# ECP5 bitstream of the SoC on the ULX3S 25F (YoWASP tools; not part of make test)
+bitstream: setup
+	$(PY) -m sim.bitstream --out build/bitstream
 
 clean:
 	rm -rf build

@@ -168,13 +168,14 @@ def write_report(results, out_dir):
     return out / "report.json"
 
 
-def build_ise(design="pipeline", out_dir=None, platform=None):
-    """Write the ISE build tree (no ISE run) of the reference board around ``design`` under
-    ``<out_dir>/ise`` (default ``build/synth/ise``); returns the folder."""
+def build_ise(design="soc", out_dir=None, platform=None):
+    """Write the ISE build tree (no ISE run) of the reference board (the SoC on its pins,
+    :class:`hdl.platform.BoardTop`) under ``<out_dir>/ise`` (default ``build/synth/ise``);
+    returns the folder. ``design`` is kept for callers; the board top is always the SoC."""
     from hdl.platform import RobotBoardPlatform, BoardTop
     out = Path(out_dir or ROOT / "build" / "synth") / "ise"
     platform = platform or RobotBoardPlatform()
-    plan = platform.build(BoardTop(design), name="top", do_build=False)
+    plan = platform.build(BoardTop(), name="top", do_build=False)
     plan.extract(str(out))
     return out
 
@@ -196,8 +197,7 @@ def main(argv=None):
     print((Path(args.out) / "report.md").read_text())
     print(path)
     if args.ise:
-        top = "pipeline" if "pipeline" in DESIGNS else next(iter(args.names or DESIGNS))
-        print(build_ise(top, args.out))
+        print(build_ise("soc", args.out))
     return 0
 
 

@@ -15,10 +15,18 @@ def _pairing(**params):
     return FramePairing(**params)
 
 
+def _soc(**params):
+    from hdl.soc import SystemSoC
+    return SystemSoC(**params)
+
+
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
     "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=512),
                            "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO (hdl/camera.py)"),
     "pairing": SystemDesign(_pairing, dict(skew=1024, max_width=1024, max_height=1024),
                             "stereo frame pairing (hdl/pairing.py)"),
+    "soc": SystemDesign(_soc, dict(max_width=1024, max_height=256, lines=240),
+                        "the SoC: two BT.656 camera ports, pairing, pipeline, registers and "
+                        "result FIFO, IIC master, radio UART on the I/O bus (hdl/soc.py)"),
 }

@@ -42,7 +42,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sim.export import DESIGNS, ROOT, export_verilog
+from sim.export import DESIGNS, ROOT, all_designs, export_verilog
 
 __all__ = ["ToolMissing", "ConversionError", "rename_escaped", "fix_initial_processes",
            "fix_output_ports", "fix_sign_extension", "order_units", "direct_instances", "verilog_to_vhdl", "export_vhdl", "check_ghdl", "vhdl_port_name",
@@ -394,12 +394,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m sim.vhdl", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="build/vhdl", help="output folder (default %(default)s)")
     ap.add_argument("--check", action="store_true", help="analyse and elaborate with GHDL (93 and 08)")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    known = all_designs()
+    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(known)})")
     args = ap.parse_args(argv)
     try:
-        for name in args.names or DESIGNS:
-            if name not in DESIGNS:
-                ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+        for name in args.names or known:
+            if name not in known:
+                ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
             path = export_vhdl(name, out_dir=args.out)
             if args.check:
                 for std in ("93", "08"):
