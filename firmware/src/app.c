@@ -237,6 +237,61 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
 }
 
 #ifndef HAL_TARGET
+#include <stddef.h>
+
+/** Host builds only: offset and size of every field the ctypes mirrors (sim/cosim/fwlib.py)
+ *  declare, by "struct.field" name, so that check_layout compares them field by field. */
+typedef struct {
+    const char *name;
+    uint32_t offset;
+    uint32_t size;
+} fw_field_t;
+
+#define FW_FIELD(T, F) { #T "." #F, (uint32_t)offsetof(T, F), (uint32_t)sizeof(((T *)0)->F) }
+
+static const fw_field_t fw_fields[] = {
+    FW_FIELD(pipeline_config_t, mode), FW_FIELD(pipeline_config_t, k),
+    FW_FIELD(pipeline_config_t, jnd_hue), FW_FIELD(pipeline_config_t, jnd_luma),
+    FW_FIELD(pipeline_config_t, s_min), FW_FIELD(pipeline_config_t, ref_x),
+    FW_FIELD(pipeline_config_t, ref_y), FW_FIELD(pipeline_config_t, ref_w),
+    FW_FIELD(pipeline_config_t, ref_h), FW_FIELD(pipeline_config_t, hue_centre0),
+    FW_FIELD(pipeline_config_t, luma_centre0), FW_FIELD(pipeline_config_t, edge_threshold),
+    FW_FIELD(pipeline_config_t, ratio), FW_FIELD(pipeline_config_t, nms),
+    FW_FIELD(pipeline_config_t, right_threshold), FW_FIELD(pipeline_config_t, d_min),
+    FW_FIELD(pipeline_config_t, d_max), FW_FIELD(pipeline_config_t, uniqueness),
+    FW_FIELD(pipeline_config_t, candidate_mode), FW_FIELD(pipeline_config_t, widen),
+    FW_FIELD(pipeline_config_t, camera_mode_drop),
+    FW_FIELD(pipeline_match_t, x), FW_FIELD(pipeline_match_t, y), FW_FIELD(pipeline_match_t, d),
+    FW_FIELD(pipeline_match_t, mark),
+    FW_FIELD(radio_health_t, frames), FW_FIELD(radio_health_t, pairs_ok),
+    FW_FIELD(radio_health_t, mispaired), FW_FIELD(radio_health_t, drops),
+    FW_FIELD(radio_health_t, cam_errors), FW_FIELD(radio_health_t, matcher_errors),
+    FW_FIELD(radio_health_t, fifo_overflow), FW_FIELD(radio_health_t, flags),
+    FW_FIELD(health_snapshot_t, frames), FW_FIELD(health_snapshot_t, pairs_ok),
+    FW_FIELD(health_snapshot_t, mispaired), FW_FIELD(health_snapshot_t, drops),
+    FW_FIELD(health_snapshot_t, cam_errors), FW_FIELD(health_snapshot_t, matcher_errors),
+    FW_FIELD(health_snapshot_t, overflow), FW_FIELD(health_snapshot_t, result_overflow),
+    FW_FIELD(app_t, regs_base), FW_FIELD(app_t, iic), FW_FIELD(app_t, dec),
+    FW_FIELD(app_t, dec_status), FW_FIELD(app_t, cfg), FW_FIELD(app_t, seq),
+    FW_FIELD(app_t, n_bands), FW_FIELD(app_t, min_support), FW_FIELD(app_t, width),
+    FW_FIELD(app_t, results_read), FW_FIELD(app_t, summary_open), FW_FIELD(app_t, summary),
+    FW_FIELD(app_t, health_last),
+};
+
+/** The offset of "struct.field" and its size in *size; -1 for an unknown name. */
+int32_t fw_field_offset(const char *name, uint32_t *size);
+int32_t fw_field_offset(const char *name, uint32_t *size)
+{
+    uint32_t i;
+    for (i = 0u; i < ARRAY_SIZE(fw_fields); i++) {
+        if (strcmp(fw_fields[i].name, name) == 0) {
+            *size = fw_fields[i].size;
+            return (int32_t)fw_fields[i].offset;
+        }
+    }
+    return -1;
+}
+
 /** Host builds only: sizeof(app_t), for the co-simulation's ctypes mirror. */
 uint32_t app_sizeof(void);
 uint32_t app_sizeof(void)

@@ -132,8 +132,30 @@ def load(rebuild: bool = True) -> C.CDLL:
     return lib
 
 
+#: ctypes mirror -> C type name, checked field by field by :func:`check_layout`.
+MIRRORS = {"PipelineConfigC": "pipeline_config_t", "PipelineMatchC": "pipeline_match_t",
+           "RadioHealthC": "radio_health_t", "HealthSnapshotC": "health_snapshot_t",
+           "AppC": "app_t"}
+
+
 def check_layout(lib: C.CDLL) -> None:
-    """The ctypes mirror of app_t must have the C size."""
+    """Every field of the ctypes mirrors in :data:`MIRRORS` must have the C offset and size
+    (the firmware's fw_field_offset table), and AppC the C size."""
+    fn = lib.fw_field_offset
+    fn.restype, fn.argtypes = C.c_int32, [C.c_char_p, C.POINTER(C.c_uint32)]
+    names = {cls.__name__: cls for cls in (PipelineConfigC, PipelineMatchC, RadioHealthC,
+                                           HealthSnapshotC, AppC)}
+    for py_name, c_name in MIRRORS.items():
+        cls = names[py_name]
+        for field_name, _ in cls._fields_:
+            size = C.c_uint32()
+            off = fn(f"{c_name}.{field_name}".encode(), C.byref(size))
+            got = getattr(cls, field_name)
+            if off < 0:
+                raise RuntimeError(f"{c_name}.{field_name}: not in the firmware's field table")
+            if (got.offset, got.size) != (off, size.value):
+                raise RuntimeError(f"{py_name}.{field_name} at {got.offset} ({got.size} bytes), "
+                                   f"{c_name}.{field_name} at {off} ({size.value} bytes)")
     if C.sizeof(AppC) != lib.app_sizeof():
         raise RuntimeError(f"AppC is {C.sizeof(AppC)} bytes, app_t {lib.app_sizeof()}")
 
