@@ -15,8 +15,9 @@ events* (the ``sof`` beats):
    the two cameras; the camera FIFOs must hold that many pixels.
 3. A pair in which either frame is malformed (:mod:`hdl.framing` rules: a line of another
    length, ``eol``/``eof`` out of place, a ``sof`` cutting the frame short, too many lines) is
-   *abandoned* at its first bad beat: that beat is not forwarded, both sides stop forwarding and
-   discard up to their next ``sof`` (a ``sof`` that cut the frame short is kept: it starts the
+   *abandoned* at its first bad beat: that beat is not forwarded, both sides stop forwarding (the
+   other side may still forward the beat it offers in that same cycle) and discard up to their
+   next ``sof`` (a ``sof`` that cut the frame short is kept: it starts the
    side's next frame). The pair counts in ``mispaired``; a pair whose two frames both end with
    ``eof`` counts in ``pairs_ok``.
 

@@ -16,7 +16,7 @@ by at most one per camera cycle, so a Gray code changes one bit at a time).
 from amaranth.hdl import DomainRenamer, Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
-from amaranth.lib.fifo import AsyncFIFO
+from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
 from .bt656 import Bt656ToRGB
@@ -27,8 +27,8 @@ __all__ = ["CameraPort", "sync_counter"]
 
 def sync_counter(m, value, *, i_domain, o_domain, name):
     """A counter of domain ``i_domain`` (changing by at most 1 per cycle) as seen in
-    ``o_domain``: Gray-encoded in a register, two-flop synchronised, decoded. Returns the
-    ``o_domain`` value (2-3 ``o_domain`` cycles late)."""
+    ``o_domain``: Gray-encoded in a register, two-flop synchronised, decoded into a register.
+    Returns the ``o_domain`` value (3-4 ``o_domain`` cycles late)."""
     width = len(value)
     gray = Signal(width, name=f"{name}_gray")
     m.d[i_domain] += gray.eq(value ^ (value >> 1))
@@ -39,7 +39,7 @@ def sync_counter(m, value, *, i_domain, o_domain, name):
     for k in range(width - 2, -1, -1):
         bits.insert(0, bits[0] ^ gray_o[k])
     for k in range(width):
-        m.d.comb += binary[k].eq(bits[k])
+        m.d[o_domain] += binary[k].eq(bits[k])
     return binary
 
 
@@ -62,7 +62,8 @@ class CameraPort(wiring.Component):
         high on a board: the ADV7180 drives one byte per LLC cycle).
     o : Out(stream.Signature(RGBPixel)), core domain
         Pixels; backpressure is absorbed by the FIFO, then by dropping whole frame tails
-        (counted). Latency about 10 camera cycles + 3 core cycles.
+        (counted). Latency about 10 camera cycles + 5 core cycles; valid and payload come from
+        registers.
     errors : Out(16), core domain
         The decoder's malformed-line count (saturating).
     overflow : Out(16), core domain
@@ -108,7 +109,11 @@ class CameraPort(wiring.Component):
                 with m.If(overflow != 0xFFFF):
                     cam += overflow.eq(overflow + 1)
 
-        m.d.comb += [self.o.valid.eq(q.r_rdy), self.o.payload.eq(q.r_data), q.r_en.eq(self.o.ready)]
+        # a registered 2-entry buffer: the FIFO's read logic and the consumer's do not chain
+        m.submodules.out = out = SyncFIFOBuffered(width=RGBPixel.size, depth=2)
+        m.d.comb += [out.w_en.eq(q.r_rdy), out.w_data.eq(q.r_data), q.r_en.eq(out.w_rdy),
+                     self.o.valid.eq(out.r_rdy), self.o.payload.eq(out.r_data),
+                     out.r_en.eq(self.o.ready)]
         kw = dict(i_domain=self._domain, o_domain="sync")
         m.d.comb += [
             self.errors.eq(sync_counter(m, dec.errors, name="errors", **kw)),

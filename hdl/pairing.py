@@ -80,7 +80,8 @@ class FramePairing(wiring.Component):
         abandon = Signal()
         m.d.comb += abandon.eq(L["tracker"].abandon | R["tracker"].abandon)
         for me in (L, R):       # a sof that cuts a frame short is accepted as a start: not here
-            m.d.comb += me["o"].valid.eq(me["tracker"].accept & ~abandon)
+            t = me["tracker"]
+            m.d.comb += me["o"].valid.eq(t.accept & ~t.abandon)
 
         # rule 2: one side holds a sof, the other is idle
         wait = Signal(range(self._skew + 1))
@@ -99,14 +100,15 @@ class FramePairing(wiring.Component):
         for me in (L, R):
             i, o, t = me["i"], me["o"], me["tracker"]
             with m.If(me["passing"]):
-                with m.If(abandon):
-                    # stop forwarding; a non-sof bad beat is consumed, a sof is kept
-                    m.d.comb += i.ready.eq(t.abandon & ~i.payload.sof)
-                    m.d.sync += me["passing"].eq(0)
+                # each side's handshake depends on its own beat only (the other side's
+                # abandon stops this side from the next cycle on); a non-sof bad beat is
+                # consumed, a sof that cuts the frame is kept for the next pair
+                with m.If(t.abandon):
+                    m.d.comb += i.ready.eq(~i.payload.sof)
                 with m.Else():
                     m.d.comb += i.ready.eq(t.accept & o.ready)
-                    with m.If(t.frame_end & o.ready):
-                        m.d.sync += me["passing"].eq(0)
+                with m.If(abandon | (t.frame_end & o.ready)):
+                    m.d.sync += me["passing"].eq(0)
                 m.d.comb += me["commit"].eq(i.valid & i.ready)
             with m.Elif(start):
                 m.d.sync += me["passing"].eq(1)

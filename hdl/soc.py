@@ -15,6 +15,7 @@ also runs in simulation with the firmware driving the bus (``sim/cosim``).
 from amaranth.hdl import ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
+from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
 from . import regmap
@@ -183,7 +184,8 @@ class SystemSoC(wiring.Component):
             m.submodules[f"{domain}_reset"] = ResetSynchronizer(video_rst, domain=domain)
             port = CameraPort(domain=domain, lines=self._lines,
                               fifo_depth=self._camera_fifo_depth)
-            m.submodules[f"{domain}_port"] = port
+            # its core-domain side (output buffer, counter synchronisers) restarts with the rest
+            m.submodules[f"{domain}_port"] = ResetInserter({"sync": video_rst})(port)
             wiring.connect(m, wiring.flipped(getattr(self, domain)), port.i)
             ports.append(port)
 
@@ -194,8 +196,12 @@ class SystemSoC(wiring.Component):
         m.submodules.pipeline = ResetInserter(video_rst)(pipe)
         wiring.connect(m, ports[0].o, pairing.left_i)
         wiring.connect(m, ports[1].o, pairing.right_i)
-        wiring.connect(m, pairing.left_o, pipe.left)
-        wiring.connect(m, pairing.right_o, pipe.right)
+        for side in ("left", "right"):      # registered buffers: pairing and pipeline logic
+            buf = SyncFIFOBuffered(width=RGBPixel.size, depth=2)     # do not chain
+            m.submodules[f"{side}_buffer"] = ResetInserter(video_rst)(buf)
+            src, dst = getattr(pairing, f"{side}_o"), getattr(pipe, side)
+            m.d.comb += [buf.w_en.eq(src.valid), buf.w_data.eq(src.payload), src.ready.eq(buf.w_rdy),
+                         dst.valid.eq(buf.r_rdy), dst.payload.eq(buf.r_data), buf.r_en.eq(dst.ready)]
         _connect_parameters(m, regs, pipe)
 
         # Records and end-of-frame markers into the result FIFO. A restart of the video path

@@ -15,6 +15,16 @@ def _pairing(**params):
     return FramePairing(**params)
 
 
+def _uart(**params):
+    from hdl.uart import UART
+    return UART(**params)
+
+
+def _bridge(**params):
+    from hdl.bridge import UartBridge
+    return UartBridge(**params)
+
+
 def _soc(**params):
     from hdl.soc import SystemSoC
     return SystemSoC(**params)
@@ -26,6 +36,9 @@ SYSTEM_DESIGNS = {
                            "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO (hdl/camera.py)"),
     "pairing": SystemDesign(_pairing, dict(skew=1024, max_width=1024, max_height=1024),
                             "stereo frame pairing (hdl/pairing.py)"),
+    "uart": SystemDesign(_uart, dict(divisor=434), "radio UART on the I/O bus (hdl/uart.py)"),
+    "bridge": SystemDesign(_bridge, dict(divisor=434),
+                           "UART register bridge, the CPU's stand-in on boards (hdl/bridge.py)"),
     "soc": SystemDesign(_soc, dict(max_width=1024, max_height=256, lines=240),
                         "the SoC: two BT.656 camera ports, pairing, pipeline, registers and "
                         "result FIFO, IIC master, radio UART on the I/O bus (hdl/soc.py)"),
