@@ -26,7 +26,7 @@ radio UART TX, RX          11+, 11-            F4, E3
 The LLC pins are general-purpose inputs; nextpnr routes them as clocks on the global network.
 """
 from amaranth.build import Attrs, Pins, Resource, Subsignal
-from amaranth.hdl import ClockDomain, ClockSignal, Instance, Signal
+from amaranth.hdl import ClockDomain, Instance, Signal
 from amaranth_boards.ulx3s import ULX3S_25F_Platform
 
 from .platform import BoardTop, camera_resource
@@ -81,11 +81,15 @@ def add_core_pll(m, platform, *, freq=CORE_HZ):
         i_CLKI=buf.i, i_CLKFB=clk50, i_RST=0, i_STDBY=0, i_PHASESEL0=0, i_PHASESEL1=0,
         i_PHASEDIR=1, i_PHASESTEP=1, i_PHASELOADREG=1, i_PLLWAKESYNC=0, i_ENCLKOP=0,
         o_CLKOP=clk50, o_LOCK=locked)
-    m.domains.sync = ClockDomain("sync")
-    m.d.comb += ClockSignal("sync").eq(clk50)
+    cd = ClockDomain("sync")
+    m.domains += cd
+    m.d.comb += cd.clk.eq(clk50)
     from amaranth.lib.cdc import ResetSynchronizer
     m.submodules.core_reset = ResetSynchronizer(~locked, domain="sync")
+    # the PLL output and the domain clock are one net after synthesis, named after either:
+    # constrain both names (nextpnr ignores, with a warning, the one that is gone)
     platform.add_clock_constraint(clk50, freq)
+    platform.add_clock_constraint(cd.clk, freq)
 
 
 def ulx3s_top(**soc):
