@@ -38,7 +38,9 @@ Faults (applied to the byte streams; ``reset-mid-frame`` through the bus):
 ``noise-left``
     600 random bytes (0x00 and 0xFF included) in place of the middle of the left field 1;
 ``reset-mid-frame``
-    the firmware restarts the video path (CTRL.restart_video) in the middle of field 1.
+    the firmware restarts the video path (CTRL.restart_video) in the middle of field 1; the
+    check is stricter: no record of the cut frame, and every other frame exact, the first after
+    the restart against golden started afresh (the restart resets the learned ground band).
 """
 from __future__ import annotations
 
@@ -337,9 +339,14 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                  and out_frames[len(out_frames) - tail:] == want[FAULT_FIELD + 2:])
         if fault == "reset-mid-frame":
             # the cut frame never completes and none of its records shows up (no phantom
-            # records): every other frame is exact, the first after the restart included
+            # records): every other frame is exact, the first after the restart included,
+            # against golden started afresh there (the restart resets the per-frame state,
+            # e.g. the learned ground band)
             counted = health["frames"] == len(out_frames) == frames - 1
-            exact = exact and out_frames == want[:FAULT_FIELD] + want[FAULT_FIELD + 1:]
+            n = frames - FAULT_FIELD - 1
+            fresh = pipeline_frames([lrgb] * n, [rrgb] * n, params)
+            fresh = [[(int(r["x"]), int(r["y"]), int(r["d"])) for r in g.records] for g in fresh]
+            exact = exact and out_frames == want[:FAULT_FIELD] + fresh
         else:
             counted = health["mispaired"] + health["drops"] + sum(health["cam_errors"]) > 0
     return {
