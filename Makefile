@@ -9,7 +9,7 @@ SYSTEM_STAMP := build/.system-packages
 # command is missing; needs root or sudo, as on the project's machines).
 DEBIAN_PACKAGES := iverilog ghdl g++ make
 
-.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo install-check clean
+.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo install-check bitstream clean
 
 setup: $(STAMP) $(SYSTEM_STAMP)
 
@@ -65,6 +65,10 @@ install-check: setup
 	build/install-venv/bin/pip install -q build/dist/*.whl
 	mkdir -p build/install-run
 	cd build/install-run && ../install-venv/bin/python -m sim run --scene mixed --out out
+
+# ECP5 bitstream of the SoC on the ULX3S 25F (YoWASP tools; not part of make test)
+bitstream: setup
+	$(PY) -m sim.bitstream --out build/bitstream
 
 clean:
 	rm -rf build

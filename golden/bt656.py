@@ -9,7 +9,9 @@ and the next EAV are ``Cb0 Y0 Cr0 Y1 Cb2 Y2 Cr2 Y3 ...`` (0x00 and 0xFF never oc
 Decoding rules (the RTL's, exactly):
 
 - each field is a frame: the first active line after a line with V = 1 (or after a change of
-  F) starts a new frame (``sof`` on its first pixel);
+  F) starts a new frame (``sof`` on its first pixel); after reset nothing is decoded until the
+  first such field edge (the decoder is *locked* from then on), so a reset in the middle of a
+  field gives no partial frame;
 - an active line ends at the first 0xFF byte (the start of its EAV); a line holds ``n``
   complete ``Cb Y Cr Y`` groups, 2n pixels, and its last pixel carries ``eol`` (the second
   pixel of a group is emitted one byte late, once the next byte tells whether it is the last);
@@ -18,8 +20,13 @@ Decoding rules (the RTL's, exactly):
   carries ``eof`` on its last pixel, and further active lines of that field are dropped
   (counted in ``errors``); a field with fewer lines ends without ``eof`` (the next ``sof``
   restarts every unit downstream);
-- chroma is shared by the two pixels of a group (sample repetition, no interpolation);
-- colour conversion, BT.601 studio range, integer (coefficients x 256, rounded)::
+- chroma: the two pixels of a group ``Cb Y0 Cr Y1`` both use that group's Cb and Cr (sample
+  replication, no interpolation: BT.601's co-sited chroma belongs to Y0, and repeating it for
+  Y1 needs no line memory and no look-ahead);
+- colour conversion, BT.601 studio range (Y 16..235, Cb/Cr 16..240 nominal; every code
+  0..255 accepted), integer: coefficients x 256 rounded to the nearest integer
+  (:data:`COEFFICIENTS`: 1.164 -> 298, 1.596 -> 409, 0.392 -> 100, 0.813 -> 208, 2.017 -> 516),
+  a rounding constant of 128 (half of 256), an arithmetic shift (floor) and a clamp::
 
       c = Y - 16, d = Cb - 128, e = Cr - 128
       R = clamp((298 c + 409 e + 128) >> 8)
@@ -31,7 +38,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ycbcr_to_rgb", "rgb_to_ycbcr", "encode_bt656", "decode_bt656", "Bt656Result"]
+__all__ = ["COEFFICIENTS", "ycbcr_to_rgb", "rgb_to_ycbcr", "encode_bt656", "ntsc_stream",
+           "NTSC_LINE_BYTES", "timing_code", "NTSC_FIELD_LINES", "decode_bt656", "Bt656Result"]
+
+#: BT.601 YCbCr -> RGB coefficients x 256 (the RTL elaborates from this table).
+COEFFICIENTS = {"y": 298, "r_cr": 409, "g_cb": 100, "g_cr": 208, "b_cb": 516}
 
 
 def ycbcr_to_rgb(y, cb, cr):
@@ -39,9 +50,10 @@ def ycbcr_to_rgb(y, cb, cr):
     c = np.asarray(y, dtype=np.int64) - 16
     d = np.asarray(cb, dtype=np.int64) - 128
     e = np.asarray(cr, dtype=np.int64) - 128
-    r = (298 * c + 409 * e + 128) >> 8
-    g = (298 * c - 100 * d - 208 * e + 128) >> 8
-    b = (298 * c + 516 * d + 128) >> 8
+    k = COEFFICIENTS
+    r = (k["y"] * c + k["r_cr"] * e + 128) >> 8
+    g = (k["y"] * c - k["g_cb"] * d - k["g_cr"] * e + 128) >> 8
+    b = (k["y"] * c + k["b_cb"] * d + 128) >> 8
     return np.clip(np.stack([r, g, b], axis=-1), 0, 255).astype(np.uint8)
 
 
@@ -58,7 +70,8 @@ def rgb_to_ycbcr(rgb):
     return tuple(np.clip(v, 1, 254).astype(np.uint8) for v in (y, cb, cr))
 
 
-def _xy(f, v, h):
+def timing_code(f, v, h):
+    """The XY byte of a timing reference code (protection bits per BT.656 table 4)."""
     p3 = v ^ h
     p2 = f ^ h
     p1 = f ^ v
@@ -66,28 +79,51 @@ def _xy(f, v, h):
     return 0x80 | f << 6 | v << 5 | h << 4 | p3 << 3 | p2 << 2 | p1 << 1 | p0
 
 
-def encode_bt656(fields, *, blank_lines=2, hblank=8):
+def encode_bt656(fields, *, blank_lines=2, hblank=8, first_field=0):
     """BT.656 byte stream of a list of fields, each (y, cb, cr) as from :func:`rgb_to_ycbcr`.
-    Every field is preceded by ``blank_lines`` vertical-blanking lines; ``hblank`` filler
-    pairs (0x80 0x10) sit between EAV and SAV."""
+    Every field is preceded by ``blank_lines`` vertical-blanking lines (an int, or one int per
+    field); ``hblank`` filler pairs (0x80 0x10) sit between EAV and SAV. Field n has
+    F = (first_field + n) & 1."""
     out = bytearray()
     filler = bytes([0x80, 0x10] * hblank)
     for n, (y, cb, cr) in enumerate(fields):
-        f = n & 1
+        f = (first_field + n) & 1
         h, w = y.shape
-        for _ in range(blank_lines):
-            out += bytes([0xFF, 0, 0, _xy(f, 1, 1)]) + filler
-            out += bytes([0xFF, 0, 0, _xy(f, 1, 0)]) + bytes([0x80, 0x10] * w)
+        blanks = blank_lines if isinstance(blank_lines, int) else blank_lines[n]
+        for _ in range(blanks):
+            out += bytes([0xFF, 0, 0, timing_code(f, 1, 1)]) + filler
+            out += bytes([0xFF, 0, 0, timing_code(f, 1, 0)]) + bytes([0x80, 0x10] * w)
         for row in range(h):
-            out += bytes([0xFF, 0, 0, _xy(f, 0, 1)]) + filler
-            out += bytes([0xFF, 0, 0, _xy(f, 0, 0)])
+            out += bytes([0xFF, 0, 0, timing_code(f, 0, 1)]) + filler
+            out += bytes([0xFF, 0, 0, timing_code(f, 0, 0)])
             line = np.empty(2 * w, dtype=np.uint8)
             line[0::4] = cb[row]
             line[1::2] = y[row]
             line[2::4] = cr[row]
             out += line.tobytes()
-    out += bytes([0xFF, 0, 0, _xy(len(fields) & 1, 1, 1)]) + filler
+    out += bytes([0xFF, 0, 0, timing_code((first_field + len(fields)) & 1, 1, 1)]) + filler
     return bytes(out)
+
+
+#: NTSC (525/60) BT.656: 1716 bytes per line (858 samples of 27 MHz x 2), 1440 active.
+NTSC_LINE_BYTES = 1716
+#: Lines per NTSC field: 262 and 263 alternately (525 per frame), 240 of them active here.
+NTSC_FIELD_LINES = (262, 263)
+
+
+def ntsc_stream(fields):
+    """BT.656 stream of ``fields`` with NTSC 525/60 timing: every line is EAV, horizontal
+    blanking, SAV and the active samples, padded to 1716 bytes for a 720-pixel line (shorter
+    test lines keep the same 276 bytes of blanking); fields alternate 262 and 263 lines, the
+    active lines at the end of each (their number is the field's height)."""
+    out = []
+    for n, fld in enumerate(fields):
+        h, w = fld[0].shape
+        hblank = (NTSC_LINE_BYTES - 8 - 2 * 720) // 2
+        text = encode_bt656([fld], blank_lines=NTSC_FIELD_LINES[n & 1] - h, hblank=hblank,
+                            first_field=n & 1)
+        out.append(text if n == len(fields) - 1 else text[:-(4 + 2 * hblank)])
+    return b"".join(out)
 
 
 class Bt656Result:
@@ -96,6 +132,7 @@ class Bt656Result:
     def __init__(self):
         self.beats: list[tuple] = []
         self.errors = 0
+        self.locked = False
 
     def frames(self):
         """Split into frames (lists of rows of (r, g, b)) at sof."""
@@ -117,6 +154,7 @@ def decode_bt656(data: bytes, *, lines: int = 240) -> Bt656Result:
     res = Bt656Result()
     hist = [0x01, 0x01, 0x01]      # the three previous bytes
     active = False
+    locked = False                 # a field edge seen since reset
     field = None
     count = 0                      # active lines started in this frame
     new_frame = True
@@ -135,9 +173,9 @@ def decode_bt656(data: bytes, *, lines: int = 240) -> Bt656Result:
         elif is_code:
             f, v, h = byte >> 6 & 1, byte >> 5 & 1, byte >> 4 & 1
             if v or (field is not None and f != field):
-                new_frame = True
+                new_frame = locked = True
             field = f
-            if not h and not v:                          # SAV of an active line
+            if not h and not v and locked:               # SAV of an active line
                 if new_frame:
                     count = 0
                 if count >= lines:
@@ -162,4 +200,5 @@ def decode_bt656(data: bytes, *, lines: int = 240) -> Bt656Result:
                 pending = tuple(int(x) for x in ycbcr_to_rgb(byte, cb, cr))
             phase = (phase + 1) & 3
         hist = [hist[1], hist[2], byte]
+    res.locked = locked
     return res

@@ -2,17 +2,86 @@
 
 The ADV7180 decoders output BT.656; the pipeline's front end takes :data:`hdl.types.RGBPixel`.
 The bit-exact specification (decoding rules, colour conversion, error counting) is
-``golden/bt656.py``; this unit matches it beat for beat.
+``golden/bt656.py``; this unit produces the same beats in the same order.
+
+Structure: a byte-serial decoder picks (Y, Cb, Cr) and the framing flags of each pixel (at most
+one pixel per two input bytes), then a fixed 5-stage conversion pipeline
+(:class:`YCbCrToRGB`: operands, products, sums, clamp) computes RGB888, then a 4-entry buffer
+absorbs short output stalls. The conversion pipeline never stalls.
 """
 
-from amaranth.hdl import Module, Mux, Signal, signed
+from amaranth.hdl import Cat, Module, Mux, Signal, signed
 from amaranth.lib import stream, wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
-from .types import RGBPixel
+from golden.bt656 import COEFFICIENTS
+from .types import RGBPixel, frame_layout
 
-__all__ = ["Bt656ToRGB"]
+__all__ = ["Bt656ToRGB", "YCbCrToRGB", "YCbCrPixel", "CONVERT_LATENCY"]
+
+#: One pixel of the decoder: its own Y and the Cb, Cr of its 4:2:2 group.
+YCbCrPixel = frame_layout(y=8, cb=8, cr=8)
+#: Cycles from a pixel into :class:`YCbCrToRGB` to its RGB value out.
+CONVERT_LATENCY = 5
+
+
+class YCbCrToRGB(wiring.Component):
+    """BT.601 studio-range YCbCr to RGB888 (``golden.bt656.ycbcr_to_rgb``), 5 pipeline stages.
+
+    Ports
+    -----
+    i_valid, i : In
+        A pixel (:data:`YCbCrPixel`) is taken whenever ``i_valid`` is high; no backpressure
+        (the pipeline advances every cycle).
+    o_valid, o : Out
+        The RGB888 pixel (:data:`RGBPixel`, framing flags passed through), exactly
+        :data:`CONVERT_LATENCY` cycles later.
+
+    Stages: (1) ``c = Y - 16``, ``d = Cb - 128``, ``e = Cr - 128``; (2) the five constant
+    products, the rounding constant 128 added to ``298 c``; (3) the R and B sums and G's chroma
+    sum; (4) G's subtraction; (5) ``>> 8`` (floor: the sum's bits from 8 up) and the clamp to
+    0..255. Each stage is at most one multiplier or one carry chain between registers.
+    """
+
+    i_valid: In(1)
+    i: In(YCbCrPixel)
+    o_valid: Out(1)
+    o: Out(RGBPixel)
+
+    def elaborate(self, platform):
+        m = Module()
+        k = COEFFICIENTS
+        flags = [Signal(3, name=f"flags{s}") for s in range(CONVERT_LATENCY)]
+        valid = [Signal(name=f"valid{s}") for s in range(CONVERT_LATENCY)]
+        m.d.sync += [valid[0].eq(self.i_valid),
+                     flags[0].eq(Cat(self.i.sof, self.i.eol, self.i.eof))]
+        for s in range(1, CONVERT_LATENCY):
+            m.d.sync += [valid[s].eq(valid[s - 1]), flags[s].eq(flags[s - 1])]
+
+        # stage 1: centred operands
+        c, d, e = Signal(signed(10)), Signal(signed(10)), Signal(signed(10))
+        m.d.sync += [c.eq(self.i.y - 16), d.eq(self.i.cb - 128), e.eq(self.i.cr - 128)]
+        # stage 2: products (the rounding constant rides on the luma product)
+        py = Signal(signed(20))
+        pre, pgd, pge, pbd = (Signal(signed(20), name=n) for n in ("p_re", "p_gd", "p_ge", "p_bd"))
+        m.d.sync += [py.eq(k["y"] * c + 128), pre.eq(k["r_cr"] * e), pgd.eq(k["g_cb"] * d),
+                     pge.eq(k["g_cr"] * e), pbd.eq(k["b_cb"] * d)]
+        # stage 3: R and B sums; G's two chroma products summed, its luma term kept
+        sr3, sb3, gc3, py3 = (Signal(signed(21), name=n) for n in ("sum_r", "sum_b", "sum_gc",
+                                                                    "py3"))
+        m.d.sync += [sr3.eq(py + pre), sb3.eq(py + pbd), gc3.eq(pgd + pge), py3.eq(py)]
+        # stage 4: G's subtraction; R and B wait
+        sr, sg, sb = (Signal(signed(21), name=f"sum{n}") for n in "rgb")
+        m.d.sync += [sr.eq(sr3), sg.eq(py3 - gc3), sb.eq(sb3)]
+        # stage 5: >> 8 and clamp to 0..255
+        out = self.o
+        for name, v in (("r", sr), ("g", sg), ("b", sb)):
+            q = v[8:]
+            m.d.sync += getattr(out, name).eq(Mux(q[-1], 0, Mux(q[8:-1].any(), 255, q[:8])))
+        m.d.comb += [self.o_valid.eq(valid[-1]), out.sof.eq(flags[-1][0]),
+                     out.eol.eq(flags[-1][1]), out.eof.eq(flags[-1][2])]
+        return m
 
 
 class Bt656ToRGB(wiring.Component):
@@ -29,19 +98,24 @@ class Bt656ToRGB(wiring.Component):
         Bytes from the decoder, one per LLC cycle at most. Always ready (a video decoder cannot
         stall); a byte is taken whenever ``valid`` is high.
     o : Out(stream.Signature(RGBPixel))
-        Pixels, at most one per two input bytes, through a 4-entry buffer: latency 1 cycle
-        for the first pixel of a group, 2 for the second. Backpressure is absorbed by the
-        buffer; a pixel that finds it full is dropped and counted.
+        Pixels, at most one per two input bytes, in the order of ``golden.bt656.decode_bt656``.
+        Latency from the byte that completes a pixel: 1 (decoder) + :data:`CONVERT_LATENCY`
+        cycles for the first pixel of a group, one byte more for the second. A 4-entry buffer
+        absorbs output stalls; a pixel that finds it full is dropped and counted.
     errors : Out(16)
         Saturating count of malformed lines (ending inside a group, or beyond ``lines``).
     dropped : Out(16)
         Saturating count of pixels dropped for lack of output space.
+    locked : Out(1)
+        A field edge has been seen since reset (pixels flow only after one, so a reset in the
+        middle of a field yields no partial frame).
     """
 
     i: In(stream.Signature(8))
     o: Out(stream.Signature(RGBPixel))
     errors: Out(16)
     dropped: Out(16)
+    locked: Out(1)
 
     def __init__(self, *, lines=240):
         if not isinstance(lines, int) or not 1 <= lines <= 2047:
@@ -52,13 +126,18 @@ class Bt656ToRGB(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        m.submodules.convert = conv = YCbCrToRGB()
         fifo = m.submodules.fifo = SyncFIFOBuffered(width=RGBPixel.size, depth=4)
         m.d.comb += [
             self.i.ready.eq(1),
             self.o.valid.eq(fifo.r_rdy),
             self.o.payload.eq(fifo.r_data),
             fifo.r_en.eq(self.o.ready),
+            fifo.w_en.eq(conv.o_valid & fifo.w_rdy),
+            fifo.w_data.eq(conv.o.as_value()),
         ]
+        with m.If(conv.o_valid & ~fifo.w_rdy & (self.dropped != 0xFFFF)):
+            m.d.sync += self.dropped.eq(self.dropped + 1)
 
         byte = self.i.payload
         take = self.i.valid
@@ -68,49 +147,28 @@ class Bt656ToRGB(wiring.Component):
         active = Signal()
         field = Signal()
         field_known = Signal()
+        synced = self.locked            # a field edge seen: lines count from here on
         count = Signal(range(self._lines + 1))
         new_frame = Signal(init=1)
         phase = Signal(2)
         cb = Signal(8)
         y0 = Signal(8)
         cr = Signal(8)
-        pend = Signal(24)
+        pend_y = Signal(8)              # Y of a group's second pixel, waiting for the next byte
         pend_valid = Signal()
 
-        # colour conversion of (Y, Cb, Cr) chosen by the phase (golden.bt656.ycbcr_to_rgb)
-        cy = Signal(8)
-        ccb = Signal(8)
-        ccr = Signal(8)
-        m.d.comb += [
-            cy.eq(Mux(phase == 2, y0, byte)),
-            ccb.eq(cb),
-            ccr.eq(Mux(phase == 2, byte, cr)),
-        ]
-        c = Signal(signed(10))
-        d = Signal(signed(10))
-        e = Signal(signed(10))
-        m.d.comb += [c.eq(cy - 16), d.eq(ccb - 128), e.eq(ccr - 128)]
-        rgb = Signal(24)
-        for k, expr in enumerate((298 * c + 409 * e + 128,
-                                  298 * c - 100 * d - 208 * e + 128,
-                                  298 * c + 516 * d + 128)):
-            v = Signal(signed(20), name="conv_" + "rgb"[k])
-            m.d.comb += v.eq(expr >> 8)
-            m.d.comb += rgb[8 * k:8 * k + 8].eq(Mux(v < 0, 0, Mux(v > 255, 255, v[:8])))
-
-        push = Signal()
-        push_data = Signal(RGBPixel)
-        m.d.comb += [fifo.w_en.eq(push & fifo.w_rdy), fifo.w_data.eq(push_data.as_value())]
-        with m.If(push & ~fifo.w_rdy & (self.dropped != 0xFFFF)):
-            m.d.sync += self.dropped.eq(self.dropped + 1)
         error = Signal()
         with m.If(error & (self.errors != 0xFFFF)):
             m.d.sync += self.errors.eq(self.errors + 1)
 
-        def emit(pixel, sof, eol, eof):
-            m.d.comb += [push.eq(1), push_data.r.eq(pixel[0:8]), push_data.g.eq(pixel[8:16]),
-                         push_data.b.eq(pixel[16:24]), push_data.sof.eq(sof),
-                         push_data.eol.eq(eol), push_data.eof.eq(eof)]
+        # one pixel per cycle at most into the converter, registered
+        emit_valid = Signal()
+        emit = Signal(YCbCrPixel)
+        m.d.sync += [conv.i_valid.eq(emit_valid), conv.i.eq(emit)]
+
+        def push(y, cr_value, sof, eol, eof):
+            m.d.comb += [emit_valid.eq(1), emit.y.eq(y), emit.cb.eq(cb), emit.cr.eq(cr_value),
+                         emit.sof.eq(sof), emit.eol.eq(eol), emit.eof.eq(eof)]
 
         is_code = (h0 == 0xFF) & (h1 == 0x00) & (h2 == 0x00)
         f_bit, v_bit, h_bit = byte[6], byte[5], byte[4]
@@ -118,7 +176,7 @@ class Bt656ToRGB(wiring.Component):
             m.d.sync += [h0.eq(h1), h1.eq(h2), h2.eq(byte)]
             with m.If(active & (byte == 0xFF)):                # start of EAV: line ends
                 with m.If(pend_valid):
-                    emit(pend, 0, 1, count == self._lines)
+                    push(pend_y, cr, 0, 1, count == self._lines)
                     m.d.sync += pend_valid.eq(0)
                 m.d.comb += error.eq(phase != 0)
                 m.d.sync += [active.eq(0), phase.eq(0)]
@@ -126,8 +184,8 @@ class Bt656ToRGB(wiring.Component):
                 frame_edge = v_bit | (field_known & (f_bit != field))
                 m.d.sync += [field.eq(f_bit), field_known.eq(1)]
                 with m.If(frame_edge):
-                    m.d.sync += new_frame.eq(1)
-                with m.If(~h_bit & ~v_bit):                    # SAV of an active line
+                    m.d.sync += [new_frame.eq(1), synced.eq(1)]
+                with m.If(~h_bit & ~v_bit & synced):           # SAV of an active line
                     lines_so_far = Mux(frame_edge | new_frame, 0, count)
                     with m.If(lines_so_far >= self._lines):
                         m.d.comb += error.eq(1)
@@ -135,7 +193,7 @@ class Bt656ToRGB(wiring.Component):
                         m.d.sync += [active.eq(1), phase.eq(0), count.eq(lines_so_far + 1)]
             with m.Elif(active):
                 with m.If(pend_valid):
-                    emit(pend, 0, 0, 0)
+                    push(pend_y, cr, 0, 0, 0)
                     m.d.sync += pend_valid.eq(0)
                 m.d.sync += phase.eq(phase + 1)
                 with m.Switch(phase):
@@ -145,7 +203,7 @@ class Bt656ToRGB(wiring.Component):
                         m.d.sync += y0.eq(byte)
                     with m.Case(2):
                         m.d.sync += [cr.eq(byte), new_frame.eq(0)]
-                        emit(rgb, new_frame, 0, 0)
+                        push(y0, byte, new_frame, 0, 0)
                     with m.Case(3):
-                        m.d.sync += [pend.eq(rgb), pend_valid.eq(1)]
+                        m.d.sync += [pend_y.eq(byte), pend_valid.eq(1)]
         return m

@@ -43,12 +43,13 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 2
+MAP_VERSION = 3
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
-#: a frame of the reference resolution (shared/DESIGN.md: 752 x 480).
-REF_WIDTH, REF_HEIGHT = 752, 480
+#: the frame the cameras deliver: one NTSC field of the ADV7180 decoders, 720 x 240
+#: (shared/DESIGN.md section 6; firmware/include/app.h APP_FIELD_WIDTH / APP_FIELD_HEIGHT).
+REF_WIDTH, REF_HEIGHT = 720, 240
 _P = default_params(REF_WIDTH, REF_HEIGHT)      # reset values: the default pipeline
 _G = _P.frontend.ground
 _S = _P.frontend.sobel
@@ -92,6 +93,8 @@ REGISTERS: tuple[Register, ...] = (
     Register("CTRL", 0x04, "pulse", "Control pulses (write 1 to act; reads 0).", (
         F("clear_errors", 0, 1, 0, "clear every sticky error counter"),
         F("flush_results", 1, 1, 0, "empty the result FIFO and clear its overflow count"),
+        F("restart_video", 2, 1, 0, "reset the video path (camera ports, pairing, pipeline): "
+                                    "it resumes at the next field start of both cameras"),
     )),
     Register("GROUND", 0x08, "rw", "Ground classifier (golden/ground.py): mode and band width.", (
         F("mode", 0, 2, int(_G.mode), "0 off (every pixel is an obstacle), 1 luminance, 2 hue"),
@@ -121,6 +124,10 @@ REGISTERS: tuple[Register, ...] = (
     Register("SOBEL_RIGHT", 0x20, "rw", "Right camera's edge threshold: its edges only select "
              "the candidates of the matcher, so it is lower than the left's (golden/pipeline.py).", (
         F("right_threshold", 0, 11, _P.right_threshold, "minimum |Gx| of a right-image edge pixel"),
+    )),
+    Register("VIDEO", 0x24, "rw", "Video path (hdl/soc.py): cameras, pairing, pipeline.", (
+        F("video_enable", 0, 1, 0, "1: the video path runs; 0: it is held in reset (set it once "
+                                   "both decoders report lock)"),
     )),
     Register("MATCH", 0x1C, "rw", "Stereo matcher (golden/matcher.py, hdl/matcher.py).", (
         F("d_min", 0, 6, _M.d_min, "smallest disparity tried"),
@@ -163,10 +170,40 @@ REGISTERS: tuple[Register, ...] = (
     Register("STAT_DROPS", 0x60, "ro", "Last frame: edge pixels not matched for lack of time.", (
         F("count", 0, 32, 0, "drops"),
     )),
+    # Health block (hdl/soc.py, hdl/camera_port.py, hdl/pairing.py): what the firmware reports.
+    Register("HEALTH_CAMERA", 0x64, "ro", "BT.656 decoders: malformed lines (saturating; "
+             "cleared by CTRL.restart_video).", (
+        F("left_errors", 0, 16, 0, "left camera"),
+        F("right_errors", 16, 16, 0, "right camera"),
+    )),
+    Register("HEALTH_OVERFLOW", 0x68, "ro", "Camera FIFOs: pixels dropped because the core did "
+             "not keep up (a frame's whole tail from the first; saturating).", (
+        F("left", 0, 16, 0, "left camera"),
+        F("right", 16, 16, 0, "right camera"),
+    )),
+    Register("HEALTH_PAIRS", 0x6C, "ro", "Frame pairing (golden/pairing.py); 16-bit counts "
+             "that wrap: take differences.", (
+        F("pairs_ok", 0, 16, 0, "pairs of two well-formed frames forwarded"),
+        F("mispaired", 16, 16, 0, "pairs abandoned because a frame was malformed"),
+    )),
+    Register("HEALTH_DROPS", 0x70, "ro", "Frames lost before the pipeline, and matcher errors.", (
+        F("frames", 0, 16, 0, "frames without partner discarded by the pairing (wraps)"),
+        F("match_errors", 16, 16, 0, "matcher malformed-stream errors (saturating)"),
+    )),
+    Register("HEALTH_STATUS", 0x74, "ro", "Video path state.", (
+        F("left_locked", 0, 1, 0, "left decoder stream: a field edge seen"),
+        F("right_locked", 1, 1, 0, "right decoder stream: a field edge seen"),
+        F("enabled", 2, 1, 0, "VIDEO.video_enable as applied"),
+        F("pairing", 3, 1, 0, "a pair is being forwarded"),
+    )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one record.", (
         F("x", 0, 10, 0, "column of the left edge pixel"),
         F("y", 10, 10, 0, "row"),
         F("d", 20, 7, 0, "disparity"),
+        F("eof", 27, 1, 0, "1: an end-of-frame marker, no match (x, y, d = 0): the records "
+                           "since the previous marker are one frame's (SystemSoC)"),
+        F("abort", 28, 1, 0, "with eof: that frame was cut by CTRL.restart_video or "
+                             "VIDEO.video_enable = 0: discard its records"),
         F("valid", 31, 1, 0, "1: a record; 0: the FIFO was empty"),
     )),
     Register("RESULT_LEVEL", 0x84, "ro", "Result FIFO state.", (
@@ -230,7 +267,8 @@ def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None
         right_threshold = sobel.threshold
     right = None if right_threshold is None else SimpleNamespace(right_threshold=right_threshold)
     src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
-           "GROUND_INIT": ground, "SOBEL": sobel, "SOBEL_RIGHT": right, "MATCH": matcher}
+           "GROUND_INIT": ground, "SOBEL": sobel, "SOBEL_RIGHT": right, "MATCH": matcher,
+           "VIDEO": None}
     rename = {"edge_threshold": "threshold"}
     for reg in REGISTERS:
         if reg.kind != "rw":

@@ -84,8 +84,9 @@ class BusWindow:
                            bus.read_data.eq(Mux(self.read, value, 0))]
 
 
-#: One result record: the (x, y, d) of a matched obstacle-edge pixel.
-ResultLayout = data.StructLayout({"x": 10, "y": 10, "d": 7})
+#: One result record: the (x, y, d) of a matched obstacle-edge pixel, or an end-of-frame
+#: marker (``eof``; ``abort`` when the frame was cut by a restart of the video path).
+ResultLayout = data.StructLayout({"x": 10, "y": 10, "d": 7, "eof": 1, "abort": 1})
 
 
 def status_port_name(reg: regmap.Register, field: regmap.Field) -> str:
@@ -110,8 +111,9 @@ class RegisterBlock(wiring.Component):
     <parameter field> : Out(width)
         One output per ``rw`` field of the map, named after the field (``mode``, ``d_max``...),
         reset to the field's reset value.
-    clear_errors : Out(1)
-        One-cycle pulse on a write of 1 to CTRL.clear_errors.
+    clear_errors, restart_video : Out(1)
+        One-cycle pulse on a write of 1 to that CTRL field (every CTRL field but
+        flush_results, which the block handles itself).
     <register>_<field> : In(width)
         One input per status field (``frame_count_frames``, ``err_left_errors``...).
     results : In(stream.Signature(ResultLayout))
@@ -127,8 +129,11 @@ class RegisterBlock(wiring.Component):
         check_window_base(self, base, regmap.REGS_WINDOW)
         self._fifo_depth = fifo_depth
         self._base = base
-        members = {"bus": In(IOBusSignature()), "clear_errors": Out(1),
+        members = {"bus": In(IOBusSignature()),
                    "results": In(stream.Signature(ResultLayout))}
+        for f in regmap.register("CTRL").fields:
+            if f.name != "flush_results":           # the block's own
+                members[f.name] = Out(1)
         for _reg, f in regmap.parameter_fields():
             members[f.name] = Out(f.width, init=f.reset)
         for reg, f in regmap.status_fields():
@@ -183,7 +188,10 @@ class RegisterBlock(wiring.Component):
             pulses[f.name] = p
             m.d.sync += p.eq(do_write & (offset == ctrl.offset)
                              & bus.byte_enable[f.lsb // 8] & bus.write_data[f.lsb])
-        m.d.comb += [self.clear_errors.eq(pulses["clear_errors"]), flush.eq(pulses["flush_results"])]
+        m.d.comb += flush.eq(pulses["flush_results"])
+        for name, p in pulses.items():
+            if name != "flush_results":
+                m.d.comb += getattr(self, name).eq(p)
 
         # read multiplexer
         with m.Switch(offset):
@@ -198,7 +206,8 @@ class RegisterBlock(wiring.Component):
                                      read_value[16:32].eq(overflow)]
                     elif reg.kind == "fifo":
                         m.d.comb += [
-                            read_value.eq(Mux(fifo.r_rdy, Cat(fifo.r_data, Const(0, 4), fifo.r_rdy),
+                            read_value.eq(Mux(fifo.r_rdy, Cat(fifo.r_data, Const(0, 31 - ResultLayout.size),
+                                                                  fifo.r_rdy),
                                               0)),
                             fifo.r_en.eq(do_read),
                         ]

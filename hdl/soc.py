@@ -1,21 +1,36 @@
-"""The vision core as the soft CPU sees it: the stereo pipeline, its register block and the IIC
-master on one MicroBlaze MCS I/O bus (``docs/registers.md``).
+"""The vision core as the soft CPU sees it: two BT.656 camera ports, frame pairing, the stereo
+pipeline, its register block and result FIFO, the IIC master and the radio UART on one
+MicroBlaze I/O bus (``docs/registers.md``).
+
+Clock domains: ``sync`` (the core, 50 MHz; the bus, the registers, pairing and pipeline) and
+one per camera, ``cam0`` (left) and ``cam1`` (right), clocked by the decoders' 27 MHz line-locked
+clocks (ports ``cam0_clk``, ``cam1_clk``). The camera domains are reset from the core: by the
+core reset, by CTRL.restart_video and while VIDEO.video_enable is 0 (through a reset
+synchroniser each); the pairing and the pipeline take the same video reset in the core domain.
 
 The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor flow; this
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/cosim``).
 """
-from amaranth.hdl import Module, Signal, Mux
+from amaranth.hdl import ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
+from amaranth.lib.cdc import ResetSynchronizer
+from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
 from . import regmap
+from .camera_port import CameraPort
 from .iic import IICMaster
+from .pairing import FramePairing
 from .pipeline import StereoPipeline
 from .regs import IOBusSignature, RegisterBlock, status_port_name
 from .types import RGBPixel
+from .uart import UART
 
-__all__ = ["StereoSoC"]
+__all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR"]
+
+#: Bus address of the radio UART (hdl/uart.py).
+UART_BASEADDR = 0xC002_0000
 
 #: Register field -> pipeline port, where the names differ.
 _PARAM_PORTS = {"edge_threshold": "threshold", "candidate_mode": "mode_full",
@@ -78,11 +93,7 @@ class StereoSoC(wiring.Component):
         # Cameras in, parameters from the registers.
         wiring.connect(m, wiring.flipped(self.left), pipe.left)
         wiring.connect(m, wiring.flipped(self.right), pipe.right)
-        for _reg, f in regmap.parameter_fields():
-            if f.name in _GROUND_FIELDS:
-                m.d.comb += getattr(pipe.ground, f.name).eq(getattr(regs, f.name))
-            else:
-                m.d.comb += getattr(pipe, _PARAM_PORTS.get(f.name, f.name)).eq(getattr(regs, f.name))
+        _connect_parameters(m, regs, pipe)
 
         # Records into the result FIFO (the end-of-frame markers carry no match).
         rec = pipe.o.payload
@@ -95,26 +106,180 @@ class StereoSoC(wiring.Component):
         ]
 
         # Status: statistics as they are, sticky counters relative to the last clear.
-        status = {
-            "frame_count_frames": pipe.frames,
-            "stat_edges_count": pipe.frame_edge_pixels,
-            "stat_sad_count": pipe.frame_sad_evaluations,
-            "stat_matches_count": pipe.frame_matches,
-            "stat_rejects_count": pipe.frame_rejected,
-            "stat_drops_count": pipe.frame_drops,
-        }
-        for reg_name, prefix in (("err_left", "left"), ("err_right", "right"),
-                                 ("err_match", "match")):
-            for kind in ("errors", "dropped"):
-                count = getattr(pipe, f"{prefix}_{kind}")
-                base = Signal(len(count), name=f"{reg_name}_{kind}_base")
-                with m.If(regs.clear_errors):
-                    m.d.sync += base.eq(count)
-                since = Signal(len(count), name=f"{reg_name}_{kind}_since")
-                m.d.comb += since.eq(count - base)
-                width = 16
-                status[f"{reg_name}_{kind}"] = Mux(since >> width != 0, (1 << width) - 1, since)
+        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors)
         for reg, f in regmap.status_fields():
             name = status_port_name(reg, f)
-            m.d.comb += getattr(regs, name).eq(status[name])
+            m.d.comb += getattr(regs, name).eq(status.get(name, 0))
         return m
+
+
+class SystemSoC(wiring.Component):
+    """The whole vision module: decoder pins to the CPU bus.
+
+    Ports
+    -----
+    bus : In(IOBusSignature)
+        MicroBlaze I/O bus: register block (REGS_BASEADDR), IIC master (IIC_BASEADDR), UART
+        (:data:`UART_BASEADDR`); answers ORed.
+    cam0_clk, cam1_clk : In(1)
+        The decoders' line-locked clocks (27 MHz).
+    cam0, cam1 : In(stream.Signature(8)), camera domains
+        BT.656 bytes of the left and right decoders; always ready (cameras cannot stall).
+    scl_o, scl_oe, scl_i, sda_o, sda_oe, sda_i
+        IIC pins of the decoders.
+    uart_tx, uart_rx
+        The radio UART.
+
+    Elaboration parameters: ``max_width``, ``max_height``, ``engines`` (pipeline), ``lines``
+    (active lines per field), ``camera_fifo_depth``, ``skew`` (pairing), ``fifo_depth``
+    (results), ``clk_div`` (IIC), ``uart_divisor``.
+    """
+
+    def __init__(self, *, max_width=1024, max_height=256, engines=2, lines=240,
+                 camera_fifo_depth=512, skew=1024, fifo_depth=512, clk_div=125,
+                 uart_divisor=434):
+        self._pipeline = dict(max_width=max_width, max_height=max_height, engines=engines)
+        self._lines = lines
+        self._camera_fifo_depth = camera_fifo_depth
+        self._skew = skew
+        self._fifo_depth = fifo_depth
+        self._clk_div = clk_div
+        self._uart_divisor = uart_divisor
+        super().__init__({
+            "bus": In(IOBusSignature()),
+            "cam0_clk": In(1), "cam1_clk": In(1),
+            "cam0": In(stream.Signature(8)), "cam1": In(stream.Signature(8)),
+            "scl_o": Out(1), "scl_oe": Out(1), "scl_i": In(1, init=1),
+            "sda_o": Out(1), "sda_oe": Out(1), "sda_i": In(1, init=1),
+            "uart_tx": Out(1, init=1), "uart_rx": In(1, init=1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.regs = regs = RegisterBlock(fifo_depth=self._fifo_depth)
+        m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
+        m.submodules.uart = uart = UART(divisor=self._uart_divisor, base=UART_BASEADDR)
+        slaves = (regs, iic, uart)
+        for slave in slaves:
+            for name in ("addr_strobe", "address", "read_strobe", "write_strobe", "write_data",
+                         "byte_enable"):
+                m.d.comb += getattr(slave.bus, name).eq(getattr(self.bus, name))
+        m.d.comb += [
+            self.bus.read_data.eq(regs.bus.read_data | iic.bus.read_data | uart.bus.read_data),
+            self.bus.ready.eq(regs.bus.ready | iic.bus.ready | uart.bus.ready),
+        ]
+        for pin in ("scl_o", "scl_oe", "sda_o", "sda_oe"):
+            m.d.comb += getattr(self, pin).eq(getattr(iic, pin))
+        m.d.comb += [iic.scl_i.eq(self.scl_i), iic.sda_i.eq(self.sda_i),
+                     self.uart_tx.eq(uart.tx), uart.rx.eq(self.uart_rx)]
+
+        # video reset: core reset, restart pulse, or disabled
+        video_rst = Signal()
+        m.d.sync += video_rst.eq(regs.restart_video | ~regs.video_enable)
+        ports = []
+        for k in range(2):
+            domain = f"cam{k}"
+            m.domains += ClockDomain(domain, local=True)
+            m.d.comb += ClockSignal(domain).eq(getattr(self, f"{domain}_clk"))
+            m.submodules[f"{domain}_reset"] = ResetSynchronizer(video_rst, domain=domain)
+            port = CameraPort(domain=domain, lines=self._lines,
+                              fifo_depth=self._camera_fifo_depth)
+            # its core-domain side (output buffer, counter synchronisers) restarts with the rest
+            m.submodules[f"{domain}_port"] = ResetInserter({"sync": video_rst})(port)
+            wiring.connect(m, wiring.flipped(getattr(self, domain)), port.i)
+            ports.append(port)
+
+        pairing = FramePairing(skew=self._skew, max_width=self._pipeline["max_width"],
+                               max_height=self._pipeline["max_height"])
+        pipe = StereoPipeline(**self._pipeline)
+        m.submodules.pairing = ResetInserter(video_rst)(pairing)
+        m.submodules.pipeline = ResetInserter(video_rst)(pipe)
+        wiring.connect(m, ports[0].o, pairing.left_i)
+        wiring.connect(m, ports[1].o, pairing.right_i)
+        for side in ("left", "right"):      # registered buffers: pairing and pipeline logic
+            buf = SyncFIFOBuffered(width=RGBPixel.size, depth=2)     # do not chain
+            m.submodules[f"{side}_buffer"] = ResetInserter(video_rst)(buf)
+            src, dst = getattr(pairing, f"{side}_o"), getattr(pipe, side)
+            m.d.comb += [buf.w_en.eq(src.valid), buf.w_data.eq(src.payload), src.ready.eq(buf.w_rdy),
+                         dst.valid.eq(buf.r_rdy), dst.payload.eq(buf.r_data), buf.r_en.eq(dst.ready)]
+        _connect_parameters(m, regs, pipe)
+
+        # Records and end-of-frame markers into the result FIFO. A restart of the video path
+        # in the middle of a frame (records since the last marker) adds an abort marker, so
+        # the CPU never takes the cut frame's records for a frame of their own.
+        rec = pipe.o.payload
+        in_frame = Signal()         # records of a frame went to the FIFO since the last marker
+        abort = Signal()
+        m.d.comb += abort.eq(video_rst & in_frame)
+        with m.If(abort):
+            m.d.sync += in_frame.eq(0)
+        with m.Elif(pipe.o.valid):
+            m.d.sync += in_frame.eq(~rec.eof)
+        m.d.comb += [
+            pipe.o.ready.eq(1),
+            regs.results.valid.eq(abort | pipe.o.valid),
+            regs.results.payload.x.eq(Mux(rec.eof | abort, 0, rec.x)),
+            regs.results.payload.y.eq(Mux(rec.eof | abort, 0, rec.y)),
+            regs.results.payload.d.eq(Mux(rec.eof | abort, 0, rec.d)),
+            regs.results.payload.eof.eq(rec.eof | abort),
+            regs.results.payload.abort.eq(abort),
+        ]
+        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst)
+        status.update({
+            "health_camera_left_errors": ports[0].errors,
+            "health_camera_right_errors": ports[1].errors,
+            "health_overflow_left": ports[0].overflow,
+            "health_overflow_right": ports[1].overflow,
+            "health_pairs_pairs_ok": pairing.pairs_ok,
+            "health_pairs_mispaired": pairing.mispaired,
+            "health_drops_frames": pairing.dropped,
+            "health_drops_match_errors": pipe.match_errors,
+            "health_status_left_locked": ports[0].locked,
+            "health_status_right_locked": ports[1].locked,
+            "health_status_enabled": regs.video_enable,
+            "health_status_pairing": pairing.pairing,
+        })
+        for reg, f in regmap.status_fields():
+            name = status_port_name(reg, f)
+            m.d.comb += getattr(regs, name).eq(status.get(name, 0))
+        return m
+
+
+#: Register field -> pipeline port, where the names differ; fields of no pipeline port (the
+#: video control) are the SoC's own.
+_NOT_PIPELINE = ("video_enable",)
+
+
+def _connect_parameters(m, regs, pipe):
+    for _reg, f in regmap.parameter_fields():
+        if f.name in _NOT_PIPELINE:
+            continue
+        if f.name in _GROUND_FIELDS:
+            m.d.comb += getattr(pipe.ground, f.name).eq(getattr(regs, f.name))
+        else:
+            m.d.comb += getattr(pipe, _PARAM_PORTS.get(f.name, f.name)).eq(getattr(regs, f.name))
+
+
+def _pipeline_status(m, regs, pipe, *, clear):
+    """The pipeline's status inputs of the register block: statistics as they are, sticky
+    counters relative to their value at the last ``clear``."""
+    status = {
+        "frame_count_frames": pipe.frames,
+        "stat_edges_count": pipe.frame_edge_pixels,
+        "stat_sad_count": pipe.frame_sad_evaluations,
+        "stat_matches_count": pipe.frame_matches,
+        "stat_rejects_count": pipe.frame_rejected,
+        "stat_drops_count": pipe.frame_drops,
+    }
+    for reg_name, prefix in (("err_left", "left"), ("err_right", "right"),
+                             ("err_match", "match")):
+        for kind in ("errors", "dropped"):
+            count = getattr(pipe, f"{prefix}_{kind}")
+            base = Signal(len(count), name=f"{reg_name}_{kind}_base")
+            with m.If(clear):
+                m.d.sync += base.eq(count)
+            since = Signal(len(count), name=f"{reg_name}_{kind}_since")
+            m.d.comb += since.eq(count - base)
+            width = 16
+            status[f"{reg_name}_{kind}"] = Mux(since >> width != 0, (1 << width) - 1, since)
+    return status

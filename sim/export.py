@@ -33,9 +33,10 @@ from amaranth.lib import data, stream, wiring
 from sim.streams import Packer
 from sim.units import UNITS
 
-__all__ = ["ROOT", "BUILD", "UnitDesign", "Case", "DESIGNS", "StreamPort", "PlainPort", "Ports",
-           "ports", "design", "elaborate", "verilog_source", "export_verilog", "source_key",
-           "write_if_changed", "design_arguments", "chosen_designs", "tool_versions", "main"]
+__all__ = ["ROOT", "BUILD", "UnitDesign", "SystemDesign", "all_designs", "Case", "DESIGNS",
+           "StreamPort", "PlainPort", "Ports", "ports", "design", "elaborate", "verilog_source",
+           "export_verilog", "source_key", "write_if_changed", "design_arguments",
+           "chosen_designs", "tool_versions", "main"]
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -242,11 +243,34 @@ def random_rgb_frames(rng, width, height, frames):
 DESIGNS = {name: UnitDesign(name) for name in UNITS}
 
 
+@dataclass
+class SystemDesign:
+    """A design that is not a single stream unit (several clock domains, a CPU bus): exported,
+    converted and synthesised like the others, verified by its own tests (``tests/test_soc.py``,
+    ``python -m sim system``) instead of the per-unit backends. ``make(**params)`` builds it."""
+    make: Callable
+    params: dict = field(default_factory=dict)
+    doc: str = ""
+
+    def build(self, **overrides):
+        return self.make(**{**self.params, **overrides})
+
+
+def _system_designs():
+    from sim.system_designs import SYSTEM_DESIGNS
+    return SYSTEM_DESIGNS
+
+
+def all_designs():
+    """Every design to export and synthesise: :data:`DESIGNS` and the system designs."""
+    return {**DESIGNS, **_system_designs()}
+
+
 def design(name):
     try:
-        return DESIGNS[name]
+        return all_designs()[name]
     except KeyError:
-        raise ValueError(f"unknown design {name!r}; known: {', '.join(DESIGNS)}") from None
+        raise ValueError(f"unknown design {name!r}; known: {', '.join(all_designs())}") from None
 
 
 def elaborate(name, **overrides):
@@ -358,16 +382,19 @@ def design_arguments(prog, description, out):
     and a list of design names (default all)."""
     ap = argparse.ArgumentParser(prog=prog, description=description)
     ap.add_argument("--out", default=out, help="output folder (default %(default)s)")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    ap.add_argument("names", nargs="*",
+                    help=f"designs (default: all of {', '.join(all_designs())})")
     return ap
 
 
 def chosen_designs(ap, args):
-    """The designs named on the command line (all when none), or a usage error."""
+    """The designs named on the command line (all when none, see :func:`all_designs`), or a
+    usage error."""
+    known = all_designs()
     for name in args.names:
-        if name not in DESIGNS:
-            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
-    return args.names or list(DESIGNS)
+        if name not in known:
+            ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
+    return args.names or list(known)
 
 
 _registered = {}    # (name, params) -> component of a registered design

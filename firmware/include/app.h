@@ -8,11 +8,17 @@
 
 #include <stdint.h>
 #include "adv7180.h"
+#include "health.h"
 #include "iic.h"
 #include "pipeline.h"
 #include "radio.h"
 
 #define APP_N_DECODERS 2u
+/** Frame geometry: one NTSC field of the ADV7180 (BT.656, 720 x 240); the register reset
+ *  values place the ground reference region for it (hdl/regmap.py REF_WIDTH, REF_HEIGHT;
+ *  tests/test_regs.py checks they agree). */
+#define APP_FIELD_WIDTH  720u
+#define APP_FIELD_HEIGHT 240u
 #define APP_RADIO_DEST 0x0001u /**< base station's 16-bit XBee address */
 
 typedef struct {
@@ -28,6 +34,7 @@ typedef struct {
     uint32_t results_read;  /**< results summarised into the last report */
     uint8_t summary_open;   /**< summary holds results collected since the last report */
     radio_summary_t summary;
+    health_snapshot_t health_last; /**< counters at the last app_read_health */
 } app_t;
 
 /** Reset the IIC controller and start both decoders (0x20 then 0x21; the second is set up
@@ -45,7 +52,27 @@ uint32_t app_collect(app_t *app);
 /** Collect, close the summary of everything collected since the last report, build the API
  *  frame into buf (at least RADIO_MAX_FRAME bytes), send it with hal_uart_write, start a new
  *  summary. Returns the frame length, 0 on error. */
-uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint8_t *buf,
-                    uint32_t cap);
+uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint32_t pose_ms,
+                    const radio_health_t *health, uint8_t *buf, uint32_t cap);
+
+/** Read each decoder's lock (ADV7180 STATUS1: IN_LOCK and FSC_LOCK) over IIC. Returns
+ *  FW_OK when both are locked, FW_ERR_NO_LOCK when one is not, or the IIC error. */
+fw_status_t app_check_lock(app_t *app);
+
+/** Enable the video path and wait, at most `polls` times APP_LOCK_POLL_US, until both camera
+ *  streams are locked (HEALTH_STATUS); FW_ERR_NO_LOCK (path left enabled) on time-out. */
+fw_status_t app_start_video(app_t *app, uint32_t polls);
+
+#define APP_LOCK_POLL_US 50u
+
+/** Restart the video path (CTRL.restart_video) and re-base the health counts (the restart
+ *  clears the video path's counters). */
+void app_restart_video(app_t *app);
+
+/** Read the HEALTH_* registers and fill h with the counts since the previous call (16-bit
+ *  differences, so a wrapped counter still counts right; a saturated one stops counting) and
+ *  the flags. Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block does not
+ *  answer (ID check), FW_OK otherwise. */
+fw_status_t app_read_health(app_t *app, radio_health_t *h);
 
 #endif /* APP_H */

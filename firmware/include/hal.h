@@ -30,8 +30,20 @@ void Xil_Out32(uint32_t addr, uint32_t value);
 /** Busy-wait at least `us` microseconds (target: calibrated loop at HAL_CPU_HZ). */
 void hal_delay_us(uint32_t us);
 
-/** Send bytes to the radio UART (target: MCS UART transmit, blocking). */
-void hal_uart_write(const uint8_t *data, uint32_t len);
+/** Send bytes to the radio UART (target: the SoC's UART, hdl/uart.py, at HAL_UART_BASEADDR).
+ *  Each byte waits at most HAL_UART_TIMEOUT_POLLS status polls for room; returns FW_OK, or
+ *  FW_ERR_TIMEOUT (the rest is not sent) when the transmitter never frees. */
+int32_t hal_uart_write(const uint8_t *data, uint32_t len);
+
+#ifndef HAL_UART_BASEADDR
+#define HAL_UART_BASEADDR 0xC0020000u /**< hdl/soc.py UART_BASEADDR */
+#endif
+#define HAL_UART_DATA_OFFSET      0x0u  /**< write: send a byte */
+#define HAL_UART_STATUS_OFFSET    0x4u  /**< bit 0: a byte may be written */
+#define HAL_UART_STATUS_TX_READY  0x1u
+/** One byte takes 87 us at 115200 baud; a status poll at least 2 bus cycles (40 ns at 50 MHz):
+ *  10000 polls (>= 400 us) cover a byte with margin. */
+#define HAL_UART_TIMEOUT_POLLS 10000u
 
 #ifndef HAL_CPU_HZ
 #define HAL_CPU_HZ 50000000u /**< MicroBlaze MCS clock */

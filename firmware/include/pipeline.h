@@ -33,12 +33,17 @@ typedef struct {
     uint8_t camera_mode_drop;/**< MATCH.camera_mode_drop */
 } pipeline_config_t;
 
-/** One matched obstacle-edge pixel. */
+/** One record of the result FIFO: a matched obstacle-edge pixel, or (mark != 0) an
+ *  end-of-frame marker (x, y, d = 0). */
 typedef struct {
     uint16_t x;
     uint16_t y;
     uint8_t d;
+    uint8_t mark;            /**< 0 a match; PIPELINE_MARK_EOF, | PIPELINE_MARK_ABORT */
 } pipeline_match_t;
+
+#define PIPELINE_MARK_EOF   0x01u /**< end of a frame's records */
+#define PIPELINE_MARK_ABORT 0x02u /**< that frame was cut by a video restart: discard it */
 
 /** Status snapshot. */
 typedef struct {
@@ -63,6 +68,10 @@ void pipeline_read_status(uint32_t base, pipeline_status_t *st);
 /** Pop up to `max` results; returns how many were stored. Stops at an empty FIFO. */
 uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t max);
 void pipeline_clear_errors(uint32_t base);
+/** Enable (1) or disable (0, held in reset) the video path: cameras, pairing, pipeline. */
+void pipeline_video_enable(uint32_t base, uint32_t on);
+/** Restart the video path (CTRL.restart_video): it resumes at the next field start. */
+void pipeline_restart_video(uint32_t base);
 void pipeline_flush_results(uint32_t base);
 
 #endif /* PIPELINE_H */

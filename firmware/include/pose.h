@@ -27,7 +27,7 @@
 #include <stdint.h>
 #include "fw_status.h"
 
-#define POSE_BASEADDR        0xC0020000u  /**< the motion controller's mailbox */
+#define POSE_BASEADDR        0xC0040000u  /**< the motion controller's mailbox: outside the SoC's 0xC0000000-0xC003FFFF window (registers, IIC, UART) */
 #define POSE_SEQ_OFFSET      0x00u
 #define POSE_X_MM_OFFSET     0x04u
 #define POSE_Y_MM_OFFSET     0x08u

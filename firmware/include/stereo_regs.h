@@ -10,14 +10,14 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           2u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           3u           /**< ID.version value */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540002u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540003u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      2u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      3u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -31,6 +31,9 @@
 #define STEREO_CTRL_FLUSH_RESULTS_SHIFT              1u           /**< flush_results: empty the result FIFO and clear its overflow count */
 #define STEREO_CTRL_FLUSH_RESULTS_MASK               0x2u         /**< flush_results mask (1 bits) */
 #define STEREO_CTRL_FLUSH_RESULTS_RESET              0u           /**< flush_results reset value */
+#define STEREO_CTRL_RESTART_VIDEO_SHIFT              2u           /**< restart_video: reset the video path (camera ports, pairing, pipeline): it resumes at the next field start of both cameras */
+#define STEREO_CTRL_RESTART_VIDEO_MASK               0x4u         /**< restart_video mask (1 bits) */
+#define STEREO_CTRL_RESTART_VIDEO_RESET              0u           /**< restart_video reset value */
 
 /* GROUND (read/write): Ground classifier (golden/ground.py): mode and band width. */
 #define STEREO_GROUND_OFFSET                         0x08u        /**< Ground classifier (golden/ground.py): mode and band width. */
@@ -51,25 +54,25 @@
 #define STEREO_GROUND_S_MIN_MASK                     0x00FF0000u  /**< s_min mask (8 bits) */
 #define STEREO_GROUND_S_MIN_RESET                    48u          /**< s_min reset value */
 
-/* GROUND_REF_POS (read/write): Reference area (learned as ground): top-left corner. Reset: bottom centre of a 752x480 frame. */
-#define STEREO_GROUND_REF_POS_OFFSET                 0x0Cu        /**< Reference area (learned as ground): top-left corner. Reset: bottom centre of a 752x480 frame. */
-#define STEREO_GROUND_REF_POS_RESET                  0x01A400BCu  /**< GROUND_REF_POS value after reset */
+/* GROUND_REF_POS (read/write): Reference area (learned as ground): top-left corner. Reset: bottom centre of a 720x240 frame. */
+#define STEREO_GROUND_REF_POS_OFFSET                 0x0Cu        /**< Reference area (learned as ground): top-left corner. Reset: bottom centre of a 720x240 frame. */
+#define STEREO_GROUND_REF_POS_RESET                  0x00D200B4u  /**< GROUND_REF_POS value after reset */
 #define STEREO_GROUND_REF_POS_REF_X_SHIFT            0u           /**< ref_x: first column of the reference area */
 #define STEREO_GROUND_REF_POS_REF_X_MASK             0x7FFu       /**< ref_x mask (11 bits) */
-#define STEREO_GROUND_REF_POS_REF_X_RESET            188u         /**< ref_x reset value */
+#define STEREO_GROUND_REF_POS_REF_X_RESET            180u         /**< ref_x reset value */
 #define STEREO_GROUND_REF_POS_REF_Y_SHIFT            16u          /**< ref_y: first row of the reference area */
 #define STEREO_GROUND_REF_POS_REF_Y_MASK             0x07FF0000u  /**< ref_y mask (11 bits) */
-#define STEREO_GROUND_REF_POS_REF_Y_RESET            420u         /**< ref_y reset value */
+#define STEREO_GROUND_REF_POS_REF_Y_RESET            210u         /**< ref_y reset value */
 
 /* GROUND_REF_SIZE (read/write): Reference area: size. */
 #define STEREO_GROUND_REF_SIZE_OFFSET                0x10u        /**< Reference area: size. */
-#define STEREO_GROUND_REF_SIZE_RESET                 0x003C0178u  /**< GROUND_REF_SIZE value after reset */
+#define STEREO_GROUND_REF_SIZE_RESET                 0x001E0168u  /**< GROUND_REF_SIZE value after reset */
 #define STEREO_GROUND_REF_SIZE_REF_W_SHIFT           0u           /**< ref_w: width in pixels */
 #define STEREO_GROUND_REF_SIZE_REF_W_MASK            0x7FFu       /**< ref_w mask (11 bits) */
-#define STEREO_GROUND_REF_SIZE_REF_W_RESET           376u         /**< ref_w reset value */
+#define STEREO_GROUND_REF_SIZE_REF_W_RESET           360u         /**< ref_w reset value */
 #define STEREO_GROUND_REF_SIZE_REF_H_SHIFT           16u          /**< ref_h: height in rows */
 #define STEREO_GROUND_REF_SIZE_REF_H_MASK            0x07FF0000u  /**< ref_h mask (11 bits) */
-#define STEREO_GROUND_REF_SIZE_REF_H_RESET           60u          /**< ref_h reset value */
+#define STEREO_GROUND_REF_SIZE_REF_H_RESET           30u          /**< ref_h reset value */
 
 /* GROUND_INIT (read/write): Ground band centres used before the first frame is learned. */
 #define STEREO_GROUND_INIT_OFFSET                    0x14u        /**< Ground band centres used before the first frame is learned. */
@@ -100,6 +103,13 @@
 #define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_SHIFT     0u           /**< right_threshold: minimum |Gx| of a right-image edge pixel */
 #define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_MASK      0x7FFu       /**< right_threshold mask (11 bits) */
 #define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_RESET     96u          /**< right_threshold reset value */
+
+/* VIDEO (read/write): Video path (hdl/soc.py): cameras, pairing, pipeline. */
+#define STEREO_VIDEO_OFFSET                          0x24u        /**< Video path (hdl/soc.py): cameras, pairing, pipeline. */
+#define STEREO_VIDEO_RESET                           0x0u         /**< VIDEO value after reset */
+#define STEREO_VIDEO_VIDEO_ENABLE_SHIFT              0u           /**< video_enable: 1: the video path runs; 0: it is held in reset (set it once both decoders report lock) */
+#define STEREO_VIDEO_VIDEO_ENABLE_MASK               0x1u         /**< video_enable mask (1 bits) */
+#define STEREO_VIDEO_VIDEO_ENABLE_RESET              0u           /**< video_enable reset value */
 
 /* MATCH (read/write): Stereo matcher (golden/matcher.py, hdl/matcher.py). */
 #define STEREO_MATCH_OFFSET                          0x1Cu        /**< Stereo matcher (golden/matcher.py, hdl/matcher.py). */
@@ -195,6 +205,62 @@
 #define STEREO_STAT_DROPS_COUNT_MASK                 0xFFFFFFFFu  /**< count mask (32 bits) */
 #define STEREO_STAT_DROPS_COUNT_RESET                0u           /**< count reset value */
 
+/* HEALTH_CAMERA (read-only): BT.656 decoders: malformed lines (saturating; cleared by CTRL.restart_video). */
+#define STEREO_HEALTH_CAMERA_OFFSET                  0x64u        /**< BT.656 decoders: malformed lines (saturating; cleared by CTRL.restart_video). */
+#define STEREO_HEALTH_CAMERA_RESET                   0x0u         /**< HEALTH_CAMERA value after reset */
+#define STEREO_HEALTH_CAMERA_LEFT_ERRORS_SHIFT       0u           /**< left_errors: left camera */
+#define STEREO_HEALTH_CAMERA_LEFT_ERRORS_MASK        0xFFFFu      /**< left_errors mask (16 bits) */
+#define STEREO_HEALTH_CAMERA_LEFT_ERRORS_RESET       0u           /**< left_errors reset value */
+#define STEREO_HEALTH_CAMERA_RIGHT_ERRORS_SHIFT      16u          /**< right_errors: right camera */
+#define STEREO_HEALTH_CAMERA_RIGHT_ERRORS_MASK       0xFFFF0000u  /**< right_errors mask (16 bits) */
+#define STEREO_HEALTH_CAMERA_RIGHT_ERRORS_RESET      0u           /**< right_errors reset value */
+
+/* HEALTH_OVERFLOW (read-only): Camera FIFOs: pixels dropped because the core did not keep up (a frame's whole tail from the first; saturating). */
+#define STEREO_HEALTH_OVERFLOW_OFFSET                0x68u        /**< Camera FIFOs: pixels dropped because the core did not keep up (a frame's whole tail from the first; saturating). */
+#define STEREO_HEALTH_OVERFLOW_RESET                 0x0u         /**< HEALTH_OVERFLOW value after reset */
+#define STEREO_HEALTH_OVERFLOW_LEFT_SHIFT            0u           /**< left: left camera */
+#define STEREO_HEALTH_OVERFLOW_LEFT_MASK             0xFFFFu      /**< left mask (16 bits) */
+#define STEREO_HEALTH_OVERFLOW_LEFT_RESET            0u           /**< left reset value */
+#define STEREO_HEALTH_OVERFLOW_RIGHT_SHIFT           16u          /**< right: right camera */
+#define STEREO_HEALTH_OVERFLOW_RIGHT_MASK            0xFFFF0000u  /**< right mask (16 bits) */
+#define STEREO_HEALTH_OVERFLOW_RIGHT_RESET           0u           /**< right reset value */
+
+/* HEALTH_PAIRS (read-only): Frame pairing (golden/pairing.py); 16-bit counts that wrap: take differences. */
+#define STEREO_HEALTH_PAIRS_OFFSET                   0x6Cu        /**< Frame pairing (golden/pairing.py); 16-bit counts that wrap: take differences. */
+#define STEREO_HEALTH_PAIRS_RESET                    0x0u         /**< HEALTH_PAIRS value after reset */
+#define STEREO_HEALTH_PAIRS_PAIRS_OK_SHIFT           0u           /**< pairs_ok: pairs of two well-formed frames forwarded */
+#define STEREO_HEALTH_PAIRS_PAIRS_OK_MASK            0xFFFFu      /**< pairs_ok mask (16 bits) */
+#define STEREO_HEALTH_PAIRS_PAIRS_OK_RESET           0u           /**< pairs_ok reset value */
+#define STEREO_HEALTH_PAIRS_MISPAIRED_SHIFT          16u          /**< mispaired: pairs abandoned because a frame was malformed */
+#define STEREO_HEALTH_PAIRS_MISPAIRED_MASK           0xFFFF0000u  /**< mispaired mask (16 bits) */
+#define STEREO_HEALTH_PAIRS_MISPAIRED_RESET          0u           /**< mispaired reset value */
+
+/* HEALTH_DROPS (read-only): Frames lost before the pipeline, and matcher errors. */
+#define STEREO_HEALTH_DROPS_OFFSET                   0x70u        /**< Frames lost before the pipeline, and matcher errors. */
+#define STEREO_HEALTH_DROPS_RESET                    0x0u         /**< HEALTH_DROPS value after reset */
+#define STEREO_HEALTH_DROPS_FRAMES_SHIFT             0u           /**< frames: frames without partner discarded by the pairing (wraps) */
+#define STEREO_HEALTH_DROPS_FRAMES_MASK              0xFFFFu      /**< frames mask (16 bits) */
+#define STEREO_HEALTH_DROPS_FRAMES_RESET             0u           /**< frames reset value */
+#define STEREO_HEALTH_DROPS_MATCH_ERRORS_SHIFT       16u          /**< match_errors: matcher malformed-stream errors (saturating) */
+#define STEREO_HEALTH_DROPS_MATCH_ERRORS_MASK        0xFFFF0000u  /**< match_errors mask (16 bits) */
+#define STEREO_HEALTH_DROPS_MATCH_ERRORS_RESET       0u           /**< match_errors reset value */
+
+/* HEALTH_STATUS (read-only): Video path state. */
+#define STEREO_HEALTH_STATUS_OFFSET                  0x74u        /**< Video path state. */
+#define STEREO_HEALTH_STATUS_RESET                   0x0u         /**< HEALTH_STATUS value after reset */
+#define STEREO_HEALTH_STATUS_LEFT_LOCKED_SHIFT       0u           /**< left_locked: left decoder stream: a field edge seen */
+#define STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK        0x1u         /**< left_locked mask (1 bits) */
+#define STEREO_HEALTH_STATUS_LEFT_LOCKED_RESET       0u           /**< left_locked reset value */
+#define STEREO_HEALTH_STATUS_RIGHT_LOCKED_SHIFT      1u           /**< right_locked: right decoder stream: a field edge seen */
+#define STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK       0x2u         /**< right_locked mask (1 bits) */
+#define STEREO_HEALTH_STATUS_RIGHT_LOCKED_RESET      0u           /**< right_locked reset value */
+#define STEREO_HEALTH_STATUS_ENABLED_SHIFT           2u           /**< enabled: VIDEO.video_enable as applied */
+#define STEREO_HEALTH_STATUS_ENABLED_MASK            0x4u         /**< enabled mask (1 bits) */
+#define STEREO_HEALTH_STATUS_ENABLED_RESET           0u           /**< enabled reset value */
+#define STEREO_HEALTH_STATUS_PAIRING_SHIFT           3u           /**< pairing: a pair is being forwarded */
+#define STEREO_HEALTH_STATUS_PAIRING_MASK            0x8u         /**< pairing mask (1 bits) */
+#define STEREO_HEALTH_STATUS_PAIRING_RESET           0u           /**< pairing reset value */
+
 /* RESULT (read pops): Result FIFO head; a read pops one record. */
 #define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one record. */
 #define STEREO_RESULT_RESET                          0x0u         /**< RESULT value after reset */
@@ -207,6 +273,12 @@
 #define STEREO_RESULT_D_SHIFT                        20u          /**< d: disparity */
 #define STEREO_RESULT_D_MASK                         0x07F00000u  /**< d mask (7 bits) */
 #define STEREO_RESULT_D_RESET                        0u           /**< d reset value */
+#define STEREO_RESULT_EOF_SHIFT                      27u          /**< eof: 1: an end-of-frame marker, no match (x, y, d = 0): the records since the previous marker are one frame's (SystemSoC) */
+#define STEREO_RESULT_EOF_MASK                       0x08000000u  /**< eof mask (1 bits) */
+#define STEREO_RESULT_EOF_RESET                      0u           /**< eof reset value */
+#define STEREO_RESULT_ABORT_SHIFT                    28u          /**< abort: with eof: that frame was cut by CTRL.restart_video or VIDEO.video_enable = 0: discard its records */
+#define STEREO_RESULT_ABORT_MASK                     0x10000000u  /**< abort mask (1 bits) */
+#define STEREO_RESULT_ABORT_RESET                    0u           /**< abort reset value */
 #define STEREO_RESULT_VALID_SHIFT                    31u          /**< valid: 1: a record; 0: the FIFO was empty */
 #define STEREO_RESULT_VALID_MASK                     0x80000000u  /**< valid mask (1 bits) */
 #define STEREO_RESULT_VALID_RESET                    0u           /**< valid reset value */

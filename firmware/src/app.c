@@ -6,6 +6,8 @@
 #include "hal.h"
 #include "stereo_regs.h"
 
+#include <string.h>
+
 fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls)
 {
     static const uint8_t addrs[APP_N_DECODERS] = { ADV7180_ADDR_ALSB_LOW, ADV7180_ADDR_ALSB_HIGH };
@@ -19,7 +21,7 @@ fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeou
     app->summary_open = 0u;
     app->n_bands = RADIO_DEFAULT_BANDS;
     app->min_support = RADIO_DEFAULT_MIN_SUPPORT;
-    app->width = 752u;
+    app->width = APP_FIELD_WIDTH;
     st = iic_init(&app->iic, iic_base, iic_timeout_polls);
     if (st != FW_OK) {
         return st;
@@ -82,7 +84,9 @@ uint32_t app_collect(app_t *app)
         uint32_t i;
         uint32_t n = pipeline_read_results(app->regs_base, chunk, ARRAY_SIZE(chunk));
         for (i = 0u; i < n; i++) {
-            radio_summary_add(&app->summary, chunk[i].x, chunk[i].d);
+            if (chunk[i].mark == 0u) {
+                radio_summary_add(&app->summary, chunk[i].x, chunk[i].d);
+            }
         }
         total += n;
         if (n < ARRAY_SIZE(chunk)) {
@@ -93,8 +97,8 @@ uint32_t app_collect(app_t *app)
     return total;
 }
 
-uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint8_t *buf,
-                    uint32_t cap)
+uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint32_t pose_ms,
+                    const radio_health_t *health, uint8_t *buf, uint32_t cap)
 {
     radio_packet_t pkt;
     uint8_t rf[RADIO_MAX_RF_DATA];
@@ -109,7 +113,7 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     }
     pkt.seq = app->seq;
     pkt.frame = (uint16_t)(STEREO_ReadReg(app->regs_base, STEREO_FRAME_COUNT_OFFSET) & 0xFFFFu);
-    pkt.pose_ms = 0u;
+    pkt.pose_ms = pose_ms;
     pkt.x_mm = x_mm;
     pkt.y_mm = y_mm;
     pkt.theta = theta;
@@ -117,17 +121,178 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     pkt.n_bands = app->n_bands;
     radio_summary_finish(&app->summary, pkt.bands);
     app->summary_open = 0u;   /* the next collect starts a new summary */
-    rf_len = radio_encode_payload(&pkt, NULL, rf, sizeof rf);
+    rf_len = radio_encode_payload(&pkt, health, rf, sizeof rf);
     len = radio_encode_api_frame(rf, rf_len, APP_RADIO_DEST, (uint8_t)(app->seq % 255u + 1u), buf, cap);
     if (rf_len == 0u || len == 0u) {
         return 0u;
     }
-    hal_uart_write(buf, len);
+    if (hal_uart_write(buf, len) != FW_OK) {
+        return 0u;
+    }
     app->seq = (uint8_t)(app->seq + 1u);
     return len;
 }
 
+fw_status_t app_check_lock(app_t *app)
+{
+    uint32_t i;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    for (i = 0u; i < APP_N_DECODERS; i++) {
+        uint8_t locked = 0u;
+        fw_status_t st = app->dec_status[i];
+        if (st == FW_OK) {
+            st = adv7180_lock_status(&app->dec[i], &locked);
+        }
+        if (st != FW_OK) {
+            return st;
+        }
+        if (!locked) {
+            return FW_ERR_NO_LOCK;
+        }
+    }
+    return FW_OK;
+}
+
+fw_status_t app_start_video(app_t *app, uint32_t polls)
+{
+    const uint32_t both = STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK | STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK;
+    uint32_t n;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    pipeline_video_enable(app->regs_base, 1u);
+    for (n = 0u; n <= polls; n++) {
+        if ((STEREO_ReadReg(app->regs_base, STEREO_HEALTH_STATUS_OFFSET) & both) == both) {
+            return FW_OK;
+        }
+        hal_delay_us(APP_LOCK_POLL_US);
+    }
+    return FW_ERR_NO_LOCK;
+}
+
+void app_restart_video(app_t *app)
+{
+    uint16_t result_overflow;
+    if (app == NULL) {
+        return;
+    }
+    pipeline_restart_video(app->regs_base);
+    result_overflow = app->health_last.result_overflow;   /* the register block keeps it */
+    memset(&app->health_last, 0, sizeof app->health_last);
+    app->health_last.result_overflow = result_overflow;
+}
+
+static uint16_t field16(uint32_t value, uint32_t shift)
+{
+    return (uint16_t)((value >> shift) & 0xFFFFu);
+}
+
+static uint16_t since(uint16_t now, uint16_t *last)
+{
+    uint16_t d = (uint16_t)(now - *last);
+    *last = now;
+    return d;
+}
+
+fw_status_t app_read_health(app_t *app, radio_health_t *h)
+{
+    uint32_t cam, ovf, pairs, drops, status, level, errm, frames;
+    uint32_t overflow;
+    health_snapshot_t *l;
+    if (app == NULL || h == NULL) {
+        return FW_ERR_PARAM;
+    }
+    if (pipeline_check_id(app->regs_base) != FW_OK) {
+        return FW_ERR_ID;
+    }
+    l = &app->health_last;
+    frames = STEREO_ReadReg(app->regs_base, STEREO_FRAME_COUNT_OFFSET);
+    cam = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_CAMERA_OFFSET);
+    ovf = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_OVERFLOW_OFFSET);
+    pairs = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_PAIRS_OFFSET);
+    drops = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_DROPS_OFFSET);
+    status = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_STATUS_OFFSET);
+    level = STEREO_ReadReg(app->regs_base, STEREO_RESULT_LEVEL_OFFSET);
+    errm = STEREO_ReadReg(app->regs_base, STEREO_ERR_MATCH_OFFSET);
+    (void)errm;
+    h->frames = since(field16(frames, 0u), &l->frames);
+    h->pairs_ok = since(field16(pairs, STEREO_HEALTH_PAIRS_PAIRS_OK_SHIFT), &l->pairs_ok);
+    h->mispaired = since(field16(pairs, STEREO_HEALTH_PAIRS_MISPAIRED_SHIFT), &l->mispaired);
+    h->drops = since(field16(drops, STEREO_HEALTH_DROPS_FRAMES_SHIFT), &l->drops);
+    h->cam_errors[0] = since(field16(cam, STEREO_HEALTH_CAMERA_LEFT_ERRORS_SHIFT),
+                             &l->cam_errors[0]);
+    h->cam_errors[1] = since(field16(cam, STEREO_HEALTH_CAMERA_RIGHT_ERRORS_SHIFT),
+                             &l->cam_errors[1]);
+    h->matcher_errors = since(field16(drops, STEREO_HEALTH_DROPS_MATCH_ERRORS_SHIFT),
+                              &l->matcher_errors);
+    overflow = (uint32_t)since(field16(ovf, STEREO_HEALTH_OVERFLOW_LEFT_SHIFT), &l->overflow[0])
+             + since(field16(ovf, STEREO_HEALTH_OVERFLOW_RIGHT_SHIFT), &l->overflow[1])
+             + since(field16(level, STEREO_RESULT_LEVEL_OVERFLOW_SHIFT), &l->result_overflow);
+    h->fifo_overflow = (uint16_t)(overflow > 0xFFFFu ? 0xFFFFu : overflow);
+    h->flags = (uint8_t)(((status & STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK) ? RADIO_HEALTH_LEFT_LOCKED : 0u)
+             | ((status & STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK) ? RADIO_HEALTH_RIGHT_LOCKED : 0u)
+             | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_PIPELINE_ENABLED : 0u));
+    return FW_OK;
+}
+
 #ifndef HAL_TARGET
+#include <stddef.h>
+
+/** Host builds only: offset and size of every field the ctypes mirrors (sim/cosim/fwlib.py)
+ *  declare, by "struct.field" name, so that check_layout compares them field by field. */
+typedef struct {
+    const char *name;
+    uint32_t offset;
+    uint32_t size;
+} fw_field_t;
+
+#define FW_FIELD(T, F) { #T "." #F, (uint32_t)offsetof(T, F), (uint32_t)sizeof(((T *)0)->F) }
+
+static const fw_field_t fw_fields[] = {
+    FW_FIELD(pipeline_config_t, mode), FW_FIELD(pipeline_config_t, k),
+    FW_FIELD(pipeline_config_t, jnd_hue), FW_FIELD(pipeline_config_t, jnd_luma),
+    FW_FIELD(pipeline_config_t, s_min), FW_FIELD(pipeline_config_t, ref_x),
+    FW_FIELD(pipeline_config_t, ref_y), FW_FIELD(pipeline_config_t, ref_w),
+    FW_FIELD(pipeline_config_t, ref_h), FW_FIELD(pipeline_config_t, hue_centre0),
+    FW_FIELD(pipeline_config_t, luma_centre0), FW_FIELD(pipeline_config_t, edge_threshold),
+    FW_FIELD(pipeline_config_t, ratio), FW_FIELD(pipeline_config_t, nms),
+    FW_FIELD(pipeline_config_t, right_threshold), FW_FIELD(pipeline_config_t, d_min),
+    FW_FIELD(pipeline_config_t, d_max), FW_FIELD(pipeline_config_t, uniqueness),
+    FW_FIELD(pipeline_config_t, candidate_mode), FW_FIELD(pipeline_config_t, widen),
+    FW_FIELD(pipeline_config_t, camera_mode_drop),
+    FW_FIELD(pipeline_match_t, x), FW_FIELD(pipeline_match_t, y), FW_FIELD(pipeline_match_t, d),
+    FW_FIELD(pipeline_match_t, mark),
+    FW_FIELD(radio_health_t, frames), FW_FIELD(radio_health_t, pairs_ok),
+    FW_FIELD(radio_health_t, mispaired), FW_FIELD(radio_health_t, drops),
+    FW_FIELD(radio_health_t, cam_errors), FW_FIELD(radio_health_t, matcher_errors),
+    FW_FIELD(radio_health_t, fifo_overflow), FW_FIELD(radio_health_t, flags),
+    FW_FIELD(health_snapshot_t, frames), FW_FIELD(health_snapshot_t, pairs_ok),
+    FW_FIELD(health_snapshot_t, mispaired), FW_FIELD(health_snapshot_t, drops),
+    FW_FIELD(health_snapshot_t, cam_errors), FW_FIELD(health_snapshot_t, matcher_errors),
+    FW_FIELD(health_snapshot_t, overflow), FW_FIELD(health_snapshot_t, result_overflow),
+    FW_FIELD(app_t, regs_base), FW_FIELD(app_t, iic), FW_FIELD(app_t, dec),
+    FW_FIELD(app_t, dec_status), FW_FIELD(app_t, cfg), FW_FIELD(app_t, seq),
+    FW_FIELD(app_t, n_bands), FW_FIELD(app_t, min_support), FW_FIELD(app_t, width),
+    FW_FIELD(app_t, results_read), FW_FIELD(app_t, summary_open), FW_FIELD(app_t, summary),
+    FW_FIELD(app_t, health_last),
+};
+
+/** The offset of "struct.field" and its size in *size; -1 for an unknown name. */
+int32_t fw_field_offset(const char *name, uint32_t *size);
+int32_t fw_field_offset(const char *name, uint32_t *size)
+{
+    uint32_t i;
+    for (i = 0u; i < ARRAY_SIZE(fw_fields); i++) {
+        if (strcmp(fw_fields[i].name, name) == 0) {
+            *size = fw_fields[i].size;
+            return (int32_t)fw_fields[i].offset;
+        }
+    }
+    return -1;
+}
+
 /** Host builds only: sizeof(app_t), for the co-simulation's ctypes mirror. */
 uint32_t app_sizeof(void);
 uint32_t app_sizeof(void)

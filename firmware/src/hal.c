@@ -26,21 +26,20 @@ void hal_delay_us(uint32_t us)
     }
 }
 
-/* MCS I/O Module UART (Xilinx PG116): UART_TX at 0x80000004, UART_STATUS at 0x80000008,
- * status bit 3 = TX used (a byte is being sent). Not yet checked on hardware. */
-#define MCS_UART_TX_OFFSET     0x80000004u
-#define MCS_UART_STATUS_OFFSET 0x80000008u
-#define MCS_UART_TX_USED_MASK  0x08u
-
-void hal_uart_write(const uint8_t *data, uint32_t len)
+int32_t hal_uart_write(const uint8_t *data, uint32_t len)
 {
     uint32_t i;
     for (i = 0; i < len; i++) {
-        while ((Xil_In32(MCS_UART_STATUS_OFFSET) & MCS_UART_TX_USED_MASK) != 0u) {
-            /* the UART drains one byte per 87 us at 115200 baud: never stuck */
+        uint32_t polls = 0u;
+        while ((Xil_In32(HAL_UART_BASEADDR + HAL_UART_STATUS_OFFSET) & HAL_UART_STATUS_TX_READY)
+               == 0u) {
+            if (++polls >= HAL_UART_TIMEOUT_POLLS) {
+                return FW_ERR_TIMEOUT;
+            }
         }
-        Xil_Out32(MCS_UART_TX_OFFSET, data[i]);
+        Xil_Out32(HAL_UART_BASEADDR + HAL_UART_DATA_OFFSET, data[i]);
     }
+    return FW_OK;
 }
 
 #else /* host build */
@@ -80,11 +79,12 @@ void hal_delay_us(uint32_t us)
     }
 }
 
-void hal_uart_write(const uint8_t *data, uint32_t len)
+int32_t hal_uart_write(const uint8_t *data, uint32_t len)
 {
     if (hook_uart != NULL) {
         hook_uart(hook_ctx, data, len);
     }
+    return FW_OK;
 }
 
 #endif

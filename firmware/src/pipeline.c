@@ -177,6 +177,8 @@ uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t ma
         out[n].x = (uint16_t)STEREO_GET(RESULT, X, r);
         out[n].y = (uint16_t)STEREO_GET(RESULT, Y, r);
         out[n].d = (uint8_t)STEREO_GET(RESULT, D, r);
+        out[n].mark = (uint8_t)((STEREO_GET(RESULT, EOF, r) != 0u ? PIPELINE_MARK_EOF : 0u) |
+                                (STEREO_GET(RESULT, ABORT, r) != 0u ? PIPELINE_MARK_ABORT : 0u));
         n++;
     }
     return n;
@@ -185,6 +187,16 @@ uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t ma
 void pipeline_clear_errors(uint32_t base)
 {
     STEREO_WriteReg(base, STEREO_CTRL_OFFSET, STEREO_SET(CTRL, CLEAR_ERRORS, 1u));
+}
+
+void pipeline_video_enable(uint32_t base, uint32_t on)
+{
+    STEREO_WriteReg(base, STEREO_VIDEO_OFFSET, STEREO_SET(VIDEO, VIDEO_ENABLE, on != 0u));
+}
+
+void pipeline_restart_video(uint32_t base)
+{
+    STEREO_WriteReg(base, STEREO_CTRL_OFFSET, STEREO_SET(CTRL, RESTART_VIDEO, 1u));
 }
 
 void pipeline_flush_results(uint32_t base)

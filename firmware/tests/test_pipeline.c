@@ -112,6 +112,47 @@ static void test_results_and_status(void)
     FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 0);
 }
 
+static void test_health_counts_since_last_read(void)
+{
+    static app_t app;
+    radio_health_t h;
+    setup();
+    memset(&app, 0, sizeof app);
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 10;
+    sim.regfile[STEREO_HEALTH_PAIRS_OFFSET / 4] = 9u | 1u << 16;
+    sim.regfile[STEREO_HEALTH_CAMERA_OFFSET / 4] = 3u | 4u << 16;
+    sim.regfile[STEREO_HEALTH_DROPS_OFFSET / 4] = 2u | 5u << 16;
+    sim.regfile[STEREO_HEALTH_OVERFLOW_OFFSET / 4] = 7u;
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x7u;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.frames == 10 && h.pairs_ok == 9 && h.mispaired == 1 && h.drops == 2);
+    FWT_CHECK(h.cam_errors[0] == 3 && h.cam_errors[1] == 4 && h.matcher_errors == 5);
+    FWT_CHECK(h.fifo_overflow == 7 && h.flags == 0x7u);
+    /* differences since the last read, across a wrap of the 16-bit counter */
+    sim.regfile[STEREO_HEALTH_PAIRS_OFFSET / 4] = 2u | 1u << 16;
+    app.health_last.pairs_ok = 0xFFF0u;
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x1u;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.frames == 0 && h.pairs_ok == 0x12 && h.mispaired == 0 && h.flags == 0x1u);
+    FWT_CHECK_EQ(app_read_health(&app, NULL), FW_ERR_PARAM);
+    sim_uninstall();
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_ERR_ID);
+}
+
+static void test_start_video_is_bounded(void)
+{
+    static app_t app;
+    setup();
+    memset(&app, 0, sizeof app);
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x1u;        /* right never locks */
+    FWT_CHECK_EQ(app_start_video(&app, 5u), FW_ERR_NO_LOCK);
+    FWT_CHECK_EQ(sim.regfile[STEREO_VIDEO_OFFSET / 4], 1u);     /* enabled */
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x3u;
+    FWT_CHECK_EQ(app_start_video(&app, 5u), FW_OK);
+}
+
 static void test_report_builds_frame(void)
 {
     static app_t app;
@@ -125,7 +166,7 @@ static void test_report_builds_frame(void)
         sim.result_fifo[sim.result_n++] = record(10 + i, 100, 20 + i); /* band 0 */
     }
     sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 0x12345;
-    n = app_report(&app, -5, 7, 0x4000, buf, sizeof buf);
+    n = app_report(&app, -5, 7, 0x4000, 1234u, NULL, buf, sizeof buf);
     FWT_CHECK_EQ(n, RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD); /* no byte escaped */
     FWT_CHECK_EQ(sim.uart_n, n);
     FWT_CHECK_EQ(buf[0], 0x7E);
@@ -156,17 +197,19 @@ static void test_collect_across_frames(void)
     FWT_CHECK_EQ(app_collect(&app), 2);
     sim.result_fifo[sim.result_n++] = record(31, 11, 41);
     FWT_CHECK_EQ(app_collect(&app), 1);
-    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, 0u, NULL, buf, sizeof buf), RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
     FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 40);   /* 3rd largest of 41, 40, 40 */
     FWT_CHECK_EQ(app.results_read, 3);
     /* the next report starts empty */
-    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, buf, sizeof buf), RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, 0u, NULL, buf, sizeof buf), RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
     FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 0);
 }
 
 void suite_pipeline(void)
 {
     FWT_RUN(test_id);
+    FWT_RUN(test_health_counts_since_last_read);
+    FWT_RUN(test_start_video_is_bounded);
     FWT_RUN(test_defaults_match_reset_values);
     FWT_RUN(test_configure_roundtrip);
     FWT_RUN(test_configure_rejects_bad_values);

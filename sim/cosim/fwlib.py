@@ -63,9 +63,16 @@ class PipelineConfigC(C.Structure):
         ("s_min", C.c_uint8), ("ref_x", C.c_uint16), ("ref_y", C.c_uint16),
         ("ref_w", C.c_uint16), ("ref_h", C.c_uint16), ("hue_centre0", C.c_uint8),
         ("luma_centre0", C.c_uint8), ("edge_threshold", C.c_uint16),
-        ("ratio", C.c_uint8), ("nms", C.c_uint8), ("d_min", C.c_uint8),
+        ("ratio", C.c_uint8), ("nms", C.c_uint8), ("right_threshold", C.c_uint16),
+        ("d_min", C.c_uint8),
         ("d_max", C.c_uint8), ("uniqueness", C.c_uint8), ("candidate_mode", C.c_uint8),
         ("widen", C.c_uint8), ("camera_mode_drop", C.c_uint8))]
+
+
+class HealthSnapshotC(C.Structure):
+    _fields_ = [(n, C.c_uint16) for n in ("frames", "pairs_ok", "mispaired", "drops")] + [
+        ("cam_errors", C.c_uint16 * 2), ("matcher_errors", C.c_uint16),
+        ("overflow", C.c_uint16 * 2), ("result_overflow", C.c_uint16)]
 
 
 class AppC(C.Structure):
@@ -73,7 +80,11 @@ class AppC(C.Structure):
                 ("dec_status", C.c_int32 * 2), ("cfg", PipelineConfigC), ("seq", C.c_uint8),
                 ("n_bands", C.c_uint8), ("min_support", C.c_uint8), ("width", C.c_uint16),
                 ("results_read", C.c_uint32), ("summary_open", C.c_uint8),
-                ("summary", RadioSummaryC)]
+                ("summary", RadioSummaryC), ("health_last", HealthSnapshotC)]
+
+
+class PipelineMatchC(C.Structure):
+    _fields_ = [("x", C.c_uint16), ("y", C.c_uint16), ("d", C.c_uint8), ("mark", C.c_uint8)]
 
 
 class RegValC(C.Structure):
@@ -115,8 +126,8 @@ def load(rebuild: bool = True) -> C.CDLL:
         "app_init_pipeline": (C.c_int32, [P(AppC), C.c_uint32]),
         "app_collect": (C.c_uint32, [P(AppC)]),
         "app_sizeof": (C.c_uint32, []),
-        "app_report": (C.c_uint32, [P(AppC), C.c_int16, C.c_int16, C.c_uint16, P(C.c_uint8),
-                                    C.c_uint32]),
+        "app_report": (C.c_uint32, [P(AppC), C.c_int16, C.c_int16, C.c_uint16, C.c_uint32,
+                                    P(RadioHealthC), P(C.c_uint8), C.c_uint32]),
         "pipeline_read_config": (None, [C.c_uint32, P(PipelineConfigC)]),
     }
     for name, (res, args) in sig.items():
@@ -125,8 +136,30 @@ def load(rebuild: bool = True) -> C.CDLL:
     return lib
 
 
+#: ctypes mirror -> C type name, checked field by field by :func:`check_layout`.
+MIRRORS = {"PipelineConfigC": "pipeline_config_t", "PipelineMatchC": "pipeline_match_t",
+           "RadioHealthC": "radio_health_t", "HealthSnapshotC": "health_snapshot_t",
+           "AppC": "app_t"}
+
+
 def check_layout(lib: C.CDLL) -> None:
-    """The ctypes mirror of app_t must have the C size."""
+    """Every field of the ctypes mirrors in :data:`MIRRORS` must have the C offset and size
+    (the firmware's fw_field_offset table), and AppC the C size."""
+    fn = lib.fw_field_offset
+    fn.restype, fn.argtypes = C.c_int32, [C.c_char_p, C.POINTER(C.c_uint32)]
+    names = {cls.__name__: cls for cls in (PipelineConfigC, PipelineMatchC, RadioHealthC,
+                                           HealthSnapshotC, AppC)}
+    for py_name, c_name in MIRRORS.items():
+        cls = names[py_name]
+        for field_name, _ in cls._fields_:
+            size = C.c_uint32()
+            off = fn(f"{c_name}.{field_name}".encode(), C.byref(size))
+            got = getattr(cls, field_name)
+            if off < 0:
+                raise RuntimeError(f"{c_name}.{field_name}: not in the firmware's field table")
+            if (got.offset, got.size) != (off, size.value):
+                raise RuntimeError(f"{py_name}.{field_name} at {got.offset} ({got.size} bytes), "
+                                   f"{c_name}.{field_name} at {off} ({size.value} bytes)")
     if C.sizeof(AppC) != lib.app_sizeof():
         raise RuntimeError(f"AppC is {C.sizeof(AppC)} bytes, app_t {lib.app_sizeof()}")
 

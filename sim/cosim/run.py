@@ -148,7 +148,7 @@ def run_scenario(sc: Scenario, lib=None) -> Result:
     hooks = (fwlib.READ32(rd), fwlib.WRITE32(wr), fwlib.DELAY(delay), fwlib.UART(uart_write))
     app = fwlib.AppC()
     frame = (C.c_uint8 * fwlib.RADIO_MAX_FRAME)()
-    matches = [(x, 100 + x % 7, 10 + (x * 7) % 23) for x in range(0, 752, 13)]
+    matches = [(x, 100 + x % 7, 10 + (x * 7) % 23) for x in range(0, 720, 13)]
     res.matches = matches
 
     async def cpu(ctx):
@@ -188,8 +188,8 @@ def run_scenario(sc: Scenario, lib=None) -> Result:
         if sc.report:
             state["pipeline"] = lib.app_init_pipeline(C.byref(app), regmap.REGS_BASEADDR)
             service(("push", None, 0))
-            state["report_len"] = lib.app_report(C.byref(app), -120, 3400, 0x4000, frame,
-                                                 len(frame))
+            state["report_len"] = lib.app_report(C.byref(app), -120, 3400, 0x4000, 1000, None,
+                                                 frame, len(frame))
             res.regs_outputs = service(("snapshot", None, 0))
     finally:
         lib.hal_set_bus_hook(fwlib.READ32(), fwlib.WRITE32(), fwlib.DELAY(), fwlib.UART(), None)
@@ -266,7 +266,7 @@ def check(res: Result, sc: Scenario, table) -> list[str]:
                      "hold the firmware's configuration")
         assert res.decoder.frames_ok == 1 and res.decoder.errors == 0
         pkt = res.frames[0]
-        bands = summarise_matches(res.matches, 752, 32, 3)
+        bands = summarise_matches(res.matches, 720, 32, 3)
         assert pkt.bands == bands and (pkt.x_mm, pkt.y_mm, pkt.theta_u16) == (-120, 3400, 0x4000)
         lines.append(f"radio: {len(res.matches)} results read from the RTL FIFO, "
                      f"{len(res.uart)}-byte XBee frame decoded by station.radio, "

@@ -1,0 +1,123 @@
+"""One camera port of the SoC: BT.656 bytes in the camera's clock domain to RGB888 pixels in
+the core domain.
+
+``ADV7180 byte (27 MHz LLC) -> Bt656ToRGB (EAV/SAV, field bit, blanking, YCbCr -> RGB888)
+-> overflow guard -> AsyncFIFO -> core domain``
+
+A camera cannot stall: the decoder takes a byte every LLC cycle whatever happens downstream.
+When the clock-domain FIFO is full, the pixel is dropped, counted in ``overflow``, and so is the
+rest of that frame up to the next ``sof`` (a frame with a hole would be a corrupt frame, one cut
+short is a malformed stream that every unit downstream recovers from at the next ``sof``). The
+FIFO therefore only ever holds whole-frame prefixes, never a frame with pixels missing inside.
+
+Counters cross into the core domain as Gray codes through two-flop synchronisers (each counts
+by at most one per camera cycle, so a Gray code changes one bit at a time).
+"""
+from amaranth.hdl import DomainRenamer, Module, Signal
+from amaranth.lib import stream, wiring
+from amaranth.lib.cdc import FFSynchronizer
+from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
+from amaranth.lib.wiring import In, Out
+
+from .bt656 import Bt656ToRGB
+from .types import RGBPixel
+
+__all__ = ["CameraPort", "sync_counter"]
+
+
+def sync_counter(m, value, *, i_domain, o_domain, name):
+    """A counter of domain ``i_domain`` (changing by at most 1 per cycle) as seen in
+    ``o_domain``: Gray-encoded in a register, two-flop synchronised, decoded into a register.
+    Returns the ``o_domain`` value (3-4 ``o_domain`` cycles late)."""
+    width = len(value)
+    gray = Signal(width, name=f"{name}_gray")
+    m.d[i_domain] += gray.eq(value ^ (value >> 1))
+    gray_o = Signal(width, name=f"{name}_gray_o")
+    m.submodules[f"{name}_cdc"] = FFSynchronizer(gray, gray_o, o_domain=o_domain)
+    binary = Signal(width, name=f"{name}_o")
+    bits = [gray_o[width - 1]]
+    for k in range(width - 2, -1, -1):
+        bits.insert(0, bits[0] ^ gray_o[k])
+    for k in range(width):
+        m.d[o_domain] += binary[k].eq(bits[k])
+    return binary
+
+
+class CameraPort(wiring.Component):
+    """BT.656 camera input, clock-domain crossing into the core domain ``sync``.
+
+    Parameters (keyword-only)
+    -------------------------
+    domain : str
+        The camera's clock domain (its LLC, 27 MHz), e.g. ``"cam0"``.
+    lines : int
+        Active lines per field (240 for NTSC).
+    fifo_depth : int
+        Pixels of the clock-domain FIFO (a power of two; 512 x 27 bits fits one RAMB16).
+
+    Ports
+    -----
+    i : In(stream.Signature(8)), camera domain
+        Decoder bytes; always ready (a camera cannot stall); ``valid`` low skips a cycle (tie it
+        high on a board: the ADV7180 drives one byte per LLC cycle).
+    o : Out(stream.Signature(RGBPixel)), core domain
+        Pixels; backpressure is absorbed by the FIFO, then by dropping whole frame tails
+        (counted). Latency about 10 camera cycles + 5 core cycles; valid and payload come from
+        registers.
+    errors : Out(16), core domain
+        The decoder's malformed-line count (saturating).
+    overflow : Out(16), core domain
+        Pixels dropped because the FIFO was full, including the rest of each frame so cut
+        (saturating).
+    locked : Out(1), core domain
+        The decoder has seen a field edge since reset.
+    """
+
+    def __init__(self, *, domain="cam", lines=240, fifo_depth=512):
+        if not isinstance(fifo_depth, int) or fifo_depth < 4 or fifo_depth & (fifo_depth - 1):
+            self._MustUse__silence = True
+            raise ValueError(f"fifo_depth must be a power of two >= 4, not {fifo_depth!r}")
+        self._domain = domain
+        self._lines = lines
+        self._fifo_depth = fifo_depth
+        self.decoder = DomainRenamer(domain)(Bt656ToRGB(lines=lines))
+        super().__init__({
+            "i": In(stream.Signature(8)),
+            "o": Out(stream.Signature(RGBPixel)),
+            "errors": Out(16), "overflow": Out(16), "locked": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        cam = m.d[self._domain]
+        m.submodules.decoder = dec = self.decoder
+        m.submodules.fifo = q = AsyncFIFO(width=RGBPixel.size, depth=self._fifo_depth,
+                                          w_domain=self._domain, r_domain="sync")
+        wiring.connect(m, wiring.flipped(self.i), dec.i)
+
+        # overflow guard: a pixel that finds the FIFO full, and the rest of its frame, dropped
+        cutting = Signal()
+        overflow = Signal(16)
+        px = dec.o.payload
+        keep = dec.o.valid & q.w_rdy & (px.sof | ~cutting)
+        m.d.comb += [dec.o.ready.eq(1), q.w_en.eq(keep), q.w_data.eq(px.as_value())]
+        with m.If(dec.o.valid):
+            with m.If(keep):
+                cam += cutting.eq(0)
+            with m.Else():
+                cam += cutting.eq(1)
+                with m.If(overflow != 0xFFFF):
+                    cam += overflow.eq(overflow + 1)
+
+        # a registered 2-entry buffer: the FIFO's read logic and the consumer's do not chain
+        m.submodules.out = out = SyncFIFOBuffered(width=RGBPixel.size, depth=2)
+        m.d.comb += [out.w_en.eq(q.r_rdy), out.w_data.eq(q.r_data), q.r_en.eq(out.w_rdy),
+                     self.o.valid.eq(out.r_rdy), self.o.payload.eq(out.r_data),
+                     out.r_en.eq(self.o.ready)]
+        kw = dict(i_domain=self._domain, o_domain="sync")
+        m.d.comb += [
+            self.errors.eq(sync_counter(m, dec.errors, name="errors", **kw)),
+            self.overflow.eq(sync_counter(m, overflow, name="overflow", **kw)),
+        ]
+        m.submodules.locked_cdc = FFSynchronizer(dec.locked, self.locked, o_domain="sync")
+        return m

@@ -1,0 +1,101 @@
+"""Camera port (hdl/camera_port.py): BT.656 in the camera's clock domain, RGB pixels out in the core
+domain through an AsyncFIFO; overflow drops whole frame tails and is counted."""
+import random
+
+import numpy as np
+import pytest
+from amaranth.hdl import ClockDomain, Module
+from amaranth.sim import Simulator
+
+from golden.bt656 import decode_bt656, encode_bt656, rgb_to_ycbcr
+from hdl.camera_port import CameraPort
+
+
+def make_fields(seed, n, h, w):
+    rng = np.random.default_rng(seed)
+    return [rgb_to_ycbcr(rng.integers(0, 256, (h, w, 3), dtype=np.uint8)) for _ in range(n)]
+
+
+def run(data, *, lines, ready, fifo_depth=16, cam_period=1 / 27e6, core_period=1 / 50e6):
+    port = CameraPort(domain="cam", lines=lines, fifo_depth=fifo_depth)
+    m = Module()
+    m.domains.sync = ClockDomain()
+    m.domains.cam = ClockDomain()
+    m.submodules.port = port
+    sim = Simulator(m)
+    sim.add_clock(core_period, domain="sync")
+    sim.add_clock(cam_period, domain="cam", phase=cam_period * 0.37)
+    beats, state = [], {}
+
+    async def camera(ctx):
+        for b in data:
+            ctx.set(port.i.valid, 1)
+            ctx.set(port.i.payload, b)
+            await ctx.tick("cam")
+        ctx.set(port.i.valid, 0)
+        await ctx.tick("cam").repeat(40)
+        state["done"] = True
+
+    async def core(ctx):
+        n = 0
+        while "done" not in state:
+            ctx.set(port.o.ready, ready(n))
+            await ctx.tick()
+            n += 1
+        await ctx.tick().repeat(8)
+        state.update(errors=ctx.get(port.errors), overflow=ctx.get(port.overflow),
+                     locked=ctx.get(port.locked))
+
+    async def monitor(ctx):
+        async for _c, _r, v, r, p in ctx.tick().sample(port.o.valid, port.o.ready, port.o.payload):
+            if v and r:
+                beats.append((p.r, p.g, p.b, p.sof, p.eol, p.eof))
+
+    sim.add_testbench(camera)
+    sim.add_testbench(core)
+    sim.add_testbench(monitor, background=True)
+    sim.run()
+    return beats, state
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="fifo_depth"):
+        CameraPort(fifo_depth=12)
+
+
+def test_crosses_clock_domains_bit_exact_with_stalls():
+    data = encode_bt656(make_fields(1, 2, 3, 8))
+    gold = decode_bt656(data, lines=3)
+    rng = random.Random(3)
+    beats, st = run(data, lines=3, ready=lambda n: rng.random() < 0.7)
+    assert beats == gold.beats
+    assert st == {"errors": 0, "overflow": 0, "locked": 1, "done": True}
+
+
+def test_overflow_drops_the_frame_tail_and_counts():
+    data = encode_bt656(make_fields(2, 3, 4, 16), hblank=2)
+    gold = decode_bt656(data, lines=4)
+    frames = [[], [], []]
+    k = -1
+    for b in gold.beats:
+        k += b[3]
+        frames[k].append(b)
+    # the core stalls during most of the first field: the FIFO fills, the rest is dropped
+    stop = range(20, 300)
+    beats, st = run(data, lines=4, ready=lambda n: n not in stop, fifo_depth=16)
+    got = [[], [], []]
+    k = -1
+    for b in beats:
+        k += b[3]
+        got[k].append(b)
+    assert got[0] == frames[0][:len(got[0])] and 16 <= len(got[0]) < len(frames[0])
+    assert got[1:] == frames[1:]                 # whole frames again from the next sof
+    assert st["overflow"] == len(frames[0]) - len(got[0]) and st["errors"] == 0
+
+
+def test_exports_with_two_clock_domains(tmp_path):
+    from sim.export import export_verilog, registered
+    port, _ = registered("camera", {"fifo_depth": 16})
+    text = export_verilog("camera", port, {"fifo_depth": 16}, tmp_path).read_text()
+    for name in ("clk", "rst", "cam_clk", "cam_rst", "i__payload", "o__payload", "overflow"):
+        assert f" {name}" in text

@@ -1,0 +1,73 @@
+"""System simulation (sim/system.py): the SoC under Verilator from two BT.656 cameras at
+independent phases, the firmware's host build on the CPU bus; every camera fault on a small
+field (64 x 16, NTSC line blanking, 4 blanking lines a field)."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from golden.frontend import FrontEndParams
+from golden.ground import GroundMode, GroundParams
+from golden.matcher import MatcherParams
+from golden.pipeline import PipelineParams
+from golden.sobel import SobelParams
+from sim.data import crop, motorcycle
+from sim.system import FAULTS, inject, run_system, camera_streams
+
+W, H, FRAMES = 64, 16, 5
+PARAMS = PipelineParams(
+    FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
+                   SobelParams(threshold=64)),
+    MatcherParams(d_max=15, window=7))
+
+
+def pair():
+    left, right, _ = motorcycle()
+    return crop(left, W, H, 380, 240), crop(right, W, H, 380, 240)
+
+
+def test_clean_run_is_bit_exact_with_records():
+    res = run_system(*pair(), frames=FRAMES, timing="short", params=PARAMS)
+    assert res["bit_exact"] and res["records"] == res["golden_records"] > 0
+    assert res["frames"] == res["pairs_ok"] == FRAMES
+    assert res["mispaired"] == res["drops"] == res["fifo_overflow"] == 0
+    assert res["errors"] == {"camera_left": 0, "camera_right": 0, "matcher": 0}
+    assert res["firmware"]["flags"] == 7            # both locked, enabled
+
+
+@pytest.mark.parametrize("fault", FAULTS)
+def test_fault_is_counted_and_pairs_resynchronise(fault):
+    res = run_system(*pair(), frames=FRAMES, fault=fault, timing="short", params=PARAMS)
+    assert res["bit_exact"] and res["fault_counted"], res
+    expect = {
+        "missing-sof-left": dict(drops=1, pairs_ok=FRAMES - 1),
+        "missing-sof-right": dict(drops=1, pairs_ok=FRAMES - 1),
+        "extra-sof-right": dict(mispaired=1, drops=1, pairs_ok=FRAMES - 1),
+        "long-line-left": dict(mispaired=1, drops=0, pairs_ok=FRAMES - 1),
+        "noise-left": dict(mispaired=1, pairs_ok=FRAMES - 1),
+        "reset-mid-frame": dict(mispaired=0, drops=0),
+    }[fault]
+    for key, value in expect.items():
+        assert res[key] == value, (key, res)
+    if fault.startswith("missing-sof"):
+        side = "camera_left" if fault.endswith("left") else "camera_right"
+        assert res["errors"][side] == H + 4         # the lost field's lines beyond the count
+
+
+def test_faults_change_only_their_stream():
+    ldata, rdata, _, _ = camera_streams(*pair(), FRAMES, "short")
+    for fault in ("missing-sof-left", "long-line-left", "noise-left"):
+        assert inject(ldata, fault) != ldata
+    assert len(inject(ldata, "long-line-left")) == len(ldata) + 8
+    with pytest.raises(ValueError):
+        inject(ldata, "reset-mid-frame")
+
+
+def test_command_line_errors_are_one_line():
+    r = subprocess.run([sys.executable, "-m", "sim", "system", "--fault", "bogus"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("error:") and "Traceback" not in r.stderr
+    r = subprocess.run([sys.executable, "-m", "sim", "system", "--left", "x.png"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("error:")
