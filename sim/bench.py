@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.timing import bench_timing
+
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -802,6 +804,7 @@ def main(argv=None):
     bench.progress("hardware resources" + (" (skipped: --quick)" if args.quick else
                                            " (sim.synth)"))
     rep["resources"] = resources(bench, out, args.quick)
+    rep["timing"] = bench_timing(bench, out, args.quick)    # ECP5 place and route (sim.timing)
 
     bench.progress("throughput: pipeline RTL on the Verilator harness")
     rep["throughput"], full_frame = throughput(bench, args.quick, (left, right))
@@ -821,7 +824,7 @@ def main(argv=None):
                    "python": platform.python_version(), "quick": args.quick,
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
-    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources",
+    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources", "timing",
             "throughput", "sim_speed", "software_speed", "provenance"]
     ordered = {k: rep[k] for k in keys}
     (out / "report.json").write_text(json.dumps(ordered, indent=1, default=_json) + "\n")
