@@ -3,10 +3,15 @@
 Per frame, over a reference region (``ref_x``, ``ref_y``, ``ref_w``, ``ref_h``; clipped to the
 frame, normally at the bottom centre, just in front of the robot), two histograms are built:
 
-* hue: 192 bins (``golden.color`` units), counting region pixels with ``S >= s_min``;
-* luminance: 256 bins, counting every region pixel.
+* hue: 192 bins (``golden.color`` units), counting the region pixels at even ``x + y`` (frame
+  coordinates) with ``S >= s_min``;
+* luminance: 256 bins, counting the region pixels at odd ``x + y``.
 
-Bins are 18-bit counters that saturate at 2**18 - 1 (one 256 x 18 block RAM each). At the end of
+Each region pixel feeds exactly one of the two histograms, in a checkerboard, so both live in
+one 512 x 16-bit block RAM (hue at addresses 0-191, luma at 256-511) updated read-modify-write
+at one pixel per clock through its two ports. Half the pixels of a region of a uniform floor
+still give thousands of samples per histogram (376 x 60 pixels at 752 x 480: 11,280 each).
+Bins are 16-bit counters that saturate at 2**16 - 1. At the end of
 the region the peak of each histogram (the lowest bin among the largest counts) becomes that
 band's centre for the *next* frame; an empty histogram leaves the centre as it was. The first
 frame after reset uses the configured defaults ``hue_centre0`` and ``luma_centre0``.
@@ -44,7 +49,7 @@ from .color import HUE_STEPS
 __all__ = ["GroundMode", "GroundParams", "HIST_MAX", "hue_distance", "classify",
            "learn_centres", "GroundModel", "ground_frames"]
 
-HIST_BITS = 18
+HIST_BITS = 16
 HIST_MAX = (1 << HIST_BITS) - 1
 
 
@@ -116,12 +121,15 @@ def classify(y, h, s, params, centre_h, centre_y):
 
 
 def histograms(y, h, s, params):
-    """The (hue, luma) histograms of one frame's reference region, saturating like the RTL."""
+    """The (hue, luma) histograms of one frame's reference region (hue from the pixels at even
+    ``x + y``, luma from those at odd ``x + y``), saturating like the RTL."""
     region = (slice(params.ref_y, params.ref_y + params.ref_h),
               slice(params.ref_x, params.ref_x + params.ref_w))
     ry, rh, rs = (np.asarray(a)[region] for a in (y, h, s))
-    hue_hist = np.bincount(rh[rs >= params.s_min].ravel(), minlength=256)
-    luma_hist = np.bincount(ry.ravel(), minlength=256)
+    yy, xx = np.indices(np.asarray(y).shape)
+    even = ((xx + yy) % 2 == 0)[region]
+    hue_hist = np.bincount(rh[even & (rs >= params.s_min)].ravel(), minlength=256)
+    luma_hist = np.bincount(ry[~even].ravel(), minlength=256)
     return np.minimum(hue_hist, HIST_MAX), np.minimum(luma_hist, HIST_MAX)
 
 

@@ -1,5 +1,5 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
-from amaranth.hdl import Module, Signal, Mux
+from amaranth.hdl import Module, Signal, Mux, Cat
 from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
@@ -14,8 +14,12 @@ __all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES"]
 GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
 
 #: Cycles after the beat that ends the reference region (or the frame) during which the search
-#: runs: one wait cycle, 256 bin reads, the last comparison and the hand-over of the peaks.
-SEARCH_CYCLES = 259
+#: runs: three cycles for the last histogram update to land, 512 word reads, the registered read
+#: data, the last comparison and the hand-over of the peaks.
+SEARCH_CYCLES = 518
+
+HIST_WORDS = 512        # hue bins at 0..191, luma bins at 256..511
+LUMA_BASE = 256
 
 
 class GroundClassifier(FramedUnit):
@@ -31,20 +35,28 @@ class GroundClassifier(FramedUnit):
         vertical blanking are needed, or the source waits), for ``SEARCH_CYCLES`` after reset,
         and when a frame is abandoned before its search (its histogram is cleared first).
     o : Out(stream of :data:`GroundPixel`)
-        ``y`` and the ground bit, 1 cycle after the input transfer.
+        ``y`` and the ground bit, ``LATENCY`` = 3 cycles after the input transfer.
     config : In(:data:`GroundConfig`)
-        Run-time parameters (``golden.ground.GroundParams``). The reference region and
-        ``s_min`` are sampled per pixel; change them between frames.
+        Run-time parameters (``golden.ground.GroundParams``). The reference region, ``s_min``,
+        ``k`` and the JNDs are used as pixels pass (through registers: ``k`` x JND is computed
+        once, not per pixel); change them between frames.
     centre_h, centre_y : Out(8)
         The band centres the current frame is classified with.
     errors, dropped : Out(16), Out(32)
         Malformed-stream counters (:mod:`hdl.framing`).
 
-    Histograms: two 256 x 18-bit block RAMs updated read-modify-write at one pixel per clock
-    (a one-deep forwarding register covers back-to-back pixels in the same bin). The peak search
-    reads every bin once and writes it back as zero, so it also clears the histogram for the next
-    frame: no dead frame.
+    Classification pipeline: (1) input register, with the frame's band centres chosen at its
+    ``sof``; (2) distances to the centres; (3) output register: band tests against registered
+    thresholds.
+
+    Histograms: one 512 x 16-bit block RAM (hue bins at 0-191, luma bins at 256-511; each
+    region pixel updates one of them, by the parity of ``x + y``) updated read-modify-write at
+    one pixel per clock: address register, read, registered read data, increment and write, with
+    the two writes still in flight forwarded. The peak search reads every word once (through a
+    read-data register) and writes it back as zero, so it also clears the histograms for the
+    next frame: no dead frame.
     """
+    LATENCY = 3
 
     i: In(stream.Signature(YHSPixel))
     o: Out(stream.Signature(GroundPixel))
@@ -62,13 +74,25 @@ class GroundClassifier(FramedUnit):
         m.d.comb += [track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
                      self.errors.eq(track.errors), self.dropped.eq(track.dropped)]
 
+        # --- Per-frame constants, registered from the configuration ------------------------
+        th_h = Signal(8); th_hw = Signal(8); th_y = Signal(8)   # k * JND; 192 - k * JND_hue
+        ref_x_end = Signal(12); last_row = Signal(12)
+        m.d.sync += [
+            th_h.eq(cfg.k * cfg.jnd_hue), th_y.eq(cfg.k * cfg.jnd_luma),
+            th_hw.eq(Mux(th_h >= HUE_STEPS, 0, HUE_STEPS - th_h)),
+            ref_x_end.eq(cfg.ref_x + cfg.ref_w), last_row.eq(cfg.ref_y + cfg.ref_h - 1),
+        ]
+
         # --- Search / clear state ---------------------------------------------------------
         busy = Signal(init=1)           # a scan is pending or running (a clear pass after reset)
         commit = Signal()               # the scan publishes its peaks (else it only clears)
         scanning = Signal()
-        scan_idx = Signal(9)
-        scan_v = Signal()               # a bin read was issued last cycle
-        scan_bin = Signal(8)            # ... for this bin
+        scan_idx = Signal(range(HIST_WORDS + 1))
+        scan_v = Signal()               # a word was read last cycle ...
+        scan_bin = Signal(9)            # ... at this address
+        cmp_v = Signal()                # registered read data to compare this cycle ...
+        cmp_bin = Signal(9)             # ... of this address
+        cmp_data = Signal(HIST_BITS)
         searched = Signal()             # the current frame's histogram has been handed to a scan
         best_h = Signal(HIST_BITS); arg_h = Signal(8)
         best_y = Signal(HIST_BITS); arg_y = Signal(8)
@@ -89,74 +113,91 @@ class GroundClassifier(FramedUnit):
             track.beat.eq(self.i.valid & self.i.ready),
         ]
 
-        # --- Classification (comb on the input beat, registered output) --------------------
-        use_h = Signal(8); use_y = Signal(8)
-        m.d.comb += [
-            use_h.eq(Mux(p.sof & pend_h, pend_hv, Mux(learned_h, cur_h, cfg.hue_centre0))),
-            use_y.eq(Mux(p.sof & pend_y, pend_yv, Mux(learned_y, cur_y, cfg.luma_centre0))),
-        ]
-        dh = Signal(9); dh_wrap = Signal(9); dy = Signal(9)
-        m.d.comb += [
-            dh.eq(Mux(p.h >= use_h, p.h - use_h, use_h - p.h)),
-            dh_wrap.eq(Mux(dh > HUE_STEPS // 2, HUE_STEPS - dh, dh)),
-            dy.eq(Mux(p.y >= use_y, p.y - use_y, use_y - p.y)),
-        ]
-        luma_ok = dy <= cfg.k * cfg.jnd_luma
-        hue_ok = dh_wrap <= cfg.k * cfg.jnd_hue
-        ground = Signal()
-        with m.Switch(cfg.mode):
-            with m.Case(1):
-                m.d.comb += ground.eq(luma_ok)
-            with m.Case(2):
-                m.d.comb += ground.eq(Mux(p.s >= cfg.s_min, hue_ok, luma_ok))
-        o = self.o.payload
+        # --- Classification pipeline -------------------------------------------------------
+        # 1. input register; the band centres of a frame are fixed at its sof
+        v0 = Signal(); y0 = Signal(8); h0 = Signal(8); s_ok0 = Signal(); flags0 = Signal(3)
+        fc_h = self.centre_h; fc_y = self.centre_y
         with m.If(advance):
-            m.d.sync += [
-                self.o.valid.eq(track.accept),
-                o.y.eq(p.y), o.ground.eq(ground),
-                o.sof.eq(p.sof), o.eol.eq(p.eol), o.eof.eq(p.eof),
-            ]
+            m.d.sync += [v0.eq(track.accept), y0.eq(p.y), h0.eq(p.h),
+                         s_ok0.eq(p.s >= cfg.s_min), flags0.eq(Cat(p.sof, p.eol, p.eof))]
         with m.If(track.accept & p.sof):
             m.d.sync += [pend_h.eq(0), pend_y.eq(0),
-                         self.centre_h.eq(use_h), self.centre_y.eq(use_y)]
+                         fc_h.eq(Mux(pend_h, pend_hv, Mux(learned_h, cur_h, cfg.hue_centre0))),
+                         fc_y.eq(Mux(pend_y, pend_yv, Mux(learned_y, cur_y, cfg.luma_centre0)))]
             with m.If(pend_h):
                 m.d.sync += [cur_h.eq(pend_hv), learned_h.eq(1)]
             with m.If(pend_y):
                 m.d.sync += [cur_y.eq(pend_yv), learned_y.eq(1)]
 
+        # 2. distances to the centres
+        def absdiff(a, b):
+            return Mux(a >= b, a - b, b - a)[:8]
+
+        v1 = Signal(); y1 = Signal(8); dh1 = Signal(8); dy1 = Signal(8); s_ok1 = Signal()
+        flags1 = Signal(3)
+        with m.If(advance):
+            m.d.sync += [v1.eq(v0), y1.eq(y0), dh1.eq(absdiff(h0, fc_h)),
+                         dy1.eq(absdiff(y0, fc_y)), s_ok1.eq(s_ok0), flags1.eq(flags0)]
+
+        # 3. output register: the band tests (hue distance wraps: min(d, 192 - d) <= T)
+        luma_ok = dy1 <= th_y
+        hue_ok = (dh1 <= th_h) | (dh1 >= th_hw)
+        ground = Signal()
+        with m.Switch(cfg.mode):
+            with m.Case(1):
+                m.d.comb += ground.eq(luma_ok)
+            with m.Case(2):
+                m.d.comb += ground.eq(Mux(s_ok1, hue_ok, luma_ok))
+        o = self.o.payload
+        with m.If(advance):
+            m.d.sync += [
+                self.o.valid.eq(v1),
+                o.y.eq(y1), o.ground.eq(ground),
+                Cat(o.sof, o.eol, o.eof).eq(flags1),
+            ]
+
         # --- Histogram update (read-modify-write, one pixel per clock) ---------------------
         in_region = Signal()
-        m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < cfg.ref_x + cfg.ref_w) &
-                                 (track.y >= cfg.ref_y) & (track.y < cfg.ref_y + cfg.ref_h))
-        upd_y = Signal(); upd_h = Signal()
-        m.d.comb += [upd_y.eq(track.accept & in_region),
-                     upd_h.eq(track.accept & in_region & (p.s >= cfg.s_min))]
-        for name, upd, bin_in, best, arg in (("hue", upd_h, p.h, best_h, arg_h),
-                                              ("luma", upd_y, p.y, best_y, arg_y)):
-            mem = memory.Memory(shape=HIST_BITS, depth=256, init=[])
-            m.submodules[f"{name}_hist"] = mem
-            rd = mem.read_port()
-            wr = mem.write_port()
-            v1 = Signal(); bin1 = Signal(8)          # update whose bin is being read
-            v2 = Signal(); bin2 = Signal(8); val2 = Signal(HIST_BITS)   # last cycle's write
-            m.d.sync += [v1.eq(upd), bin1.eq(bin_in),
-                         v2.eq(v1), bin2.eq(bin1), val2.eq(wr.data)]
-            count = Signal(HIST_BITS)
-            m.d.comb += count.eq(Mux(v2 & (bin2 == bin1), val2, rd.data))
-            with m.If(scanning | scan_v):
-                m.d.comb += [rd.addr.eq(scan_idx), wr.addr.eq(scan_bin),
-                             wr.data.eq(0), wr.en.eq(scan_v)]
-            with m.Else():
-                m.d.comb += [rd.addr.eq(bin_in), wr.addr.eq(bin1),
-                             wr.data.eq(Mux(count == HIST_MAX, count, count + 1)),
-                             wr.en.eq(v1)]
-            limit = HUE_STEPS if name == "hue" else 256
-            with m.If(scan_v & (rd.data > best) & (scan_bin < limit)):
-                m.d.sync += [best.eq(rd.data), arg.eq(scan_bin)]
+        m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < ref_x_end) &
+                                 (track.y >= cfg.ref_y) & (track.y <= last_row))
+        luma_px = track.x[0] ^ track.y[0]        # odd x + y: luma histogram, even: hue
+        mem = memory.Memory(shape=HIST_BITS, depth=HIST_WORDS, init=[])
+        m.submodules.hist = mem
+        rd = mem.read_port()
+        wr = mem.write_port()
+        # u0: address register; u1: read; u2: read data registered, increment, write
+        u0 = Signal(); bin0 = Signal(9)
+        u1 = Signal(); bin1 = Signal(9)
+        u2 = Signal(); bin2 = Signal(9); raw2 = Signal(HIST_BITS)
+        fwd1_2 = Signal(); fwd2_2 = Signal()     # u2's bin was written 1 / 2 cycles before
+        u3 = Signal(); bin3 = Signal(9); val3 = Signal(HIST_BITS)   # the write of last cycle
+        val4 = Signal(HIST_BITS)                                    # ... and of the one before
+        m.d.sync += [
+            u0.eq(track.accept & in_region & (luma_px | (p.s >= cfg.s_min))),
+            bin0.eq(Mux(luma_px, LUMA_BASE + p.y, p.h)),
+            u1.eq(u0), bin1.eq(bin0),
+            u2.eq(u1), bin2.eq(bin1), raw2.eq(rd.data),
+            fwd1_2.eq(u2 & (bin2 == bin1)), fwd2_2.eq(u3 & (bin3 == bin1)),
+            u3.eq(u2), bin3.eq(bin2), val3.eq(wr.data), val4.eq(val3),
+        ]
+        count = Signal(HIST_BITS)
+        m.d.comb += count.eq(Mux(fwd1_2, val3, Mux(fwd2_2, val4, raw2)))
+        inc = Signal(HIST_BITS + 1)
+        m.d.comb += inc.eq(count + 1)
+        with m.If(scanning | scan_v):
+            m.d.comb += [rd.addr.eq(scan_idx), wr.addr.eq(scan_bin),
+                         wr.data.eq(0), wr.en.eq(scan_v)]
+        with m.Else():
+            m.d.comb += [rd.addr.eq(bin0), wr.addr.eq(bin2),
+                         wr.data.eq(Mux(inc[HIST_BITS], count, inc[:HIST_BITS])),
+                         wr.en.eq(u2)]
+        m.d.sync += [cmp_v.eq(scan_v), cmp_bin.eq(scan_bin), cmp_data.eq(rd.data)]
+        with m.If(cmp_v & ~cmp_bin[8] & (cmp_bin < HUE_STEPS) & (cmp_data > best_h)):
+            m.d.sync += [best_h.eq(cmp_data), arg_h.eq(cmp_bin[:8])]
+        with m.If(cmp_v & cmp_bin[8] & (cmp_data > best_y)):
+            m.d.sync += [best_y.eq(cmp_data), arg_y.eq(cmp_bin[:8])]
 
         # --- Search triggers and FSM -------------------------------------------------------
-        last_row = Signal(12)
-        m.d.comb += last_row.eq(cfg.ref_y + cfg.ref_h - 1)
         region_end = Signal()
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &
                                   (p.sof | ~searched))
@@ -167,19 +208,22 @@ class GroundClassifier(FramedUnit):
         with m.Elif(region_end | frame_lost):
             m.d.sync += searched.eq(1)
 
-        wait = Signal(init=1)     # one cycle so the last histogram write lands before the scan
+        # three cycles so the last histogram update (u0 -> u2) lands before the scan reads
+        wait = Signal(2, init=3)
         with m.If(region_end | frame_lost):
-            m.d.sync += [busy.eq(1), wait.eq(1), commit.eq(region_end)]
-        with m.Elif(wait):
-            m.d.sync += [wait.eq(0), scanning.eq(1), scan_idx.eq(0),
-                         best_h.eq(0), best_y.eq(0), arg_h.eq(0), arg_y.eq(0)]
+            m.d.sync += [busy.eq(1), wait.eq(3), commit.eq(region_end)]
+        with m.Elif(wait != 0):
+            m.d.sync += wait.eq(wait - 1)
+            with m.If(wait == 1):
+                m.d.sync += [scanning.eq(1), scan_idx.eq(0),
+                             best_h.eq(0), best_y.eq(0), arg_h.eq(0), arg_y.eq(0)]
         m.d.sync += [scan_v.eq(scanning), scan_bin.eq(scan_idx)]
         with m.If(scanning):
             m.d.sync += scan_idx.eq(scan_idx + 1)
-            with m.If(scan_idx == 255):
+            with m.If(scan_idx == HIST_WORDS - 1):
                 m.d.sync += scanning.eq(0)
-        final = Signal()          # every bin compared: the peaks are final this cycle
-        m.d.sync += final.eq(scan_v & ~scanning & busy)
+        final = Signal()          # every word compared: the peaks are final this cycle
+        m.d.sync += final.eq(cmp_v & ~scan_v & busy)
         with m.If(final):
             m.d.sync += busy.eq(0)
             with m.If(commit):

@@ -140,17 +140,18 @@ def test_rtl_throughput_and_search_cycles():
     """Region away from the bottom: the search overlaps the frame, one pixel per clock; region
     at the bottom: each frame ends with SEARCH_CYCLES of blanking the unit waits for."""
     rng = np.random.default_rng(6)
-    # 13 rows of 32 pixels after the region: more than the search needs
-    frames = [yhs(floor_image(rng, 16, 32, (40, 160, 60))) for _ in range(3)]
-    pixels = 3 * 16 * 32
+    # 21 rows of 32 pixels after the region: more than the search needs
+    frames = [yhs(floor_image(rng, 24, 32, (40, 160, 60))) for _ in range(3)]
+    pixels = 3 * 24 * 32
+    tail = GroundClassifier.LATENCY - 1       # the output register counts in cycles already
     mid = GroundParams(ref_x=8, ref_y=1, ref_w=16, ref_h=2)
     r = run(frames, mid, name="ground_rate_mid")
-    assert r.cycles == pixels + SEARCH_CYCLES   # clear pass after reset, then 1 px/clock
+    assert r.cycles == pixels + SEARCH_CYCLES + tail   # clear pass after reset, then 1 px/clock
     frames = [f for f in frames for f in [{k: v[:8] for k, v in f.items()}]]
     pixels = 3 * 8 * 32
     bottom = GroundParams(ref_x=8, ref_y=6, ref_w=16, ref_h=2)
     r = run(frames, bottom, name="ground_rate_bottom")
-    assert r.cycles == pixels + 3 * SEARCH_CYCLES
+    assert r.cycles == pixels + 3 * SEARCH_CYCLES + tail
 
 
 @pytest.mark.parametrize("case", ["missing_sof", "short_line", "long_line", "eof_without_eol",
