@@ -47,7 +47,9 @@ import numpy as np
 from .color import HUE_STEPS
 
 __all__ = ["GroundMode", "GroundParams", "HIST_MAX", "hue_distance", "classify",
-           "learn_centres", "GroundModel", "ground_frames"]
+           "learn_centres", "GroundModel", "ground_frames",
+           "FREE_BANDS", "FREE_NONE", "HistogramParams", "HistogramGroundModel", "free_space",
+           "region_histograms", "smoothed", "ground_set"]
 
 HIST_BITS = 16
 HIST_MAX = (1 << HIST_BITS) - 1
@@ -169,3 +171,219 @@ def ground_frames(frames, params):
         centres.append(model.centres)
         masks.append(model.step(y, h, s))
     return masks, centres
+
+
+# =============================================================================================
+# Ground model v2: classification by the reference histograms (specification; the RTL above is
+# still the peak-band model v1, see HistogramGroundModel's docstring)
+# =============================================================================================
+
+#: Column bands of the free-space output, and the value of a band without an obstacle run.
+FREE_BANDS = 16
+FREE_NONE = 0xFFFF
+#: Fraction units of ``frac``: the ground threshold is ``support * frac >> FRAC_SHIFT``.
+FRAC_SHIFT = 10
+
+
+@dataclass(frozen=True)
+class HistogramParams:
+    """The v2 model's parameters beyond :class:`GroundParams` (register widths in ``FIELDS``).
+
+    ``y_lo``, ``y_hi``  luma clip levels (codes): a hue is reliable only for ``y_lo <= Y <= y_hi``
+                        (a clipped channel distorts it), and luma bins outside never make a
+                        pixel ground (clipped black or white carries no floor information);
+    ``frac``            a bin is ground when its count smoothed over +-1 JND reaches
+                        ``support * frac / 1024`` (support = the histogram's total);
+    ``min_support``     fewer reliable hue samples than this in the model: the next frame is
+                        classified by luminance only (status ``hue_fallback``);
+    ``shift``           blending: model' = model + (new - model) / 2**shift, as
+                        ``((model << shift) - model + new) >> shift`` (0: no memory);
+    ``both``            a pixel with a reliable hue is ground when its hue AND its luma are in
+                        the ground sets (0: its hue alone decides);
+    ``band_w``          free space: columns per band (bands from x = 0, at most FREE_BANDS);
+    ``run_r``           free space: rows an obstacle run needs.
+    """
+    y_lo: int = 16
+    y_hi: int = 239
+    frac: int = 48
+    min_support: int = 256
+    shift: int = 1
+    both: int = 0
+    band_w: int = 47
+    run_r: int = 4
+
+    FIELDS = (("y_lo", 8), ("y_hi", 8), ("frac", 8), ("min_support", 16), ("shift", 3),
+              ("both", 1), ("band_w", 10), ("run_r", 6))
+
+    def validate(self):
+        for name, bits in self.FIELDS:
+            value = getattr(self, name)
+            if not 0 <= int(value) < (1 << bits):
+                raise ValueError(f"ground parameter {name}={value} outside 0..{(1 << bits) - 1}")
+        if self.band_w < 1 or self.run_r < 1:
+            raise ValueError("band_w and run_r must be at least 1")
+        return self
+
+
+def reliable_hue(y, s, params, hp):
+    y = np.asarray(y)
+    return (np.asarray(s) >= params.s_min) & (y >= hp.y_lo) & (y <= hp.y_hi)
+
+
+def region_histograms(y, h, s, params, hp):
+    """v2 histograms of one frame's reference region (checkerboard as in v1; the hue histogram
+    counts only reliable hues), uint32, saturating at HIST_MAX."""
+    region = (slice(params.ref_y, params.ref_y + params.ref_h),
+              slice(params.ref_x, params.ref_x + params.ref_w))
+    yy, xx = np.indices(np.asarray(y).shape)
+    even = ((xx + yy) % 2 == 0)[region]
+    ry, rh = np.asarray(y)[region], np.asarray(h)[region]
+    ok = reliable_hue(y, s, params, hp)[region]
+    hue = np.bincount(rh[even & ok].ravel(), minlength=256)[:HUE_STEPS]
+    lum = np.bincount(ry[~even].ravel(), minlength=256)
+    return (np.minimum(hue, HIST_MAX).astype(np.uint32), np.minimum(lum, HIST_MAX).astype(np.uint32))
+
+
+def smoothed(hist, radius, wrap):
+    """Sum of ``hist`` over bins b - radius .. b + radius (the hue circle wraps; luma bins
+    outside 0..255 count 0), uint32."""
+    n = len(hist)
+    out = np.zeros(n, dtype=np.uint32)
+    for d in range(-radius, radius + 1):
+        if wrap:
+            out += np.roll(hist, -d)
+        else:
+            shifted = np.zeros(n, dtype=np.uint32)
+            if d >= 0:
+                shifted[:n - d] = hist[d:]
+            else:
+                shifted[-d:] = hist[:n + d]
+            out += shifted
+    return out
+
+
+def ground_set(hist, radius, wrap, frac):
+    """Bins whose smoothed count reaches ``max(1, support * frac >> FRAC_SHIFT)``."""
+    support = int(hist.sum())
+    threshold = max(1, (support * int(frac)) >> FRAC_SHIFT)
+    return smoothed(hist, radius, wrap) >= threshold
+
+
+class HistogramGroundModel:
+    """Ground model v2 (Ulrich & Nourbakhsh 2000, appearance-based obstacle detection: a pixel
+    is ground when its value is frequent in the reference area's hue and intensity histograms).
+
+    State from reset: no model; frames are classified with the v1 default bands (centre0 +-
+    k JND) until the first frame has been learned. After each frame the region's histograms
+    are blended into the model (the first one is taken as it is) and the ground sets for the
+    NEXT frame are the bins whose count, smoothed over +-1 JND (``jnd_hue`` hue bins, wrapping;
+    ``jnd_luma`` luma codes), reaches ``frac / 1024`` of the model's support. Luma bins below
+    ``y_lo`` or above ``y_hi`` are never in the set. When the hue model's support is below
+    ``min_support`` the next frame is classified by luminance only (``hue_fallback``).
+
+    Classification (1 = ground)::
+
+        luma_ok = Y in [y_lo, y_hi] and (learned ? Lset[Y] : |Y - centre_y| <= k jnd_luma)
+        hue_ok  = learned ? Hset[H] : hue_dist(H, centre_h) <= k jnd_hue
+        OFF: 0     LUMA: luma_ok
+        HUE: reliable ? (hue_fallback ? 0 : hue_ok and (luma_ok if both else 1)) : luma_ok
+        reliable = S >= s_min and Y in [y_lo, y_hi]
+
+    In hue fallback the floor showed no reliable hue: grey pixels are classified by luminance,
+    and a pixel with a reliable hue is an obstacle (the floor is grey).
+
+    Defaults, measured with ``sim/bench_ground.py`` (floor recall / obstacle pixels marked
+    ground, last of three frames): ``frac`` = 48 (4.7 % of the support in a +-1 JND window)
+    and ``both`` = 0. With ``both`` = 1 the shadow-band floor drops from 0.984 to 0.853 recall
+    (the shadow's luminance is not in the reference area) and nothing else improves (obstacles
+    are at 0.000 either way on the colour floors; the motorcycle pair runs in hue fallback,
+    where ``both`` has no effect). Lower ``frac`` raises recall and obstacle-as-ground together:
+    on the motorcycle pair in luminance mode 24 gives 0.724 / 0.115, 48 gives 0.675 / 0.095.
+
+    Why ``min_support`` = 256 by default: the model's hue histogram needs enough reliable samples
+    that one bin's smoothed count is a fraction of a few per cent with a standard error of a few
+    tenths of it: with n samples spread over ~10 bins, a 5-bin window holds ~n/2 and its
+    relative error is sqrt(2/n): 9 % at n = 256. With fewer (23 saturated pixels on the grey
+    concrete of the motorcycle pair) a handful of coloured specks would define the floor's hue.
+
+    Not yet in the RTL: ``hdl/ground.py`` still implements the v1 peak bands (the v1 functions
+    above); this class is the specification the v2 RTL is to match bit for bit, and what
+    ``sim/bench_ground.py`` measures.
+    """
+
+    def __init__(self, params, hp=HistogramParams()):
+        self.params = params.validate()
+        self.hp = hp.validate()
+        self.model = None                  # (hue, luma) uint32 blended histograms
+        self.sets = None                   # (hue set (192,), luma set (256,)) bool
+        self.hue_fallback = False
+
+    def classify(self, y, h, s):
+        p, hp = self.params, self.hp
+        y = np.asarray(y).astype(np.int32)
+        in_range = (y >= hp.y_lo) & (y <= hp.y_hi)
+        if self.sets is None:
+            luma_ok = np.abs(y - int(p.luma_centre0)) <= p.k * p.jnd_luma
+            hue_ok = hue_distance(h, p.hue_centre0) <= p.k * p.jnd_hue
+        else:
+            luma_ok = self.sets[1][y]
+            hue_ok = self.sets[0][np.minimum(np.asarray(h), HUE_STEPS - 1)]
+        luma_ok = luma_ok & in_range
+        if p.mode == GroundMode.OFF:
+            mask = np.zeros(y.shape, dtype=bool)
+        elif p.mode == GroundMode.LUMA:
+            mask = luma_ok
+        else:
+            rel = reliable_hue(y, s, p, hp)
+            if self.hue_fallback:
+                # the floor shows no reliable hue: a pixel that does is not floor
+                sat_ok = np.zeros(y.shape, dtype=bool)
+            else:
+                sat_ok = hue_ok & luma_ok if hp.both else hue_ok
+            mask = np.where(rel, sat_ok, luma_ok)
+        return mask.astype(np.uint8)
+
+    def learn(self, y, h, s):
+        p, hp = self.params, self.hp
+        new = region_histograms(y, h, s, p, hp)
+        if self.model is None:
+            model = new
+        else:
+            model = tuple(((m << np.uint32(hp.shift)) - m + n) >> np.uint32(hp.shift)
+                          for m, n in zip(self.model, new))
+        self.model = model
+        lum_set = ground_set(model[1], p.jnd_luma, False, hp.frac)
+        lum_set[:hp.y_lo] = False
+        lum_set[hp.y_hi + 1:] = False
+        self.sets = (ground_set(model[0], p.jnd_hue, True, hp.frac), lum_set)
+        self.hue_fallback = int(model[0].sum()) < hp.min_support
+
+    def step(self, y, h, s):
+        """Ground mask of one frame (uint8 0/1); the model moves on to the next frame's."""
+        mask = self.classify(y, h, s)
+        self.learn(y, h, s)
+        return mask
+
+
+def free_space(mask, band_w=HistogramParams.band_w, run_r=HistogramParams.run_r):
+    """Per column band (``band_w`` columns from x = 0; FREE_BANDS bands, those past the image
+    FREE_NONE): the image row of the lowest obstacle run of at least ``run_r`` rows, scanning up
+    from the bottom row, as the run's bottom row; FREE_NONE when the band has none. A band's row
+    is an obstacle row when more than half of its pixels in that row are obstacle (mask 0).
+    Streaming form (what the RTL does, top to bottom): per band a run counter; on an obstacle
+    row it counts up (saturating at ``run_r``) and, once at ``run_r``, the band's result becomes
+    this row; any other row resets it."""
+    mask = np.asarray(mask)
+    h, w = mask.shape
+    out = np.full(FREE_BANDS, FREE_NONE, dtype=np.uint16)
+    for b in range(FREE_BANDS):
+        x0, x1 = b * band_w, min((b + 1) * band_w, w)
+        if x0 >= w:
+            break
+        obstacle = 2 * (mask[:, x0:x1] == 0).sum(axis=1) > (x1 - x0)
+        run = 0
+        for r in range(h):
+            run = min(run + 1, run_r) if obstacle[r] else 0
+            if run >= run_r:
+                out[b] = r
+    return out

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.bench_ground import bench_section as bench_ground_section
 from sim.timing import bench_timing
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
@@ -800,6 +801,7 @@ def main(argv=None):
 
     bench.progress("ground-mask agreement on the synthetic scenes")
     rep["ground_agreement"] = ground_agreement(bench, args.quick)
+    rep["ground_masks"] = bench_ground_section(bench, out)     # ground v1/v2 (sim.bench_ground)
 
     bench.progress("hardware resources" + (" (skipped: --quick)" if args.quick else
                                            " (sim.synth)"))
@@ -824,7 +826,7 @@ def main(argv=None):
                    "python": platform.python_version(), "quick": args.quick,
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
-    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources", "timing",
+    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "ground_masks", "resources", "timing",
             "throughput", "sim_speed", "software_speed", "provenance"]
     ordered = {k: rep[k] for k in keys}
     (out / "report.json").write_text(json.dumps(ordered, indent=1, default=_json) + "\n")

@@ -152,6 +152,7 @@ def cmd_run(args):
     from .units import UNITS, Job, records_from_words
     from .backends import run_unit
     from .views import write_outputs
+    from .raw_outputs import write_raw_outputs
     steps = 5
     if args.left or args.right:
         if not (args.left and args.right):
@@ -218,6 +219,7 @@ def cmd_run(args):
     shown = type(last)(last.left, last.right, rtl_frames[-1] if rtl_frames else last.records,
                        last.stats)
     paths = write_outputs(args.out, shown, left, d_max=params.matcher.d_max, summary=summary)
+    paths.update(write_raw_outputs(args.out, last))     # masks, edges, free space (raw)
     progress(5, steps, "done")
     verdict = "BIT-EXACT" if bit_exact else f"MISMATCH ({result['mismatches']} records differ" \
         + ("" if stats_exact else ", statistics differ") + ")"
