@@ -1,5 +1,5 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
-from amaranth.hdl import Module, Signal, Mux, Cat
+from amaranth.hdl import Module, Signal, Mux, Cat, Const
 from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
@@ -8,7 +8,8 @@ from golden.ground import GroundParams, HIST_BITS, HIST_MAX
 from .types import YHSPixel, GroundPixel
 from .framing import FramedUnit
 
-__all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES"]
+__all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES", "HistogramConfig",
+           "HistogramGroundClassifier", "histogram_search_cycles", "HISTOGRAM_CLEAR_CYCLES"]
 
 #: The run-time parameters, one field per :attr:`GroundParams.FIELDS` entry.
 GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
@@ -229,4 +230,312 @@ class GroundClassifier(FramedUnit):
             with m.If(commit):
                 m.d.sync += [pend_h.eq(best_h != 0), pend_hv.eq(arg_h),
                              pend_y.eq(best_y != 0), pend_yv.eq(arg_y)]
+        return m
+
+
+# =============================================================================================
+# Ground model v2 (specification: golden.ground.HistogramGroundModel). Not yet in the front end.
+# =============================================================================================
+
+from golden.ground import HistogramParams, FRAC_SHIFT   # noqa: E402
+
+#: The v2 unit's run-time parameters: the v1 fields, then the v2 ones.
+HistogramConfig = data.StructLayout({name: bits for name, bits in
+                                     GroundParams.FIELDS + HistogramParams.FIELDS})
+
+
+#: Cycles of the clearing pass after reset (or after a frame lost before its search): the blend
+#: pass alone (three cycles of wait, 512 words, its 5-stage pipeline).
+HISTOGRAM_CLEAR_CYCLES = 520
+
+
+def histogram_search_cycles(jnd_hue, jnd_luma):
+    """Cycles of the v2 search after the beat that ends the reference region: three for the last
+    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 4 to compute
+    the thresholds, the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
+    256 x (2 jnd_luma + 1)), its 6-stage pipeline and the hand-over."""
+    return 3 + 512 + 5 + 4 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
+
+
+class HistogramGroundClassifier(FramedUnit):
+    """Ground model v2: classifies each pixel by the blended reference histograms (one pixel per
+    clock), bit-exact with :class:`golden.ground.HistogramGroundModel`.
+
+    Ports as :class:`GroundClassifier`, except ``config`` (:data:`HistogramConfig`) and the status
+    outputs ``learned`` (the current frame is classified by learned sets) and ``hue_fallback``
+    (the current frame is classified by luminance: too few reliable hues in the model).
+
+    Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
+    (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel; two
+    distributed RAMs of 2 x 256 bits hold the hue and luma ground sets, double-buffered: the
+    sets of frame n + 1 are written while frame n is classified with the other bank.
+
+    Search, after the beat that ends the reference region (``histogram_search_cycles``, about
+    4,000 cycles at the default JNDs; the next ``sof`` waits if it comes earlier): a blend pass
+    over the 512 words (model' = new on the first frame, else ((model << shift) - model + new)
+    >> shift; the count is cleared) that also sums the supports, then the set pass: each bin's
+    window sum over +-JND (hue wrapping) against max(1, support x frac >> 10).
+    """
+    LATENCY = 3
+
+    i: In(stream.Signature(YHSPixel))
+    o: Out(stream.Signature(GroundPixel))
+    config: In(HistogramConfig)
+    learned: Out(1)
+    hue_fallback: Out(1)
+    errors: Out(16)
+    dropped: Out(32)
+
+    def elaborate(self, platform):
+        m = Module()
+        cfg = self.config
+        p = self.i.payload
+        m.submodules.track = track = self.frame_tracker()
+        m.d.comb += [track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
+                     self.errors.eq(track.errors), self.dropped.eq(track.dropped)]
+
+        th_h = Signal(8); th_hw = Signal(8); th_y = Signal(8)
+        ref_x_end = Signal(12); last_row = Signal(12)
+        m.d.sync += [
+            th_h.eq(cfg.k * cfg.jnd_hue), th_y.eq(cfg.k * cfg.jnd_luma),
+            th_hw.eq(Mux(th_h >= HUE_STEPS, 0, HUE_STEPS - th_h)),
+            ref_x_end.eq(cfg.ref_x + cfg.ref_w), last_row.eq(cfg.ref_y + cfg.ref_h - 1),
+        ]
+
+        busy = Signal(init=1)
+        commit = Signal()
+        searched = Signal()
+        model_valid = Signal()
+        sets_pending = Signal(); fallback_next = Signal()
+        bank = Signal(); learned = self.learned; fallback = self.hue_fallback
+
+        hold_sof = Signal()
+        m.d.comb += hold_sof.eq(self.i.valid & p.sof & (busy | (track.in_frame & ~searched)))
+        advance = Signal()
+        m.d.comb += [
+            advance.eq(~self.o.valid | self.o.ready),
+            self.i.ready.eq(advance & ~(busy & ~(track.in_frame & searched)) & ~hold_sof),
+            track.beat.eq(self.i.valid & self.i.ready),
+        ]
+
+        # --- ground sets (distributed RAM, two banks) --------------------------------------
+        hset = memory.Memory(shape=1, depth=512, init=[])
+        lset = memory.Memory(shape=1, depth=512, init=[])
+        m.submodules.hset = hset
+        m.submodules.lset = lset
+        hset_wr = hset.write_port(); lset_wr = lset.write_port()
+        hset_rd = hset.read_port(domain="comb"); lset_rd = lset.read_port(domain="comb")
+
+        # --- classification pipeline -------------------------------------------------------
+        def in_range(v):
+            return (v >= cfg.y_lo) & (v <= cfg.y_hi)
+
+        v0 = Signal(); y0 = Signal(8); h0 = Signal(8); s_ok0 = Signal(); rng0 = Signal()
+        flags0 = Signal(3)
+        with m.If(advance):
+            m.d.sync += [v0.eq(track.accept), y0.eq(p.y), h0.eq(p.h), s_ok0.eq(p.s >= cfg.s_min),
+                         rng0.eq(in_range(p.y)), flags0.eq(Cat(p.sof, p.eol, p.eof))]
+        with m.If(track.accept & p.sof & sets_pending):
+            m.d.sync += [bank.eq(~bank), learned.eq(1), fallback.eq(fallback_next),
+                         sets_pending.eq(0)]
+        m.d.comb += [hset_rd.addr.eq(Cat(h0, bank)), lset_rd.addr.eq(Cat(y0, bank))]
+
+        def absdiff(a, b):
+            return Mux(a >= b, a - b, b - a)[:8]
+
+        v1 = Signal(); y1 = Signal(8); dh1 = Signal(8); dy1 = Signal(8); rel1 = Signal()
+        rng1 = Signal(); hs1 = Signal(); ls1 = Signal(); learned1 = Signal(); fb1 = Signal()
+        flags1 = Signal(3)
+        with m.If(advance):
+            m.d.sync += [v1.eq(v0), y1.eq(y0), dh1.eq(absdiff(h0, cfg.hue_centre0)),
+                         dy1.eq(absdiff(y0, cfg.luma_centre0)), rel1.eq(s_ok0 & rng0),
+                         rng1.eq(rng0), hs1.eq(hset_rd.data), ls1.eq(lset_rd.data),
+                         learned1.eq(learned), fb1.eq(fallback), flags1.eq(flags0)]
+        luma_ok = Signal(); hue_ok = Signal(); sat_ok = Signal(); ground = Signal()
+        m.d.comb += [
+            luma_ok.eq(rng1 & Mux(learned1, ls1, dy1 <= th_y)),
+            hue_ok.eq(Mux(learned1, hs1, (dh1 <= th_h) | (dh1 >= th_hw))),
+            sat_ok.eq(~fb1 & hue_ok & (luma_ok | ~cfg.both)),
+        ]
+        with m.Switch(cfg.mode):
+            with m.Case(1):
+                m.d.comb += ground.eq(luma_ok)
+            with m.Case(2):
+                m.d.comb += ground.eq(Mux(rel1, sat_ok, luma_ok))
+        o = self.o.payload
+        with m.If(advance):
+            m.d.sync += [self.o.valid.eq(v1), o.y.eq(y1), o.ground.eq(ground),
+                         Cat(o.sof, o.eol, o.eof).eq(flags1)]
+
+        # --- histogram update: word = {model, count} ----------------------------------------
+        in_region = Signal()
+        m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < ref_x_end) &
+                                 (track.y >= cfg.ref_y) & (track.y <= last_row))
+        luma_px = track.x[0] ^ track.y[0]
+        mem = memory.Memory(shape=2 * HIST_BITS, depth=HIST_WORDS, init=[])
+        m.submodules.hist = mem
+        rd = mem.read_port()
+        wr = mem.write_port()
+        W = 2 * HIST_BITS
+        u0 = Signal(); bin0 = Signal(9)
+        u1 = Signal(); bin1 = Signal(9)
+        u2 = Signal(); bin2 = Signal(9); raw2 = Signal(W)
+        fwd1_2 = Signal(); fwd2_2 = Signal()
+        u3 = Signal(); bin3 = Signal(9); val3 = Signal(W); val4 = Signal(W)
+        upd_data = Signal(W)
+        m.d.sync += [
+            u0.eq(track.accept & in_region & (luma_px | ((p.s >= cfg.s_min) & in_range(p.y)))),
+            bin0.eq(Mux(luma_px, LUMA_BASE + p.y, p.h)),
+            u1.eq(u0), bin1.eq(bin0),
+            u2.eq(u1), bin2.eq(bin1), raw2.eq(rd.data),
+            fwd1_2.eq(u2 & (bin2 == bin1)), fwd2_2.eq(u3 & (bin3 == bin1)),
+            u3.eq(u2), bin3.eq(bin2), val3.eq(upd_data), val4.eq(val3),
+        ]
+        word = Signal(W)
+        m.d.comb += word.eq(Mux(fwd1_2, val3, Mux(fwd2_2, val4, raw2)))
+        inc = Signal(HIST_BITS + 1)
+        m.d.comb += [inc.eq(word[:HIST_BITS] + 1),
+                     upd_data.eq(Cat(Mux(inc[HIST_BITS], word[:HIST_BITS], inc[:HIST_BITS]),
+                                     word[HIST_BITS:]))]
+
+        # --- search: blend pass (A), thresholds, set pass (B) ---------------------------------
+        wait = Signal(2, init=3)
+        a_run = Signal(); a_idx = Signal(range(HIST_WORDS + 1))
+        a_v1 = Signal(); a_addr1 = Signal(9)                       # read issued
+        a_v2 = Signal(); a_addr2 = Signal(9); a_word2 = Signal(W)  # data registered
+        a_v3 = Signal(); a_addr3 = Signal(9); a_t3 = Signal(24); a_n3 = Signal(HIST_BITS)
+        a_m3 = Signal(HIST_BITS)
+        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(25); a_n4 = Signal(HIST_BITS)
+        a_m4 = Signal(HIST_BITS)
+        a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
+        sup_h = Signal(24); sup_y = Signal(24)
+        t_step = Signal(3)                                         # threshold computation
+        thr_h = Signal(24); thr_y = Signal(24)
+        prod_h = Signal(32); prod_y = Signal(32)
+        b_run = Signal(); b_luma = Signal()
+        b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
+        b_v1 = Signal(); b_first1 = Signal(); b_last1 = Signal(); b_zero1 = Signal()
+        b_bin1 = Signal(8); b_luma1 = Signal()
+        b_v2 = Signal(); b_first2 = Signal(); b_last2 = Signal(); b_bin2 = Signal(8)
+        b_luma2 = Signal(); b_data2 = Signal(HIST_BITS)
+        acc = Signal(24)
+        b_v3 = Signal(); b_sum3 = Signal(24); b_bin3 = Signal(8); b_luma3 = Signal()
+        b_v4 = Signal(); b_set4 = Signal(); b_bin4 = Signal(8); b_luma4 = Signal()
+        drain = Signal(4)
+        final = Signal()
+
+        # read port: the scan when searching, else the update
+        with m.If(a_run):
+            m.d.comb += rd.addr.eq(a_idx)
+        with m.Elif(b_run):
+            m.d.comb += rd.addr.eq(Mux(b_luma, LUMA_BASE + b_addr[:8], b_addr[:8]))
+        with m.Else():
+            m.d.comb += rd.addr.eq(bin0)
+        with m.If(a_v5):
+            m.d.comb += [wr.addr.eq(a_addr5), wr.data.eq(Cat(Const(0, HIST_BITS), a_out5)),
+                         wr.en.eq(1)]
+        with m.Else():
+            m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
+
+        region_end = Signal()
+        m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &
+                                  (p.sof | ~searched))
+        frame_lost = Signal()
+        m.d.comb += frame_lost.eq(~searched & track.in_frame & (hold_sof | (track.abandon & ~p.sof)))
+        with m.If(track.accept & p.sof):
+            m.d.sync += searched.eq(region_end)
+        with m.Elif(region_end | frame_lost):
+            m.d.sync += searched.eq(1)
+
+        with m.If(region_end | frame_lost):
+            m.d.sync += [busy.eq(1), wait.eq(3), commit.eq(region_end)]
+        with m.Elif(wait != 0):
+            m.d.sync += wait.eq(wait - 1)
+            with m.If(wait == 1):
+                m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h.eq(0), sup_y.eq(0)]
+        # pass A pipeline
+        with m.If(a_run):
+            m.d.sync += a_idx.eq(a_idx + 1)
+            with m.If(a_idx == HIST_WORDS - 1):
+                m.d.sync += a_run.eq(0)
+        sh = cfg.shift
+        m.d.sync += [
+            a_v1.eq(a_run), a_addr1.eq(a_idx),
+            a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(rd.data),
+            a_v3.eq(a_v2), a_addr3.eq(a_addr2), a_n3.eq(a_word2[:HIST_BITS]),
+            a_m3.eq(a_word2[HIST_BITS:]),
+            a_t3.eq((a_word2[HIST_BITS:] << sh) - a_word2[HIST_BITS:]),
+            a_v4.eq(a_v3), a_addr4.eq(a_addr3), a_u4.eq(a_t3 + a_n3), a_n4.eq(a_n3),
+            a_m4.eq(a_m3),
+            a_v5.eq(a_v4), a_addr5.eq(a_addr4),
+            a_out5.eq(Mux(commit, Mux(model_valid, (a_u4 >> sh)[:HIST_BITS], a_n4),
+                          Mux(model_valid, a_m4, 0))),
+        ]
+        with m.If(a_v5 & commit):
+            with m.If(a_addr5 < HUE_STEPS):
+                m.d.sync += sup_h.eq(sup_h + a_out5)
+            with m.If(a_addr5[8]):
+                m.d.sync += sup_y.eq(sup_y + a_out5)
+        a_done = Signal()
+        m.d.comb += a_done.eq(a_v5 & ~a_v4 & busy)
+        with m.If(a_done):
+            with m.If(commit):
+                m.d.sync += [t_step.eq(1), model_valid.eq(1)]
+            with m.Else():
+                m.d.sync += busy.eq(0)
+        # thresholds: max(1, support * frac >> 10), and the hue fallback
+        with m.If(t_step != 0):
+            m.d.sync += t_step.eq(Mux(t_step == 4, 0, t_step + 1))
+        with m.If(t_step == 1):
+            m.d.sync += [prod_h.eq(sup_h * cfg.frac), prod_y.eq(sup_y * cfg.frac),
+                         fallback_next.eq(sup_h < cfg.min_support)]
+        with m.If(t_step == 2):
+            m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
+        with m.If(t_step == 3):
+            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y))]
+        with m.If(t_step == 4):
+            m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
+                         b_addr.eq(Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue))]
+        # pass B: per bin, the 2 J + 1 window positions, one read each
+        jnd = Mux(b_luma, cfg.jnd_luma, cfg.jnd_hue)
+        last_d = b_d == (jnd << 1)
+        last_bin = b_bin == Mux(b_luma, 255, HUE_STEPS - 1)
+        with m.If(b_run):
+            with m.If(~last_d):
+                m.d.sync += [b_d.eq(b_d + 1),
+                             b_addr.eq(Mux(~b_luma & (b_addr == HUE_STEPS - 1), 0, b_addr + 1))]
+            with m.Elif(~last_bin):
+                # next bin: its window starts at bin + 1 - J (hue wraps)
+                nb = b_bin + 1
+                m.d.sync += [b_bin.eq(nb), b_d.eq(0),
+                             b_addr.eq(Mux(b_luma, nb - cfg.jnd_luma,
+                                           Mux(nb >= cfg.jnd_hue, nb - cfg.jnd_hue,
+                                               nb + HUE_STEPS - cfg.jnd_hue)))]
+            with m.Elif(~b_luma):
+                m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma)]
+            with m.Else():
+                m.d.sync += [b_run.eq(0), drain.eq(6)]
+        m.d.sync += [
+            b_v1.eq(b_run), b_first1.eq(b_d == 0), b_last1.eq(last_d), b_bin1.eq(b_bin[:8]),
+            b_luma1.eq(b_luma), b_zero1.eq(b_luma & ((b_addr < 0) | (b_addr > 255))),
+            b_v2.eq(b_v1), b_first2.eq(b_first1), b_last2.eq(b_last1), b_bin2.eq(b_bin1),
+            b_luma2.eq(b_luma1), b_data2.eq(Mux(b_zero1, 0, rd.data[HIST_BITS:])),
+        ]
+        acc_next = Signal(24)
+        m.d.comb += acc_next.eq(Mux(b_first2, b_data2, acc + b_data2))
+        with m.If(b_v2):
+            m.d.sync += acc.eq(acc_next)
+        m.d.sync += [b_v3.eq(b_v2 & b_last2), b_sum3.eq(acc_next), b_bin3.eq(b_bin2),
+                     b_luma3.eq(b_luma2),
+                     b_v4.eq(b_v3), b_bin4.eq(b_bin3), b_luma4.eq(b_luma3),
+                     b_set4.eq(b_sum3 >= Mux(b_luma3, thr_y, thr_h))]
+        m.d.comb += [hset_wr.addr.eq(Cat(b_bin4, ~bank)), hset_wr.data.eq(b_set4),
+                     hset_wr.en.eq(b_v4 & ~b_luma4),
+                     lset_wr.addr.eq(Cat(b_bin4, ~bank)), lset_wr.data.eq(b_set4),
+                     lset_wr.en.eq(b_v4 & b_luma4)]
+        with m.If(drain != 0):
+            m.d.sync += drain.eq(drain - 1)
+        m.d.comb += final.eq(drain == 1)
+        with m.If(final):
+            m.d.sync += [busy.eq(0), sets_pending.eq(1)]
         return m

@@ -341,3 +341,79 @@ def test_bench_ground_figures():
     moto = {m: {"v2": {"recall": 1.0, "obstacle_as_ground": 0.0, "edges_removed": 0.0}}
             for m in ("hue", "luma")}
     assert len(check(bad, moto)) == 8 and check(floors, moto) == []
+
+
+# --- ground model v2 RTL ------------------------------------------------------------------------
+
+from hdl.ground import HISTOGRAM_CLEAR_CYCLES, HistogramGroundClassifier, histogram_search_cycles
+
+
+def expected_v2(frames, params, hp):
+    model = HistogramGroundModel(params, hp)
+    return [dict(y=f["y"], ground=model.step(f["y"], f["h"], f["s"])) for f in frames]
+
+
+def configure_v2(params, hp):
+    async def setup(ctx, dut):
+        for name, _ in GroundParams.FIELDS:
+            ctx.set(getattr(dut.config, name), int(getattr(params, name)))
+        for name, _ in HistogramParams.FIELDS:
+            ctx.set(getattr(dut.config, name), int(getattr(hp, name)))
+    return setup
+
+
+def run_v2(frames, params, hp, *, name, max_width=64, **kw):
+    return check_unit(lambda: HistogramGroundClassifier(max_width=max_width, max_height=32),
+                      PIN, POUT, frames, expected_v2(frames, params, hp), name=name,
+                      setup=configure_v2(params, hp), **kw)
+
+
+def two_colour_floor(rng, h, w, k):
+    floor = np.where((np.arange(w) // 3 % 2 == 0)[None, :, None], (200, 170, 120), (170, 80, 50))
+    img = np.broadcast_to(floor, (h, w, 3)) * (1.0 - 0.1 * k) + rng.normal(0, 4, (h, w, 3))
+    img[: h // 3] = rng.integers(0, 256, (h // 3, w, 3))
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("seed,mode,both,shift", [(1, GroundMode.HUE, 0, 1),
+                                                  (2, GroundMode.HUE, 1, 2),
+                                                  (3, GroundMode.LUMA, 0, 0)])
+def test_rtl_v2_four_frames_with_stalls(seed, mode, both, shift):
+    rng = np.random.default_rng(seed)
+    frames = [yhs(two_colour_floor(rng, 9, 20, k)) for k in range(4)]
+    p = GroundParams(mode=mode, ref_x=2, ref_y=5, ref_w=16, ref_h=3, jnd_hue=1, jnd_luma=2,
+                     hue_centre0=150)
+    hp = HistogramParams(frac=40, min_support=8, both=both, shift=shift)
+    run_v2(frames, p, hp, name=f"ground_v2_{seed}", seed=seed, idle=0.3, stall=0.3)
+
+
+def test_rtl_v2_fallback_and_timing():
+    """A grey floor: hue fallback from frame 1; the region ends on the last row, so every frame
+    waits for the search."""
+    rng = np.random.default_rng(7)
+    img = lambda: np.clip(np.full((6, 16, 3), 120) + rng.normal(0, 3, (6, 16, 3)), 0, 255)
+    frames = [yhs(img().astype(np.uint8)) for _ in range(3)]
+    frames[2]["y"][0, :8] = 240                     # clipped white: never ground
+    p = GroundParams(mode=GroundMode.HUE, ref_x=0, ref_y=3, ref_w=16, ref_h=3, jnd_hue=1,
+                     jnd_luma=1)
+    hp = HistogramParams(min_support=8)
+    per_frame = histogram_search_cycles(p.jnd_hue, p.jnd_luma)
+    tail = HistogramGroundClassifier.LATENCY - 1
+    for n in (2, 3):        # the clearing pass after reset, then a search between frames
+        r = run_v2(frames[:n], p, hp, name="ground_v2_fallback")
+        assert r.probes == {"errors": 0, "dropped": 0}
+        assert r.cycles == n * 6 * 16 + HISTOGRAM_CLEAR_CYCLES + (n - 1) * per_frame + tail
+
+
+@pytest.mark.parametrize("case", ["short_line", "cut_short", "reset"])
+def test_rtl_v2_malformed_stream_recovers(case):
+    rng = np.random.default_rng(13)
+    bad = yhs(two_colour_floor(rng, 6, 10, 0))
+    good = [yhs(two_colour_floor(rng, 6, 10, k)) for k in range(2)]
+    words, errors, dropped = malformed_cases(PIN, bad)[case]
+    p = GroundParams(ref_x=1, ref_y=3, ref_w=8, ref_h=3, jnd_hue=1, jnd_luma=1)
+    hp = HistogramParams(min_support=4)
+    r = check_unit(lambda: HistogramGroundClassifier(max_width=16, max_height=32), PIN, POUT,
+                   good, expected_v2(good, p, hp), name=f"ground_v2_bad_{case}",
+                   setup=configure_v2(p, hp), extra_words=words, seed=2, idle=0.2, stall=0.2)
+    assert r.probes == {"errors": errors, "dropped": dropped}
