@@ -1,43 +1,53 @@
 """Ground model and ground/obstacle classifier: the bit-exact specification.
 
-Per frame, over a reference region (``ref_x``, ``ref_y``, ``ref_w``, ``ref_h``; clipped to the
-frame, normally at the bottom centre, just in front of the robot), two histograms are built:
+The model the RTL implements is :class:`GroundModel` (v2, histogram sets; its docstring has the
+rules). The v1 peak-band model (:class:`PeakGroundModel`, :func:`classify`,
+:func:`learn_centres`) stays as the baseline ``sim/bench_ground.py`` measures against.
 
-* hue: 192 bins (``golden.color`` units), counting the region pixels at even ``x + y`` (frame
-  coordinates) with ``S >= s_min``;
-* luminance: 256 bins, counting the region pixels at odd ``x + y``.
+Parameters (:class:`GroundParams`; register widths in ``FIELDS``, units in brackets):
 
-Each region pixel feeds exactly one of the two histograms, in a checkerboard, so both live in
-one 512 x 16-bit block RAM (hue at addresses 0-191, luma at 256-511) updated read-modify-write
-at one pixel per clock through its two ports. Half the pixels of a region of a uniform floor
-still give thousands of samples per histogram (376 x 60 pixels at 752 x 480: 11,280 each).
-Bins are 16-bit counters that saturate at 2**16 - 1. At the end of
-the region the peak of each histogram (the lowest bin among the largest counts) becomes that
-band's centre for the *next* frame; an empty histogram leaves the centre as it was. The first
-frame after reset uses the configured defaults ``hue_centre0`` and ``luma_centre0``.
+==============  =============================================================================
+mode            0 off (no ground), 1 luminance (mono cameras), 2 hue
+ref_x, ref_y    top-left corner of the reference region [pixels]: learned as ground; normally
+ref_w, ref_h    the bottom centre of the image, just in front of the robot [pixels]
+k               half-width of the default bands used before anything is learned [JND units]
+jnd_hue         just-noticeable hue difference [hue units, 1.875 degrees]; the histogram
+                smoothing radius of the hue sets
+jnd_luma        just-noticeable luminance difference [luma codes]; the luma smoothing radius
+s_min           minimum saturation of a reliable hue [0..255 saturation units]
+hue_centre0     centre of the default hue band [hue units]
+luma_centre0    centre of the default luma band [luma codes]
+y_lo, y_hi      clip levels [luma codes]: a hue is reliable only in between, and luma bins
+                outside are never ground
+frac            ground threshold: a bin is ground when its smoothed count reaches
+                support x frac / 1024 [1/1024 of the histogram's total]
+min_support     fewest reliable hue samples in the model for hue classification [samples];
+                below, the next frame falls back to luminance (status ``hue_fallback``)
+blend_shift     model memory: model' = model + (new - model) / 2**blend_shift [shift]
+hue_and_luma    1: a pixel with a reliable hue must also have its luma in the luma set
+==============  =============================================================================
 
-Bands, in just-noticeable-difference (JND) units::
-
-    hue ground band  = centre_h +- k * jnd_hue   (on the 192-unit circle: distances wrap)
-    luma ground band = centre_y +- k * jnd_luma  (codes; no wrap)
+Histograms, per frame over the reference region (clipped to the frame): hue, 192 bins, of the
+region pixels at even ``x + y`` (frame coordinates) with a reliable hue; luminance, 256 bins, of
+the region pixels at odd ``x + y``. Each region pixel feeds exactly one of the two, in a
+checkerboard, so both live in one block RAM updated read-modify-write at one pixel per clock
+through its two ports; half the pixels of a region still give thousands of samples per
+histogram (376 x 60 pixels at 752 x 480: 11,280 each). Counts are 16-bit, saturating at
+2**16 - 1.
 
 Where the JND values come from. Hue: the human hue-discrimination threshold for saturated
 colours is about 1-4 nm of wavelength across the visible range (Wright and Pitt, 1934), a few
 degrees of hue angle; one hue unit here is 1.875 degrees, so the default ``jnd_hue = 2``
 (3.75 degrees) is one JND. Luminance: gamma-coded 8-bit luma is roughly perceptually uniform, and
 a JND is about 1 % of the range (Weber fraction ~1-2 % in linear light, compressed by the gamma),
-so ``jnd_luma = 3`` codes. ``k`` (default 6) is how many JNDs of natural variation the ground's
-texture and lighting may show.
+so ``jnd_luma = 3`` codes. ``k`` (default 6) is how many JNDs of natural variation the default
+bands allow.
 
-Classification of each pixel (1 = ground, 0 = obstacle)::
+v1 classification (peak bands; the baseline), with the band centres learned as the histogram
+peaks of the previous frame::
 
-    mode OFF  (0): 0 everywhere (scenes with no floor)
-    mode LUMA (1): |Y - centre_y| <= k * jnd_luma                  (mono cameras, R = G = B)
-    mode HUE  (2): S >= s_min ? hue_dist(H, centre_h) <= k * jnd_hue
-                              : |Y - centre_y| <= k * jnd_luma     (too grey for a reliable hue)
-
-Learning runs in every mode (the histograms cost nothing extra), so switching modes takes effect
-with an already-learned band.
+    mode LUMA (1): |Y - centre_y| <= k * jnd_luma
+    mode HUE  (2): S >= s_min ? hue_dist(H, centre_h) <= k * jnd_hue : |Y - centre_y| <= k * jnd_luma
 """
 from dataclasses import dataclass
 from enum import IntEnum
@@ -47,9 +57,9 @@ import numpy as np
 from .color import HUE_STEPS
 
 __all__ = ["GroundMode", "GroundParams", "HIST_MAX", "hue_distance", "classify",
-           "learn_centres", "GroundModel", "ground_frames",
-           "FREE_BANDS", "FREE_NONE", "HistogramParams", "HistogramGroundModel", "free_space",
-           "region_histograms", "smoothed", "ground_set"]
+           "learn_centres", "PeakGroundModel", "GroundModel", "ground_frames",
+           "FREE_BANDS", "FREE_NONE", "FREE_BAND_W", "FREE_RUN_R", "free_space",
+           "reliable_hue", "region_histograms", "smoothed", "ground_set"]
 
 HIST_BITS = 16
 HIST_MAX = (1 << HIST_BITS) - 1
@@ -74,11 +84,20 @@ class GroundParams:
     s_min: int = 48
     hue_centre0: int = 64      # green, a typical floor / lawn default before anything is learned
     luma_centre0: int = 128
+    # model v2 (GroundModel): see its docstring
+    y_lo: int = 16
+    y_hi: int = 239
+    frac: int = 48
+    min_support: int = 256
+    blend_shift: int = 1
+    hue_and_luma: int = 0
 
     #: (field, bits) of every run-time parameter: the register widths of the RTL.
     FIELDS = (("mode", 2), ("ref_x", 11), ("ref_y", 11), ("ref_w", 11), ("ref_h", 11),
               ("k", 4), ("jnd_hue", 4), ("jnd_luma", 4), ("s_min", 8),
-              ("hue_centre0", 8), ("luma_centre0", 8))
+              ("hue_centre0", 8), ("luma_centre0", 8),
+              ("y_lo", 8), ("y_hi", 8), ("frac", 8), ("min_support", 16), ("blend_shift", 3),
+              ("hue_and_luma", 1))
 
     def validate(self):
         for name, bits in self.FIELDS:
@@ -146,8 +165,9 @@ def learn_centres(y, h, s, params, centre_h, centre_y):
     return centre_h, centre_y
 
 
-class GroundModel:
-    """The ground unit's state from reset: ``step`` classifies one frame with the current band
+class PeakGroundModel:
+    """Ground model v1 (the peak bands above), kept as the baseline ``sim/bench_ground.py``
+    compares the histogram model with: ``step`` classifies one frame with the current band
     centres, then learns the centres for the next frame."""
 
     def __init__(self, params):
@@ -159,18 +179,6 @@ class GroundModel:
         mask = classify(y, h, s, self.params, *self.centres)
         self.centres = learn_centres(y, h, s, self.params, *self.centres)
         return mask
-
-
-def ground_frames(frames, params):
-    """Run the ground unit over consecutive frames (each a (Y, H, S) tuple of (H, W) arrays),
-    starting from reset. Returns the list of ground masks and the list of (hue, luma) centres
-    each frame was classified with."""
-    model = GroundModel(params)
-    masks, centres = [], []
-    for y, h, s in frames:
-        centres.append(model.centres)
-        masks.append(model.step(y, h, s))
-    return masks, centres
 
 
 # =============================================================================================
@@ -185,52 +193,18 @@ FREE_NONE = 0xFFFF
 FRAC_SHIFT = 10
 
 
-@dataclass(frozen=True)
-class HistogramParams:
-    """The v2 model's parameters beyond :class:`GroundParams` (register widths in ``FIELDS``).
-
-    ``y_lo``, ``y_hi``  luma clip levels (codes): a hue is reliable only for ``y_lo <= Y <= y_hi``
-                        (a clipped channel distorts it), and luma bins outside never make a
-                        pixel ground (clipped black or white carries no floor information);
-    ``frac``            a bin is ground when its count smoothed over +-1 JND reaches
-                        ``support * frac / 1024`` (support = the histogram's total);
-    ``min_support``     fewer reliable hue samples than this in the model: the next frame is
-                        classified by luminance only (status ``hue_fallback``);
-    ``shift``           blending: model' = model + (new - model) / 2**shift, as
-                        ``((model << shift) - model + new) >> shift`` (0: no memory);
-    ``both``            a pixel with a reliable hue is ground when its hue AND its luma are in
-                        the ground sets (0: its hue alone decides);
-    ``band_w``          free space: columns per band (bands from x = 0, at most FREE_BANDS);
-    ``run_r``           free space: rows an obstacle run needs.
-    """
-    y_lo: int = 16
-    y_hi: int = 239
-    frac: int = 48
-    min_support: int = 256
-    shift: int = 1
-    both: int = 0
-    band_w: int = 47
-    run_r: int = 4
-
-    FIELDS = (("y_lo", 8), ("y_hi", 8), ("frac", 8), ("min_support", 16), ("shift", 3),
-              ("both", 1), ("band_w", 10), ("run_r", 6))
-
-    def validate(self):
-        for name, bits in self.FIELDS:
-            value = getattr(self, name)
-            if not 0 <= int(value) < (1 << bits):
-                raise ValueError(f"ground parameter {name}={value} outside 0..{(1 << bits) - 1}")
-        if self.band_w < 1 or self.run_r < 1:
-            raise ValueError("band_w and run_r must be at least 1")
-        return self
+#: Free space defaults: columns per band, rows an obstacle run needs.
+FREE_BAND_W = 47
+FREE_RUN_R = 4
 
 
-def reliable_hue(y, s, params, hp):
+def reliable_hue(y, s, params):
+    """Pixels whose hue is reliable: saturation >= s_min and luminance within the clip levels."""
     y = np.asarray(y)
-    return (np.asarray(s) >= params.s_min) & (y >= hp.y_lo) & (y <= hp.y_hi)
+    return (np.asarray(s) >= params.s_min) & (y >= params.y_lo) & (y <= params.y_hi)
 
 
-def region_histograms(y, h, s, params, hp):
+def region_histograms(y, h, s, params):
     """v2 histograms of one frame's reference region (checkerboard as in v1; the hue histogram
     counts only reliable hues), uint32, saturating at HIST_MAX."""
     region = (slice(params.ref_y, params.ref_y + params.ref_h),
@@ -238,7 +212,7 @@ def region_histograms(y, h, s, params, hp):
     yy, xx = np.indices(np.asarray(y).shape)
     even = ((xx + yy) % 2 == 0)[region]
     ry, rh = np.asarray(y)[region], np.asarray(h)[region]
-    ok = reliable_hue(y, s, params, hp)[region]
+    ok = reliable_hue(y, s, params)[region]
     hue = np.bincount(rh[even & ok].ravel(), minlength=256)[:HUE_STEPS]
     lum = np.bincount(ry[~even].ravel(), minlength=256)
     return (np.minimum(hue, HIST_MAX).astype(np.uint32), np.minimum(lum, HIST_MAX).astype(np.uint32))
@@ -269,7 +243,7 @@ def ground_set(hist, radius, wrap, frac):
     return smoothed(hist, radius, wrap) >= threshold
 
 
-class HistogramGroundModel:
+class GroundModel:
     """Ground model v2 (Ulrich & Nourbakhsh 2000, appearance-based obstacle detection: a pixel
     is ground when its value is frequent in the reference area's hue and intensity histograms).
 
@@ -311,17 +285,16 @@ class HistogramGroundModel:
     ``sim/bench_ground.py`` measures.
     """
 
-    def __init__(self, params, hp=HistogramParams()):
+    def __init__(self, params):
         self.params = params.validate()
-        self.hp = hp.validate()
         self.model = None                  # (hue, luma) uint32 blended histograms
         self.sets = None                   # (hue set (192,), luma set (256,)) bool
         self.hue_fallback = False
 
     def classify(self, y, h, s):
-        p, hp = self.params, self.hp
+        p = self.params
         y = np.asarray(y).astype(np.int32)
-        in_range = (y >= hp.y_lo) & (y <= hp.y_hi)
+        in_range = (y >= p.y_lo) & (y <= p.y_hi)
         if self.sets is None:
             luma_ok = np.abs(y - int(p.luma_centre0)) <= p.k * p.jnd_luma
             hue_ok = hue_distance(h, p.hue_centre0) <= p.k * p.jnd_hue
@@ -334,29 +307,29 @@ class HistogramGroundModel:
         elif p.mode == GroundMode.LUMA:
             mask = luma_ok
         else:
-            rel = reliable_hue(y, s, p, hp)
+            rel = reliable_hue(y, s, p)
             if self.hue_fallback:
                 # the floor shows no reliable hue: a pixel that does is not floor
                 sat_ok = np.zeros(y.shape, dtype=bool)
             else:
-                sat_ok = hue_ok & luma_ok if hp.both else hue_ok
+                sat_ok = hue_ok & luma_ok if p.hue_and_luma else hue_ok
             mask = np.where(rel, sat_ok, luma_ok)
         return mask.astype(np.uint8)
 
     def learn(self, y, h, s):
-        p, hp = self.params, self.hp
-        new = region_histograms(y, h, s, p, hp)
+        p = self.params
+        new = region_histograms(y, h, s, p)
         if self.model is None:
             model = new
         else:
-            model = tuple(((m << np.uint32(hp.shift)) - m + n) >> np.uint32(hp.shift)
+            model = tuple(((m << np.uint32(p.blend_shift)) - m + n) >> np.uint32(p.blend_shift)
                           for m, n in zip(self.model, new))
         self.model = model
-        lum_set = ground_set(model[1], p.jnd_luma, False, hp.frac)
-        lum_set[:hp.y_lo] = False
-        lum_set[hp.y_hi + 1:] = False
-        self.sets = (ground_set(model[0], p.jnd_hue, True, hp.frac), lum_set)
-        self.hue_fallback = int(model[0].sum()) < hp.min_support
+        lum_set = ground_set(model[1], p.jnd_luma, False, p.frac)
+        lum_set[:p.y_lo] = False
+        lum_set[p.y_hi + 1:] = False
+        self.sets = (ground_set(model[0], p.jnd_hue, True, p.frac), lum_set)
+        self.hue_fallback = int(model[0].sum()) < p.min_support
 
     def step(self, y, h, s):
         """Ground mask of one frame (uint8 0/1); the model moves on to the next frame's."""
@@ -365,7 +338,7 @@ class HistogramGroundModel:
         return mask
 
 
-def free_space(mask, band_w=HistogramParams.band_w, run_r=HistogramParams.run_r):
+def free_space(mask, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
     """Per column band (``band_w`` columns from x = 0; FREE_BANDS bands, those past the image
     FREE_NONE): the image row of the lowest obstacle run of at least ``run_r`` rows, scanning up
     from the bottom row, as the run's bottom row; FREE_NONE when the band has none. A band's row
@@ -387,3 +360,15 @@ def free_space(mask, band_w=HistogramParams.band_w, run_r=HistogramParams.run_r)
             if run >= run_r:
                 out[b] = r
     return out
+
+
+def ground_frames(frames, params):
+    """Run the ground unit (model v2) over consecutive frames (each a (Y, H, S) tuple of (H, W)
+    arrays), starting from reset. Returns the list of ground masks and the list of
+    ``(learned, hue_fallback)`` each frame was classified with."""
+    model = GroundModel(params)
+    masks, status = [], []
+    for y, h, s in frames:
+        status.append((model.sets is not None, model.hue_fallback))
+        masks.append(model.step(y, h, s))
+    return masks, status

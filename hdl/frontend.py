@@ -30,8 +30,8 @@ class FrontEnd(FramedUnit):
         Ground model parameters.
     threshold, ratio, nms : In
         Sobel parameters.
-    centre_h, centre_y : Out(8)
-        The ground band centres of the current frame.
+    ground_learned, hue_fallback : Out(1)
+        The ground model's status for the current frame (:class:`hdl.ground.GroundClassifier`).
     errors, dropped : Out(16), Out(32)
         Malformed-stream counters of the first stage, which sees the camera stream; the later
         stages only see frames the first stage already cut, and resynchronise with it.
@@ -43,8 +43,8 @@ class FrontEnd(FramedUnit):
     threshold: In(THRESHOLD_BITS)
     ratio: In(RATIO_BITS)
     nms: In(1)
-    centre_h: Out(8)
-    centre_y: Out(8)
+    ground_learned: Out(1)
+    hue_fallback: Out(1)
     errors: Out(16)
     dropped: Out(32)
 
@@ -69,7 +69,7 @@ class FrontEnd(FramedUnit):
         m.d.comb += [
             ground.config.eq(self.ground),
             sobel.threshold.eq(self.threshold), sobel.ratio.eq(self.ratio), sobel.nms.eq(self.nms),
-            self.centre_h.eq(ground.centre_h), self.centre_y.eq(ground.centre_y),
+            self.ground_learned.eq(ground.learned), self.hue_fallback.eq(ground.hue_fallback),
             self.errors.eq(color.errors), self.dropped.eq(color.dropped),
         ]
         return m

@@ -4,252 +4,25 @@ from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS
-from golden.ground import GroundParams, HIST_BITS, HIST_MAX
+from golden.ground import GroundParams, HIST_BITS, FRAC_SHIFT
 from .types import YHSPixel, GroundPixel
 from .framing import FramedUnit
 
-__all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES", "HistogramConfig",
-           "HistogramGroundClassifier", "histogram_search_cycles", "HISTOGRAM_CLEAR_CYCLES"]
+__all__ = ["GroundConfig", "GroundClassifier", "search_cycles", "CLEAR_CYCLES"]
 
 #: The run-time parameters, one field per :attr:`GroundParams.FIELDS` entry.
 GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
-
-#: Cycles after the beat that ends the reference region (or the frame) during which the search
-#: runs: three cycles for the last histogram update to land, 512 word reads, the registered read
-#: data, the last comparison and the hand-over of the peaks.
-SEARCH_CYCLES = 518
 
 HIST_WORDS = 512        # hue bins at 0..191, luma bins at 256..511
 LUMA_BASE = 256
 
 
-class GroundClassifier(FramedUnit):
-    """Learns the ground's hue and luminance from a reference region and marks each pixel
-    ground (1) or obstacle (0), one pixel per clock.
-
-    Ports
-    -----
-    i : In(stream of :data:`YHSPixel`)
-        Converted pixels. Backpressure from ``o`` goes straight through. ``ready`` is also low
-        while the peak search runs *and* the next pixels could belong to a reference region: after
-        ``eof`` when the region reached the frame's last row (``SEARCH_CYCLES`` cycles of
-        vertical blanking are needed, or the source waits), for ``SEARCH_CYCLES`` after reset,
-        and when a frame is abandoned before its search (its histogram is cleared first).
-    o : Out(stream of :data:`GroundPixel`)
-        ``y`` and the ground bit, ``LATENCY`` = 3 cycles after the input transfer.
-    config : In(:data:`GroundConfig`)
-        Run-time parameters (``golden.ground.GroundParams``). The reference region, ``s_min``,
-        ``k`` and the JNDs are used as pixels pass (through registers: ``k`` x JND is computed
-        once, not per pixel); change them between frames.
-    centre_h, centre_y : Out(8)
-        The band centres the current frame is classified with.
-    errors, dropped : Out(16), Out(32)
-        Malformed-stream counters (:mod:`hdl.framing`).
-
-    Classification pipeline: (1) input register, with the frame's band centres chosen at its
-    ``sof``; (2) distances to the centres; (3) output register: band tests against registered
-    thresholds.
-
-    Histograms: one 512 x 16-bit block RAM (hue bins at 0-191, luma bins at 256-511; each
-    region pixel updates one of them, by the parity of ``x + y``) updated read-modify-write at
-    one pixel per clock: address register, read, registered read data, increment and write, with
-    the two writes still in flight forwarded. The peak search reads every word once (through a
-    read-data register) and writes it back as zero, so it also clears the histograms for the
-    next frame: no dead frame.
-    """
-    LATENCY = 3
-
-    i: In(stream.Signature(YHSPixel))
-    o: Out(stream.Signature(GroundPixel))
-    config: In(GroundConfig)
-    centre_h: Out(8)
-    centre_y: Out(8)
-    errors: Out(16)
-    dropped: Out(32)
-
-    def elaborate(self, platform):
-        m = Module()
-        cfg = self.config
-        p = self.i.payload
-        m.submodules.track = track = self.frame_tracker()
-        m.d.comb += [track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
-                     self.errors.eq(track.errors), self.dropped.eq(track.dropped)]
-
-        # --- Per-frame constants, registered from the configuration ------------------------
-        th_h = Signal(8); th_hw = Signal(8); th_y = Signal(8)   # k * JND; 192 - k * JND_hue
-        ref_x_end = Signal(12); last_row = Signal(12)
-        m.d.sync += [
-            th_h.eq(cfg.k * cfg.jnd_hue), th_y.eq(cfg.k * cfg.jnd_luma),
-            th_hw.eq(Mux(th_h >= HUE_STEPS, 0, HUE_STEPS - th_h)),
-            ref_x_end.eq(cfg.ref_x + cfg.ref_w), last_row.eq(cfg.ref_y + cfg.ref_h - 1),
-        ]
-
-        # --- Search / clear state ---------------------------------------------------------
-        busy = Signal(init=1)           # a scan is pending or running (a clear pass after reset)
-        commit = Signal()               # the scan publishes its peaks (else it only clears)
-        scanning = Signal()
-        scan_idx = Signal(range(HIST_WORDS + 1))
-        scan_v = Signal()               # a word was read last cycle ...
-        scan_bin = Signal(9)            # ... at this address
-        cmp_v = Signal()                # registered read data to compare this cycle ...
-        cmp_bin = Signal(9)             # ... of this address
-        cmp_data = Signal(HIST_BITS)
-        searched = Signal()             # the current frame's histogram has been handed to a scan
-        best_h = Signal(HIST_BITS); arg_h = Signal(8)
-        best_y = Signal(HIST_BITS); arg_y = Signal(8)
-        pend_h = Signal(); pend_hv = Signal(8)   # learned centres waiting for the next sof
-        pend_y = Signal(); pend_yv = Signal(8)
-        learned_h = Signal(); cur_h = Signal(8)
-        learned_y = Signal(); cur_y = Signal(8)
-
-        # A sof waits while a scan runs, and when it would cut short a frame whose histogram was
-        # never scanned, until that histogram has been cleared (ready may depend on valid and
-        # payload; valid never depends on ready).
-        hold_sof = Signal()
-        m.d.comb += hold_sof.eq(self.i.valid & p.sof & (busy | (track.in_frame & ~searched)))
-        advance = Signal()
-        m.d.comb += [
-            advance.eq(~self.o.valid | self.o.ready),
-            self.i.ready.eq(advance & ~(busy & ~(track.in_frame & searched)) & ~hold_sof),
-            track.beat.eq(self.i.valid & self.i.ready),
-        ]
-
-        # --- Classification pipeline -------------------------------------------------------
-        # 1. input register; the band centres of a frame are fixed at its sof
-        v0 = Signal(); y0 = Signal(8); h0 = Signal(8); s_ok0 = Signal(); flags0 = Signal(3)
-        fc_h = self.centre_h; fc_y = self.centre_y
-        with m.If(advance):
-            m.d.sync += [v0.eq(track.accept), y0.eq(p.y), h0.eq(p.h),
-                         s_ok0.eq(p.s >= cfg.s_min), flags0.eq(Cat(p.sof, p.eol, p.eof))]
-        with m.If(track.accept & p.sof):
-            m.d.sync += [pend_h.eq(0), pend_y.eq(0),
-                         fc_h.eq(Mux(pend_h, pend_hv, Mux(learned_h, cur_h, cfg.hue_centre0))),
-                         fc_y.eq(Mux(pend_y, pend_yv, Mux(learned_y, cur_y, cfg.luma_centre0)))]
-            with m.If(pend_h):
-                m.d.sync += [cur_h.eq(pend_hv), learned_h.eq(1)]
-            with m.If(pend_y):
-                m.d.sync += [cur_y.eq(pend_yv), learned_y.eq(1)]
-
-        # 2. distances to the centres
-        def absdiff(a, b):
-            return Mux(a >= b, a - b, b - a)[:8]
-
-        v1 = Signal(); y1 = Signal(8); dh1 = Signal(8); dy1 = Signal(8); s_ok1 = Signal()
-        flags1 = Signal(3)
-        with m.If(advance):
-            m.d.sync += [v1.eq(v0), y1.eq(y0), dh1.eq(absdiff(h0, fc_h)),
-                         dy1.eq(absdiff(y0, fc_y)), s_ok1.eq(s_ok0), flags1.eq(flags0)]
-
-        # 3. output register: the band tests (hue distance wraps: min(d, 192 - d) <= T)
-        luma_ok = dy1 <= th_y
-        hue_ok = (dh1 <= th_h) | (dh1 >= th_hw)
-        ground = Signal()
-        with m.Switch(cfg.mode):
-            with m.Case(1):
-                m.d.comb += ground.eq(luma_ok)
-            with m.Case(2):
-                m.d.comb += ground.eq(Mux(s_ok1, hue_ok, luma_ok))
-        o = self.o.payload
-        with m.If(advance):
-            m.d.sync += [
-                self.o.valid.eq(v1),
-                o.y.eq(y1), o.ground.eq(ground),
-                Cat(o.sof, o.eol, o.eof).eq(flags1),
-            ]
-
-        # --- Histogram update (read-modify-write, one pixel per clock) ---------------------
-        in_region = Signal()
-        m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < ref_x_end) &
-                                 (track.y >= cfg.ref_y) & (track.y <= last_row))
-        luma_px = track.x[0] ^ track.y[0]        # odd x + y: luma histogram, even: hue
-        mem = memory.Memory(shape=HIST_BITS, depth=HIST_WORDS, init=[])
-        m.submodules.hist = mem
-        rd = mem.read_port()
-        wr = mem.write_port()
-        # u0: address register; u1: read; u2: read data registered, increment, write
-        u0 = Signal(); bin0 = Signal(9)
-        u1 = Signal(); bin1 = Signal(9)
-        u2 = Signal(); bin2 = Signal(9); raw2 = Signal(HIST_BITS)
-        fwd1_2 = Signal(); fwd2_2 = Signal()     # u2's bin was written 1 / 2 cycles before
-        u3 = Signal(); bin3 = Signal(9); val3 = Signal(HIST_BITS)   # the write of last cycle
-        val4 = Signal(HIST_BITS)                                    # ... and of the one before
-        m.d.sync += [
-            u0.eq(track.accept & in_region & (luma_px | (p.s >= cfg.s_min))),
-            bin0.eq(Mux(luma_px, LUMA_BASE + p.y, p.h)),
-            u1.eq(u0), bin1.eq(bin0),
-            u2.eq(u1), bin2.eq(bin1), raw2.eq(rd.data),
-            fwd1_2.eq(u2 & (bin2 == bin1)), fwd2_2.eq(u3 & (bin3 == bin1)),
-            u3.eq(u2), bin3.eq(bin2), val3.eq(wr.data), val4.eq(val3),
-        ]
-        count = Signal(HIST_BITS)
-        m.d.comb += count.eq(Mux(fwd1_2, val3, Mux(fwd2_2, val4, raw2)))
-        inc = Signal(HIST_BITS + 1)
-        m.d.comb += inc.eq(count + 1)
-        with m.If(scanning | scan_v):
-            m.d.comb += [rd.addr.eq(scan_idx), wr.addr.eq(scan_bin),
-                         wr.data.eq(0), wr.en.eq(scan_v)]
-        with m.Else():
-            m.d.comb += [rd.addr.eq(bin0), wr.addr.eq(bin2),
-                         wr.data.eq(Mux(inc[HIST_BITS], count, inc[:HIST_BITS])),
-                         wr.en.eq(u2)]
-        m.d.sync += [cmp_v.eq(scan_v), cmp_bin.eq(scan_bin), cmp_data.eq(rd.data)]
-        with m.If(cmp_v & ~cmp_bin[8] & (cmp_bin < HUE_STEPS) & (cmp_data > best_h)):
-            m.d.sync += [best_h.eq(cmp_data), arg_h.eq(cmp_bin[:8])]
-        with m.If(cmp_v & cmp_bin[8] & (cmp_data > best_y)):
-            m.d.sync += [best_y.eq(cmp_data), arg_y.eq(cmp_bin[:8])]
-
-        # --- Search triggers and FSM -------------------------------------------------------
-        region_end = Signal()
-        m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &
-                                  (p.sof | ~searched))
-        frame_lost = Signal()   # the frame ends abnormally before its histogram was scanned
-        m.d.comb += frame_lost.eq(~searched & track.in_frame & (hold_sof | (track.abandon & ~p.sof)))
-        with m.If(track.accept & p.sof):
-            m.d.sync += searched.eq(region_end)
-        with m.Elif(region_end | frame_lost):
-            m.d.sync += searched.eq(1)
-
-        # three cycles so the last histogram update (u0 -> u2) lands before the scan reads
-        wait = Signal(2, init=3)
-        with m.If(region_end | frame_lost):
-            m.d.sync += [busy.eq(1), wait.eq(3), commit.eq(region_end)]
-        with m.Elif(wait != 0):
-            m.d.sync += wait.eq(wait - 1)
-            with m.If(wait == 1):
-                m.d.sync += [scanning.eq(1), scan_idx.eq(0),
-                             best_h.eq(0), best_y.eq(0), arg_h.eq(0), arg_y.eq(0)]
-        m.d.sync += [scan_v.eq(scanning), scan_bin.eq(scan_idx)]
-        with m.If(scanning):
-            m.d.sync += scan_idx.eq(scan_idx + 1)
-            with m.If(scan_idx == HIST_WORDS - 1):
-                m.d.sync += scanning.eq(0)
-        final = Signal()          # every word compared: the peaks are final this cycle
-        m.d.sync += final.eq(cmp_v & ~scan_v & busy)
-        with m.If(final):
-            m.d.sync += busy.eq(0)
-            with m.If(commit):
-                m.d.sync += [pend_h.eq(best_h != 0), pend_hv.eq(arg_h),
-                             pend_y.eq(best_y != 0), pend_yv.eq(arg_y)]
-        return m
-
-
-# =============================================================================================
-# Ground model v2 (specification: golden.ground.HistogramGroundModel). Not yet in the front end.
-# =============================================================================================
-
-from golden.ground import HistogramParams, FRAC_SHIFT   # noqa: E402
-
-#: The v2 unit's run-time parameters: the v1 fields, then the v2 ones.
-HistogramConfig = data.StructLayout({name: bits for name, bits in
-                                     GroundParams.FIELDS + HistogramParams.FIELDS})
-
-
 #: Cycles of the clearing pass after reset (or after a frame lost before its search): the blend
 #: pass alone (three cycles of wait, 512 words, its 5-stage pipeline).
-HISTOGRAM_CLEAR_CYCLES = 520
+CLEAR_CYCLES = 520
 
 
-def histogram_search_cycles(jnd_hue, jnd_luma):
+def search_cycles(jnd_hue, jnd_luma):
     """Cycles of the v2 search after the beat that ends the reference region: three for the last
     update to land, the blend pass over the 512 words (and its 5-stage pipeline), 4 to compute
     the thresholds, the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
@@ -257,30 +30,52 @@ def histogram_search_cycles(jnd_hue, jnd_luma):
     return 3 + 512 + 5 + 4 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
-class HistogramGroundClassifier(FramedUnit):
-    """Ground model v2: classifies each pixel by the blended reference histograms (one pixel per
-    clock), bit-exact with :class:`golden.ground.HistogramGroundModel`.
+class GroundClassifier(FramedUnit):
+    """Learns the ground's appearance from a reference region (hue and luminance histograms
+    blended from frame to frame) and marks each pixel ground (1) or obstacle (0), one pixel per
+    clock; bit-exact with :class:`golden.ground.GroundModel`.
 
-    Ports as :class:`GroundClassifier`, except ``config`` (:data:`HistogramConfig`) and the status
-    outputs ``learned`` (the current frame is classified by learned sets) and ``hue_fallback``
-    (the current frame is classified by luminance: too few reliable hues in the model).
+    Ports
+    -----
+    i : In(stream of :data:`YHSPixel`)
+        Converted pixels. Backpressure from ``o`` goes straight through. ``ready`` is also low
+        while the search runs *and* the next pixels could belong to a reference region: after
+        the frame's last region row when the region reaches the frame's bottom
+        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,282 at
+        the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
+        is abandoned before its search (its counts are cleared first).
+    o : Out(stream of :data:`GroundPixel`)
+        ``y`` and the ground bit, ``LATENCY`` = 3 cycles after the input transfer.
+    config : In(:data:`GroundConfig`)
+        Run-time parameters (:class:`golden.ground.GroundParams`); change them between frames.
+        ``k`` x JND and the region's end are registered (computed once, not per pixel).
+    learned, hue_fallback : Out(1)
+        Status of the current frame: classified by learned sets (0: the default bands), and by
+        luminance only because the model has fewer than ``min_support`` reliable hues.
+    errors, dropped : Out(16), Out(32)
+        Malformed-stream counters (:mod:`hdl.framing`).
+
+    Classification pipeline: (1) input register, saturation and clip tests; (2) set lookups
+    (distributed RAM) and default-band distances; (3) output register.
 
     Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
-    (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel; two
-    distributed RAMs of 2 x 256 bits hold the hue and luma ground sets, double-buffered: the
-    sets of frame n + 1 are written while frame n is classified with the other bank.
+    (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel (address
+    register, read, read-data register, increment and write, the two writes in flight
+    forwarded); two distributed RAMs of 2 x 256 bits hold the hue and luma ground sets,
+    double-buffered: the sets for frame n + 1 are written while frame n is classified with the
+    other bank.
 
-    Search, after the beat that ends the reference region (``histogram_search_cycles``, about
-    4,000 cycles at the default JNDs; the next ``sof`` waits if it comes earlier): a blend pass
-    over the 512 words (model' = new on the first frame, else ((model << shift) - model + new)
-    >> shift; the count is cleared) that also sums the supports, then the set pass: each bin's
-    window sum over +-JND (hue wrapping) against max(1, support x frac >> 10).
+    Search, after the beat that ends the reference region: a blend pass over the 512 words
+    (model' = count on the first frame, else ((model << blend_shift) - model + count) >>
+    blend_shift; the count is cleared; 5 pipeline stages so no path has more than one adder or
+    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) and
+    the set pass: each bin's window sum over +-JND (hue wrapping), one read per window position.
     """
     LATENCY = 3
 
     i: In(stream.Signature(YHSPixel))
     o: Out(stream.Signature(GroundPixel))
-    config: In(HistogramConfig)
+    config: In(GroundConfig)
     learned: Out(1)
     hue_fallback: Out(1)
     errors: Out(16)
@@ -319,8 +114,9 @@ class HistogramGroundClassifier(FramedUnit):
         ]
 
         # --- ground sets (distributed RAM, two banks) --------------------------------------
-        hset = memory.Memory(shape=1, depth=512, init=[])
-        lset = memory.Memory(shape=1, depth=512, init=[])
+        # distributed RAM (a block RAM each would be a waste of 16 kbit for 512 bits)
+        hset = memory.Memory(shape=1, depth=512, init=[], attrs={"ram_style": "distributed"})
+        lset = memory.Memory(shape=1, depth=512, init=[], attrs={"ram_style": "distributed"})
         m.submodules.hset = hset
         m.submodules.lset = lset
         hset_wr = hset.write_port(); lset_wr = lset.write_port()
@@ -355,7 +151,7 @@ class HistogramGroundClassifier(FramedUnit):
         m.d.comb += [
             luma_ok.eq(rng1 & Mux(learned1, ls1, dy1 <= th_y)),
             hue_ok.eq(Mux(learned1, hs1, (dh1 <= th_h) | (dh1 >= th_hw))),
-            sat_ok.eq(~fb1 & hue_ok & (luma_ok | ~cfg.both)),
+            sat_ok.eq(~fb1 & hue_ok & (luma_ok | ~cfg.hue_and_luma)),
         ]
         with m.Switch(cfg.mode):
             with m.Case(1):
@@ -413,6 +209,7 @@ class HistogramGroundClassifier(FramedUnit):
         thr_h = Signal(24); thr_y = Signal(24)
         prod_h = Signal(32); prod_y = Signal(32)
         b_run = Signal(); b_luma = Signal()
+        b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
         b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
         b_v1 = Signal(); b_first1 = Signal(); b_last1 = Signal(); b_zero1 = Signal()
         b_bin1 = Signal(8); b_luma1 = Signal()
@@ -458,7 +255,7 @@ class HistogramGroundClassifier(FramedUnit):
             m.d.sync += a_idx.eq(a_idx + 1)
             with m.If(a_idx == HIST_WORDS - 1):
                 m.d.sync += a_run.eq(0)
-        sh = cfg.shift
+        sh = cfg.blend_shift
         m.d.sync += [
             a_v1.eq(a_run), a_addr1.eq(a_idx),
             a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(rd.data),
@@ -494,9 +291,12 @@ class HistogramGroundClassifier(FramedUnit):
         with m.If(t_step == 3):
             m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y))]
         with m.If(t_step == 4):
+            hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
             m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
-                         b_addr.eq(Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue))]
-        # pass B: per bin, the 2 J + 1 window positions, one read each
+                         b_addr.eq(hue_start), b_start.eq(hue_start)]
+        # pass B: per bin, the 2 J + 1 window positions, one read each; b_start is where the
+        # current bin's window starts (bin - J, wrapped on the hue circle)
+        m.d.comb += next_start.eq(Mux(~b_luma & (b_start == HUE_STEPS - 1), 0, b_start + 1))
         jnd = Mux(b_luma, cfg.jnd_luma, cfg.jnd_hue)
         last_d = b_d == (jnd << 1)
         last_bin = b_bin == Mux(b_luma, 255, HUE_STEPS - 1)
@@ -505,14 +305,12 @@ class HistogramGroundClassifier(FramedUnit):
                 m.d.sync += [b_d.eq(b_d + 1),
                              b_addr.eq(Mux(~b_luma & (b_addr == HUE_STEPS - 1), 0, b_addr + 1))]
             with m.Elif(~last_bin):
-                # next bin: its window starts at bin + 1 - J (hue wraps)
-                nb = b_bin + 1
-                m.d.sync += [b_bin.eq(nb), b_d.eq(0),
-                             b_addr.eq(Mux(b_luma, nb - cfg.jnd_luma,
-                                           Mux(nb >= cfg.jnd_hue, nb - cfg.jnd_hue,
-                                               nb + HUE_STEPS - cfg.jnd_hue)))]
+                # next bin: its window starts one further (hue wraps)
+                m.d.sync += [b_bin.eq(b_bin + 1), b_d.eq(0), b_start.eq(next_start),
+                             b_addr.eq(next_start)]
             with m.Elif(~b_luma):
-                m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma)]
+                m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma),
+                             b_start.eq(-cfg.jnd_luma)]
             with m.Else():
                 m.d.sync += [b_run.eq(0), drain.eq(6)]
         m.d.sync += [

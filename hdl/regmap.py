@@ -43,7 +43,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 2
+MAP_VERSION = 3
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
@@ -133,6 +133,20 @@ REGISTERS: tuple[Register, ...] = (
         F("camera_mode_drop", 26, 1, 0, "1: camera inputs that cannot stall: the matcher drops "
                                         "(and counts) edges it has no time for (hdl/matcher.py drop_mode)"),
     )),
+    Register("GROUND_CLIP", 0x24, "rw", "Ground model v2: luminance clip levels (golden/ground.py).", (
+        F("y_lo", 0, 8, _G.y_lo, "lowest luma code with a reliable hue; darker luma bins are never ground"),
+        F("y_hi", 8, 8, _G.y_hi, "highest luma code with a reliable hue; brighter luma bins are never ground"),
+    )),
+    Register("GROUND_SET", 0x28, "rw", "Ground model v2: histogram sets and learning.", (
+        F("frac", 0, 8, _G.frac, "a bin is ground when its count smoothed over +-1 JND reaches "
+                                 "support x frac / 1024 (support: the histogram's total)"),
+        F("min_support", 8, 16, _G.min_support, "fewest reliable hue samples (pixels) in the model "
+                                                "for hue classification; fewer: luminance fallback"),
+        F("blend_shift", 24, 3, _G.blend_shift, "model' = model + (new - model) / 2^blend_shift "
+                                                "(0: the last frame only)"),
+        F("hue_and_luma", 28, 1, _G.hue_and_luma, "1: a pixel with a reliable hue also needs its "
+                                                  "luminance in the luma set"),
+    )),
     Register("FRAME_COUNT", 0x40, "ro", "Frames completed by the matcher since reset.", (
         F("frames", 0, 32, 0, "frame counter (wraps)"),
     )),
@@ -162,6 +176,12 @@ REGISTERS: tuple[Register, ...] = (
     )),
     Register("STAT_DROPS", 0x60, "ro", "Last frame: edge pixels not matched for lack of time.", (
         F("count", 0, 32, 0, "drops"),
+    )),
+    Register("GROUND_STATUS", 0x64, "ro", "Ground model status of the current frame, per camera.", (
+        F("left_learned", 0, 1, 0, "1: classified by learned sets (0: the default bands)"),
+        F("left_hue_fallback", 1, 1, 0, "1: too few reliable hues: classified by luminance"),
+        F("right_learned", 2, 1, 0, "as left_learned, right camera"),
+        F("right_hue_fallback", 3, 1, 0, "as left_hue_fallback, right camera"),
     )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one record.", (
         F("x", 0, 10, 0, "column of the left edge pixel"),
@@ -230,7 +250,7 @@ def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None
         right_threshold = sobel.threshold
     right = None if right_threshold is None else SimpleNamespace(right_threshold=right_threshold)
     src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
-           "GROUND_INIT": ground, "SOBEL": sobel, "SOBEL_RIGHT": right, "MATCH": matcher}
+           "GROUND_INIT": ground, "GROUND_CLIP": ground, "GROUND_SET": ground, "SOBEL": sobel, "SOBEL_RIGHT": right, "MATCH": matcher}
     rename = {"edge_threshold": "threshold"}
     for reg in REGISTERS:
         if reg.kind != "rw":

@@ -206,10 +206,10 @@ def ground_agreement(bench, quick):
     for name in GROUND_SCENES:
         frames = [make_scene(name, w, h, brightness=b) for b in brightness]
         p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE)
-        masks, centres = ground_frames([rgb_to_yhs(f.left) for f in frames], p)
+        masks, status = ground_frames([rgb_to_yhs(f.left) for f in frames], p)
         acc = [float((m.astype(bool) == f.ground).mean()) for m, f in zip(masks[1:], frames[1:])]
         out["scenes"][name] = {"per_frame": acc, "min": min(acc),
-                               "centres": [list(map(int, c)) for c in centres]}
+                               "learned_fallback": [list(map(int, c)) for c in status]}
     bench.source("ground_agreement", f"golden.ground.ground_frames(GroundParams.bottom_centre("
                  f"{w}, {h}, mode=HUE)) on sim.scenes.make_scene(name, {w}, {h}, brightness) "
                  f"frames {brightness}; agreement = mean(mask == scene truth), frames 1..")

@@ -11,8 +11,9 @@ Scenes:
   the finite disparities of the bottom quarter; obstacle = every other pixel with a finite
   disparity. Three frames of the same image, the last one scored.
 
-Figures per scene and model (v1: the peak bands of the RTL today; v2: the histogram model,
-:class:`golden.ground.HistogramGroundModel`): floor recall (floor pixels marked ground),
+Figures per scene and model (v1: the peak bands of the previous RTL,
+:class:`golden.ground.PeakGroundModel`; v2: the histogram model the RTL implements,
+:class:`golden.ground.GroundModel`): floor recall (floor pixels marked ground),
 obstacle pixels marked ground, and on the motorcycle pair the share of its obstacle edges
 (Sobel vertical edges with the ground model off, on obstacle pixels) that the mask removes.
 
@@ -28,8 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from golden.color import rgb_to_yhs
-from golden.ground import (GroundMode, GroundModel, GroundParams, HistogramGroundModel,
-                           HistogramParams)
+from golden.ground import GroundMode, GroundModel, GroundParams, PeakGroundModel
 from golden.sobel import SobelParams, sobel_edges
 
 __all__ = ["FLOOR_LIMITS", "MOTORCYCLE_LIMITS", "motorcycle_truth", "floor_accuracy",
@@ -41,14 +41,10 @@ MOTORCYCLE_LIMITS = {"hue": dict(recall=0.75, obstacle_as_ground=0.10, edges_rem
 FRAMES = 3
 
 
-def _models(params, hp):
-    return {"v1": GroundModel(params), "v2": HistogramGroundModel(params, hp)}
-
-
-def _last_masks(frames, params, hp):
+def _last_masks(frames, params):
     """Mask of the last frame for each model, run over all frames from reset."""
     out = {}
-    for name, model in _models(params, hp).items():
+    for name, model in {"v1": PeakGroundModel(params), "v2": GroundModel(params)}.items():
         for rgb in frames:
             mask = model.step(*rgb_to_yhs(rgb))
         out[name] = mask.astype(bool)
@@ -60,7 +56,7 @@ def _scores(mask, floor, obstacle):
             "obstacle_as_ground": round(float(mask[obstacle].mean()), 4)}
 
 
-def floor_accuracy(hp=HistogramParams(), width=320, height=240):
+def floor_accuracy(width=320, height=240, **params):
     from sim.scenes import FLOOR_KINDS, floor_scene
     rows = {}
     for kind in FLOOR_KINDS:
@@ -68,8 +64,8 @@ def floor_accuracy(hp=HistogramParams(), width=320, height=240):
         for seed in range(FRAMES):
             rgb, truth = floor_scene(kind, width, height, seed=seed)
             frames.append(rgb)
-        params = GroundParams.bottom_centre(width, height, mode=GroundMode.HUE)
-        masks = _last_masks(frames, params, hp)
+        p = GroundParams.bottom_centre(width, height, mode=GroundMode.HUE, **params)
+        masks = _last_masks(frames, p)
         rows[kind] = {name: _scores(m, truth, ~truth) for name, m in masks.items()}
     return rows
 
@@ -87,7 +83,7 @@ def motorcycle_truth(gt, tolerance=1.5):
     return floor, finite & ~floor
 
 
-def motorcycle_accuracy(hp=HistogramParams()):
+def motorcycle_accuracy(**params):
     from sim.data import motorcycle
     left, _, gt = motorcycle()
     h, w = gt.shape
@@ -97,9 +93,9 @@ def motorcycle_accuracy(hp=HistogramParams()):
     obstacle_edges = edges_off.astype(bool) & obstacle
     rows = {}
     for mode in ("hue", "luma"):
-        params = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE if mode == "hue"
-                                            else GroundMode.LUMA)
-        masks = _last_masks([left] * FRAMES, params, hp)
+        p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE if mode == "hue"
+                                       else GroundMode.LUMA, **params)
+        masks = _last_masks([left] * FRAMES, p)
         rows[mode] = {}
         for name, m in masks.items():
             r = _scores(m, floor, obstacle)
@@ -131,16 +127,20 @@ def check(floors, moto):
     return bad
 
 
-def run(hp=HistogramParams()):
-    floors = floor_accuracy(hp)
-    moto = motorcycle_accuracy(hp)
+def run(**params):
+    """Every figure; ``params`` override the GroundParams defaults (e.g. ``frac=32``)."""
+    floors = floor_accuracy(**params)
+    moto = motorcycle_accuracy(**params)
+    defaults = GroundParams(**params)
     return {"floors": floors, "motorcycle": moto,
-            "params_v2": {k: getattr(hp, k) for k, _ in hp.FIELDS}, "failed": check(floors, moto)}
+            "params": {k: int(getattr(defaults, k)) for k, _ in GroundParams.FIELDS
+                       if not k.startswith("ref_")},
+            "failed": check(floors, moto)}
 
 
 def markdown(rep):
-    lines = ["### Ground masks (v1 = peak bands, the RTL today; v2 = histogram model, "
-             "golden/ground.py)", "",
+    lines = ["### Ground masks (v1 = previous peak bands; v2 = histogram model, the RTL, "
+             "golden/ground.py GroundModel)", "",
              "| scene | mode | model | floor recall | obstacle as ground | obstacle edges removed |",
              "|---|---|---|---|---|---|"]
     for kind, r in rep["floors"].items():

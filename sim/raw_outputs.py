@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from golden.ground import FREE_NONE, HistogramParams, free_space
+from golden.ground import FREE_BAND_W, FREE_NONE, FREE_RUN_R, free_space
 
 __all__ = ["write_raw_outputs"]
 
 
-def write_raw_outputs(out_dir, frame, band_w=HistogramParams.band_w, run_r=HistogramParams.run_r):
+def write_raw_outputs(out_dir, frame, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
     """Write the files above for ``frame`` (a :class:`golden.pipeline.PipelineFrame`) into
     ``out_dir``; returns ``{name: path}``."""
     out = Path(out_dir)

@@ -1,12 +1,14 @@
 """Ground model and classifier: golden rules, and RTL bit-exactness over consecutive frames
 (the band learned on frame n is applied on frame n+1) under stalls and malformed streams."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from golden.color import rgb_to_yhs
 from golden.ground import (GroundMode, GroundParams, ground_frames, classify, learn_centres,
                            hue_distance, HIST_MAX, histograms)
-from hdl.ground import GroundClassifier, SEARCH_CYCLES
+from hdl.ground import CLEAR_CYCLES, GroundClassifier, search_cycles
 from hdl.types import YHSPixel, GroundPixel
 from sim.data import motorcycle, crop
 from sim.streams import Packer, check_unit, malformed_cases
@@ -77,13 +79,12 @@ def test_learning_peak_ties_empty_and_saturation():
     assert yy[9] == HIST_MAX and hh[9] == HIST_MAX
 
 
-def test_band_learned_on_frame_n_applies_from_n_plus_1():
+def test_sets_learned_on_frame_n_apply_from_n_plus_1():
     rng = np.random.default_rng(0)
     f = [yhs(floor_image(rng, 8, 16, (40, 160, 60))) for _ in range(2)]
-    p = GroundParams.bottom_centre(16, 8, ref_w=8, ref_h=2, hue_centre0=150)
-    masks, centres = ground_frames([(x["y"], x["h"], x["s"]) for x in f], p)
-    assert centres[0] == (150, 128)
-    assert centres[1] != centres[0]
+    p = GroundParams.bottom_centre(16, 8, ref_w=8, ref_h=2, hue_centre0=150, min_support=2)
+    masks, status = ground_frames([(x["y"], x["h"], x["s"]) for x in f], p)
+    assert status == [(False, False), (True, False)]
     assert masks[1][4:].mean() > 0.9 and masks[0][4:].mean() < 0.1
 
 
@@ -138,20 +139,21 @@ def test_rtl_motorcycle_crops_and_size_change():
 
 def test_rtl_throughput_and_search_cycles():
     """Region away from the bottom: the search overlaps the frame, one pixel per clock; region
-    at the bottom: each frame ends with SEARCH_CYCLES of blanking the unit waits for."""
+    at the bottom: each frame ends with ``search_cycles`` of blanking the unit waits for."""
     rng = np.random.default_rng(6)
-    # 21 rows of 32 pixels after the region: more than the search needs
-    frames = [yhs(floor_image(rng, 24, 32, (40, 160, 60))) for _ in range(3)]
-    pixels = 3 * 24 * 32
+    # 17 rows of 128 pixels after the region: more than the search needs
+    frames = [yhs(floor_image(rng, 20, 128, (40, 160, 60))) for _ in range(3)]
+    pixels = 3 * 20 * 128
     tail = GroundClassifier.LATENCY - 1       # the output register counts in cycles already
-    mid = GroundParams(ref_x=8, ref_y=1, ref_w=16, ref_h=2)
-    r = run(frames, mid, name="ground_rate_mid")
-    assert r.cycles == pixels + SEARCH_CYCLES + tail   # clear pass after reset, then 1 px/clock
-    frames = [f for f in frames for f in [{k: v[:8] for k, v in f.items()}]]
+    mid = GroundParams(ref_x=8, ref_y=1, ref_w=16, ref_h=2, jnd_hue=1, jnd_luma=1)
+    assert search_cycles(1, 1) < 17 * 128
+    r = run(frames, mid, name="ground_rate_mid", max_width=128)
+    assert r.cycles == pixels + CLEAR_CYCLES + tail   # clear pass after reset, then 1 px/clock
+    frames = [{k: v[:8, :32] for k, v in f.items()} for f in frames]
     pixels = 3 * 8 * 32
-    bottom = GroundParams(ref_x=8, ref_y=6, ref_w=16, ref_h=2)
+    bottom = GroundParams(ref_x=8, ref_y=6, ref_w=16, ref_h=2, jnd_hue=1, jnd_luma=1)
     r = run(frames, bottom, name="ground_rate_bottom")
-    assert r.cycles == pixels + 3 * SEARCH_CYCLES + tail
+    assert r.cycles == pixels + CLEAR_CYCLES + 2 * search_cycles(1, 1) + tail
 
 
 @pytest.mark.parametrize("case", ["missing_sof", "short_line", "long_line", "eof_without_eol",
@@ -203,7 +205,11 @@ def test_luma_mode_agreement_on_mono_scenes(scene):
     world = mono_world(SCENES[scene])
     frames = [render(world, Rig.scaled(320, 240), seed=s) for s in (0, 1, 2)]
     grey = [np.repeat(luma(f.left)[..., None], 3, axis=2) for f in frames]
-    acc = agreement(frames, grey, GroundParams.bottom_centre(320, 240, mode=GroundMode.LUMA))
+    # these rendered floors spread over more luma codes than the default +-3 smoothing covers
+    # (0.94 agreement at jnd_luma = 3); at 5 they agree to 0.98 (the motorcycle pair keeps 3:
+    # 5 lets 11 % of its obstacle pixels through in luminance mode, sim/bench_ground.py)
+    p = GroundParams.bottom_centre(320, 240, mode=GroundMode.LUMA, jnd_luma=5)
+    acc = agreement(frames, grey, p)
     assert min(acc) >= 0.98, acc
 
 
@@ -217,8 +223,8 @@ def test_rtl_synthetic_scene_crop_with_brightness_change():
 
 # --- ground model v2 (golden specification) and free space ------------------------------------
 
-from golden.ground import (FREE_BANDS, FREE_NONE, HistogramGroundModel, HistogramParams,
-                           free_space, ground_set, region_histograms, smoothed)
+from golden.ground import (FREE_BANDS, FREE_NONE, GroundModel, free_space, ground_set,
+                           region_histograms, smoothed)
 
 
 def test_smoothing_wraps_hue_and_clips_luma():
@@ -231,12 +237,11 @@ def test_smoothing_wraps_hue_and_clips_luma():
 
 
 def test_v2_histograms_count_reliable_hues_only():
-    p = GroundParams(ref_x=0, ref_y=0, ref_w=4, ref_h=1, s_min=10)
-    hp = HistogramParams(y_lo=16, y_hi=239)
+    p = GroundParams(ref_x=0, ref_y=0, ref_w=4, ref_h=1, s_min=10, y_lo=16, y_hi=239)
     y = np.array([[100, 100, 250, 100]], dtype=np.uint8)
     h = np.array([[50, 40, 40, 50]], dtype=np.uint8)
     s = np.array([[20, 20, 20, 20]], dtype=np.uint8)
-    hue, lum = region_histograms(y, h, s, p, hp)
+    hue, lum = region_histograms(y, h, s, p)
     assert hue[50] == 1 and hue.sum() == 1          # x = 2 is clipped white: no hue
     assert lum[100] == 2 and lum.sum() == 2         # odd x: luma
 
@@ -249,10 +254,10 @@ def test_v2_first_frame_default_then_learned_multi_colour_floor():
     img = np.clip(img, 0, 255).astype(np.uint8)
     img[:8] = (60, 100, 180)                        # a blue obstacle band at the top
     p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE, hue_centre0=120)
-    small = HistogramGroundModel(p)                 # 24 hue samples: below min_support
+    small = GroundModel(p)                          # 24 hue samples: below min_support
     small.step(*rgb_to_yhs(img))
     assert small.hue_fallback and small.step(*rgb_to_yhs(img))[8:].mean() < 0.1
-    model = HistogramGroundModel(p, HistogramParams(min_support=16))
+    model = GroundModel(replace(p, min_support=16))
     first = model.step(*rgb_to_yhs(img))
     assert first[8:].mean() < 0.1                   # default band (hue 120) is not this floor
     second = model.step(*rgb_to_yhs(img))
@@ -265,7 +270,7 @@ def test_v2_grey_floor_falls_back_to_luma_and_saturated_pixels_are_obstacles():
     img = np.full((h, w, 3), 120, dtype=np.uint8)
     img[:4, :8] = (200, 60, 60)                     # saturated red, similar luma as the floor
     p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE)
-    model = HistogramGroundModel(p)
+    model = GroundModel(p)
     model.step(*rgb_to_yhs(img))
     assert model.hue_fallback
     mask = model.step(*rgb_to_yhs(img))
@@ -273,8 +278,8 @@ def test_v2_grey_floor_falls_back_to_luma_and_saturated_pixels_are_obstacles():
 
 
 def test_v2_blending_is_shift_based():
-    p = GroundParams(ref_x=0, ref_y=0, ref_w=2, ref_h=1, mode=GroundMode.LUMA)
-    model = HistogramGroundModel(p, HistogramParams(shift=2))
+    p = GroundParams(ref_x=0, ref_y=0, ref_w=2, ref_h=1, mode=GroundMode.LUMA, blend_shift=2)
+    model = GroundModel(p)
     frame = lambda v: (np.array([[0, v]], dtype=np.uint8),) * 3
     model.learn(*frame(100))
     assert model.model[1][100] == 1
@@ -282,8 +287,8 @@ def test_v2_blending_is_shift_based():
     assert model.model[1][100] == 0 and model.model[1][50] == 0
     model.learn(*frame(50))
     assert model.model[1][50] == 0
-    big = HistogramGroundModel(GroundParams(ref_x=0, ref_y=0, ref_w=64, ref_h=8,
-                                            mode=GroundMode.LUMA), HistogramParams(shift=1))
+    big = GroundModel(GroundParams(ref_x=0, ref_y=0, ref_w=64, ref_h=8, mode=GroundMode.LUMA,
+                                   blend_shift=1))
     f = lambda v: (np.full((8, 64), v, dtype=np.uint8),) * 3
     big.learn(*f(100))
     big.learn(*f(50))
@@ -292,7 +297,7 @@ def test_v2_blending_is_shift_based():
 
 def test_v2_clipped_luma_never_ground():
     p = GroundParams(ref_x=0, ref_y=0, ref_w=8, ref_h=4, mode=GroundMode.LUMA)
-    model = HistogramGroundModel(p)
+    model = GroundModel(p)
     dark = (np.zeros((4, 8), dtype=np.uint8),) * 3
     model.step(*dark)
     assert model.step(*dark).sum() == 0             # black is learned but never ground
@@ -345,27 +350,6 @@ def test_bench_ground_figures():
 
 # --- ground model v2 RTL ------------------------------------------------------------------------
 
-from hdl.ground import HISTOGRAM_CLEAR_CYCLES, HistogramGroundClassifier, histogram_search_cycles
-
-
-def expected_v2(frames, params, hp):
-    model = HistogramGroundModel(params, hp)
-    return [dict(y=f["y"], ground=model.step(f["y"], f["h"], f["s"])) for f in frames]
-
-
-def configure_v2(params, hp):
-    async def setup(ctx, dut):
-        for name, _ in GroundParams.FIELDS:
-            ctx.set(getattr(dut.config, name), int(getattr(params, name)))
-        for name, _ in HistogramParams.FIELDS:
-            ctx.set(getattr(dut.config, name), int(getattr(hp, name)))
-    return setup
-
-
-def run_v2(frames, params, hp, *, name, max_width=64, **kw):
-    return check_unit(lambda: HistogramGroundClassifier(max_width=max_width, max_height=32),
-                      PIN, POUT, frames, expected_v2(frames, params, hp), name=name,
-                      setup=configure_v2(params, hp), **kw)
 
 
 def two_colour_floor(rng, h, w, k):
@@ -382,9 +366,9 @@ def test_rtl_v2_four_frames_with_stalls(seed, mode, both, shift):
     rng = np.random.default_rng(seed)
     frames = [yhs(two_colour_floor(rng, 9, 20, k)) for k in range(4)]
     p = GroundParams(mode=mode, ref_x=2, ref_y=5, ref_w=16, ref_h=3, jnd_hue=1, jnd_luma=2,
-                     hue_centre0=150)
-    hp = HistogramParams(frac=40, min_support=8, both=both, shift=shift)
-    run_v2(frames, p, hp, name=f"ground_v2_{seed}", seed=seed, idle=0.3, stall=0.3)
+                     hue_centre0=150, frac=40, min_support=8, hue_and_luma=both,
+                     blend_shift=shift)
+    run(frames, p, name=f"ground_v2_{seed}", seed=seed, idle=0.3, stall=0.3)
 
 
 def test_rtl_v2_fallback_and_timing():
@@ -395,14 +379,13 @@ def test_rtl_v2_fallback_and_timing():
     frames = [yhs(img().astype(np.uint8)) for _ in range(3)]
     frames[2]["y"][0, :8] = 240                     # clipped white: never ground
     p = GroundParams(mode=GroundMode.HUE, ref_x=0, ref_y=3, ref_w=16, ref_h=3, jnd_hue=1,
-                     jnd_luma=1)
-    hp = HistogramParams(min_support=8)
-    per_frame = histogram_search_cycles(p.jnd_hue, p.jnd_luma)
-    tail = HistogramGroundClassifier.LATENCY - 1
+                     jnd_luma=1, min_support=8)
+    per_frame = search_cycles(p.jnd_hue, p.jnd_luma)
+    tail = GroundClassifier.LATENCY - 1
     for n in (2, 3):        # the clearing pass after reset, then a search between frames
-        r = run_v2(frames[:n], p, hp, name="ground_v2_fallback")
+        r = run(frames[:n], p, name="ground_v2_fallback")
         assert r.probes == {"errors": 0, "dropped": 0}
-        assert r.cycles == n * 6 * 16 + HISTOGRAM_CLEAR_CYCLES + (n - 1) * per_frame + tail
+        assert r.cycles == n * 6 * 16 + CLEAR_CYCLES + (n - 1) * per_frame + tail
 
 
 @pytest.mark.parametrize("case", ["short_line", "cut_short", "reset"])
@@ -411,9 +394,7 @@ def test_rtl_v2_malformed_stream_recovers(case):
     bad = yhs(two_colour_floor(rng, 6, 10, 0))
     good = [yhs(two_colour_floor(rng, 6, 10, k)) for k in range(2)]
     words, errors, dropped = malformed_cases(PIN, bad)[case]
-    p = GroundParams(ref_x=1, ref_y=3, ref_w=8, ref_h=3, jnd_hue=1, jnd_luma=1)
-    hp = HistogramParams(min_support=4)
-    r = check_unit(lambda: HistogramGroundClassifier(max_width=16, max_height=32), PIN, POUT,
-                   good, expected_v2(good, p, hp), name=f"ground_v2_bad_{case}",
-                   setup=configure_v2(p, hp), extra_words=words, seed=2, idle=0.2, stall=0.2)
+    p = GroundParams(ref_x=1, ref_y=3, ref_w=8, ref_h=3, jnd_hue=1, jnd_luma=1, min_support=4)
+    r = run(good, p, name=f"ground_v2_bad_{case}", extra_words=words, seed=2, idle=0.2,
+            stall=0.2, max_width=16)
     assert r.probes == {"errors": errors, "dropped": dropped}
