@@ -182,8 +182,7 @@ class PeakGroundModel:
 
 
 # =============================================================================================
-# Ground model v2: classification by the reference histograms (specification; the RTL above is
-# still the peak-band model v1, see HistogramGroundModel's docstring)
+# Ground model v2: classification by the reference histograms (what hdl/ground.py implements)
 # =============================================================================================
 
 #: Column bands of the free-space output, and the value of a band without an obstacle run.
@@ -244,35 +243,31 @@ def ground_set(hist, radius, wrap, frac):
 
 
 class GroundModel:
-    """Ground model v2 (Ulrich & Nourbakhsh 2000, appearance-based obstacle detection: a pixel
-    is ground when its value is frequent in the reference area's hue and intensity histograms).
+    """Ground model v2, what the RTL implements (Ulrich & Nourbakhsh 2000, appearance-based
+    obstacle detection: a pixel is ground when its value is frequent in the reference area's
+    hue and intensity histograms).
 
-    State from reset: no model; frames are classified with the v1 default bands (centre0 +-
+    State from reset: no model; frames are classified with the default bands (centre0 +-
     k JND) until the first frame has been learned. After each frame the region's histograms
-    are blended into the model (the first one is taken as it is) and the ground sets for the
-    NEXT frame are the bins whose count, smoothed over +-1 JND (``jnd_hue`` hue bins, wrapping;
-    ``jnd_luma`` luma codes), reaches ``frac / 1024`` of the model's support. Luma bins below
+    are blended into the model (the first one is taken as it is; then model' =
+    ((model << blend_shift) - model + new) >> blend_shift, in integers) and the ground sets for
+    the NEXT frame are the bins whose model count, smoothed over +-1 JND (``jnd_hue`` hue bins,
+    wrapping; ``jnd_luma`` luma codes, bins outside 0..255 counting 0), reaches
+    max(1, support x frac >> 10), support being that histogram's total. Luma bins below
     ``y_lo`` or above ``y_hi`` are never in the set. When the hue model's support is below
-    ``min_support`` the next frame is classified by luminance only (``hue_fallback``).
+    ``min_support`` the next frame is in hue fallback.
 
     Classification (1 = ground)::
 
-        luma_ok = Y in [y_lo, y_hi] and (learned ? Lset[Y] : |Y - centre_y| <= k jnd_luma)
-        hue_ok  = learned ? Hset[H] : hue_dist(H, centre_h) <= k jnd_hue
-        OFF: 0     LUMA: luma_ok
-        HUE: reliable ? (hue_fallback ? 0 : hue_ok and (luma_ok if both else 1)) : luma_ok
+        luma_ok  = Y in [y_lo, y_hi] and (learned ? Lset[Y] : |Y - luma_centre0| <= k jnd_luma)
+        hue_ok   = learned ? Hset[H] : hue_dist(H, hue_centre0) <= k jnd_hue
         reliable = S >= s_min and Y in [y_lo, y_hi]
+        OFF: 0     LUMA: luma_ok
+        HUE: reliable ? (hue_fallback ? 0 : hue_ok and (luma_ok if hue_and_luma else 1))
+                      : luma_ok
 
     In hue fallback the floor showed no reliable hue: grey pixels are classified by luminance,
     and a pixel with a reliable hue is an obstacle (the floor is grey).
-
-    Defaults, measured with ``sim/bench_ground.py`` (floor recall / obstacle pixels marked
-    ground, last of three frames): ``frac`` = 48 (4.7 % of the support in a +-1 JND window)
-    and ``both`` = 0. With ``both`` = 1 the shadow-band floor drops from 0.984 to 0.853 recall
-    (the shadow's luminance is not in the reference area) and nothing else improves (obstacles
-    are at 0.000 either way on the colour floors; the motorcycle pair runs in hue fallback,
-    where ``both`` has no effect). Lower ``frac`` raises recall and obstacle-as-ground together:
-    on the motorcycle pair in luminance mode 24 gives 0.724 / 0.115, 48 gives 0.675 / 0.095.
 
     Why ``min_support`` = 256 by default: the model's hue histogram needs enough reliable samples
     that one bin's smoothed count is a fraction of a few per cent with a standard error of a few
@@ -280,9 +275,17 @@ class GroundModel:
     relative error is sqrt(2/n): 9 % at n = 256. With fewer (23 saturated pixels on the grey
     concrete of the motorcycle pair) a handful of coloured specks would define the floor's hue.
 
-    Not yet in the RTL: ``hdl/ground.py`` still implements the v1 peak bands (the v1 functions
-    above); this class is the specification the v2 RTL is to match bit for bit, and what
-    ``sim/bench_ground.py`` measures.
+    Defaults, measured with ``sim/bench_ground.py`` (floor recall / obstacle pixels marked
+    ground, last of three frames): ``frac`` = 48 (4.7 % of the support in a +-1 JND window)
+    and ``hue_and_luma`` = 0. With ``hue_and_luma`` = 1 the shadow-band floor drops from 0.984
+    to 0.853 recall (the shadow's luminance is not in the reference area) and nothing else
+    improves (obstacles are at 0.000 either way on the colour floors; the motorcycle pair runs
+    in hue fallback, where it has no effect). Lower ``frac`` raises recall and obstacle-as-ground
+    together: on the motorcycle pair in luminance mode 24 gives 0.724 / 0.115, 48 gives
+    0.675 / 0.095.
+
+    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,282 cycles at the
+    default JNDs), after the last row of the reference region; no frame is lost.
     """
 
     def __init__(self, params):

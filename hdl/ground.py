@@ -23,7 +23,7 @@ CLEAR_CYCLES = 520
 
 
 def search_cycles(jnd_hue, jnd_luma):
-    """Cycles of the v2 search after the beat that ends the reference region: three for the last
+    """Cycles of the search after the beat that ends the reference region: three for the last
     update to land, the blend pass over the 512 words (and its 5-stage pipeline), 4 to compute
     the thresholds, the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
     256 x (2 jnd_luma + 1)), its 6-stage pipeline and the hand-over."""
