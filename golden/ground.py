@@ -284,7 +284,7 @@ class GroundModel:
     together: on the motorcycle pair in luminance mode 24 gives 0.724 / 0.115, 48 gives
     0.675 / 0.095.
 
-    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,282 cycles at the
+    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,289 cycles at the
     default JNDs), after the last row of the reference region; no frame is lost.
     """
 

@@ -24,10 +24,10 @@ CLEAR_CYCLES = 520
 
 def search_cycles(jnd_hue, jnd_luma):
     """Cycles of the search after the beat that ends the reference region: three for the last
-    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 4 to compute
-    the thresholds, the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
+    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 11 to compute
+    the thresholds (an 8-cycle shift-and-add product), the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
     256 x (2 jnd_luma + 1)), its 6-stage pipeline and the hand-over."""
-    return 3 + 512 + 5 + 4 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
+    return 3 + 512 + 5 + 11 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
 class GroundClassifier(FramedUnit):
@@ -41,7 +41,7 @@ class GroundClassifier(FramedUnit):
         Converted pixels. Backpressure from ``o`` goes straight through. ``ready`` is also low
         while the search runs *and* the next pixels could belong to a reference region: after
         the frame's last region row when the region reaches the frame's bottom
-        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,282 at
+        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,289 at
         the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
         is abandoned before its search (its counts are cleared first).
     o : Out(stream of :data:`GroundPixel`)
@@ -275,17 +275,26 @@ class GroundClassifier(FramedUnit):
                 m.d.sync += sup_y.eq(sup_y + a_out5)
         a_done = Signal()
         m.d.comb += a_done.eq(a_v5 & ~a_v4 & busy)
+        m_sup_h = Signal(32); m_sup_y = Signal(32); m_frac = Signal(8); m_left = Signal(4)
         with m.If(a_done):
             with m.If(commit):
-                m.d.sync += [t_step.eq(1), model_valid.eq(1)]
+                m.d.sync += [t_step.eq(1), model_valid.eq(1), prod_h.eq(0), prod_y.eq(0),
+                             m_left.eq(8), m_frac.eq(cfg.frac)]
             with m.Else():
                 m.d.sync += busy.eq(0)
-        # thresholds: max(1, support * frac >> 10), and the hue fallback
-        with m.If(t_step != 0):
+        # thresholds: max(1, support * frac >> 10), the product by shift and add over 8 cycles
+        # (once per frame: no multiplier), and the hue fallback
+        with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
             m.d.sync += t_step.eq(Mux(t_step == 4, 0, t_step + 1))
         with m.If(t_step == 1):
-            m.d.sync += [prod_h.eq(sup_h * cfg.frac), prod_y.eq(sup_y * cfg.frac),
+            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1),
+                         m_sup_h.eq(m_sup_h << 1), m_sup_y.eq(m_sup_y << 1),
                          fallback_next.eq(sup_h < cfg.min_support)]
+            with m.If(m_left == 8):
+                m.d.sync += [m_sup_h.eq(sup_h << 1), m_sup_y.eq(sup_y << 1)]
+            with m.If(m_frac[0]):
+                m.d.sync += [prod_h.eq(prod_h + Mux(m_left == 8, sup_h, m_sup_h)),
+                             prod_y.eq(prod_y + Mux(m_left == 8, sup_y, m_sup_y))]
         with m.If(t_step == 2):
             m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
         with m.If(t_step == 3):
