@@ -54,7 +54,9 @@ class PipelineConfigC(C.Structure):
         ("mode", C.c_uint8), ("k", C.c_uint8), ("jnd_hue", C.c_uint8), ("jnd_luma", C.c_uint8),
         ("s_min", C.c_uint8), ("ref_x", C.c_uint16), ("ref_y", C.c_uint16),
         ("ref_w", C.c_uint16), ("ref_h", C.c_uint16), ("hue_centre0", C.c_uint8),
-        ("luma_centre0", C.c_uint8), ("edge_threshold", C.c_uint16),
+        ("luma_centre0", C.c_uint8), ("y_lo", C.c_uint8), ("y_hi", C.c_uint8),
+        ("frac", C.c_uint8), ("min_support", C.c_uint16), ("blend_shift", C.c_uint8),
+        ("hue_and_luma", C.c_uint8), ("edge_threshold", C.c_uint16),
         ("ratio", C.c_uint8), ("nms", C.c_uint8), ("d_min", C.c_uint8),
         ("d_max", C.c_uint8), ("uniqueness", C.c_uint8), ("candidate_mode", C.c_uint8),
         ("widen", C.c_uint8), ("camera_mode_drop", C.c_uint8))]
