@@ -9,7 +9,7 @@ SYSTEM_STAMP := build/.system-packages
 # command is missing; needs root or sudo, as on the project's machines).
 DEBIAN_PACKAGES := iverilog ghdl g++ make
 
-.PHONY: setup system sim test verilog vhdl synth bench firmware cosim demo install-check bitstream clean
+.PHONY: setup system sim test verilog vhdl synth timing bench firmware cosim demo install-check bitstream clean
 
 setup: $(STAMP) $(SYSTEM_STAMP)
 
@@ -43,6 +43,9 @@ vhdl: setup
 
 synth: setup
 	$(PY) -m sim.synth --out build/synth
+
+timing: setup
+	$(PY) -m sim.timing --out build/timing
 
 firmware: setup
 	$(MAKE) -C firmware all test

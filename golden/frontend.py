@@ -1,5 +1,5 @@
 """Per-camera front end: colour conversion -> ground model and classifier -> Sobel vertical
-edges. The chain of the unit models, frame after frame (the ground band learned on frame n is
+edges. The chain of the unit models, frame after frame (the ground sets learned on frame n are
 used on frame n+1)."""
 from dataclasses import dataclass, field
 
@@ -31,7 +31,7 @@ class FrontEndFrame:
     ground: np.ndarray   # ground mask (uint8 0/1)
     edge: np.ndarray     # vertical obstacle edge (uint8 0/1)
     neg: np.ndarray      # sign of Gx at edges (uint8 0/1)
-    centres: tuple       # (hue, luma) band centres this frame was classified with
+    status: tuple        # (learned, hue_fallback) of the ground model for this frame
 
     def output(self):
         """The front end's output stream fields."""
@@ -62,10 +62,10 @@ class FrontEndModel:
 
     def step(self, rgb):
         y, h, s = rgb_to_yhs(rgb)
-        centres = self.ground.centres
+        status = (self.ground.sets is not None, self.ground.hue_fallback)
         mask = self.ground.step(y, h, s)
         edge, neg = sobel_edges(y, mask, self.params.sobel)
-        return FrontEndFrame(y, h, s, mask, edge, neg, centres)
+        return FrontEndFrame(y, h, s, mask, edge, neg, status)
 
 
 def frontend_frames(rgb_frames, params):

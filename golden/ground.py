@@ -1,38 +1,53 @@
 """Ground model and ground/obstacle classifier: the bit-exact specification.
 
-Per frame, over a reference region (``ref_x``, ``ref_y``, ``ref_w``, ``ref_h``; clipped to the
-frame, normally at the bottom centre, just in front of the robot), two histograms are built:
+The model the RTL implements is :class:`GroundModel` (v2, histogram sets; its docstring has the
+rules). The v1 peak-band model (:class:`PeakGroundModel`, :func:`classify`,
+:func:`learn_centres`) stays as the baseline ``sim/bench_ground.py`` measures against.
 
-* hue: 192 bins (``golden.color`` units), counting region pixels with ``S >= s_min``;
-* luminance: 256 bins, counting every region pixel.
+Parameters (:class:`GroundParams`; register widths in ``FIELDS``, units in brackets):
 
-Bins are 18-bit counters that saturate at 2**18 - 1 (one 256 x 18 block RAM each). At the end of
-the region the peak of each histogram (the lowest bin among the largest counts) becomes that
-band's centre for the *next* frame; an empty histogram leaves the centre as it was. The first
-frame after reset uses the configured defaults ``hue_centre0`` and ``luma_centre0``.
+==============  =============================================================================
+mode            0 off (no ground), 1 luminance (mono cameras), 2 hue
+ref_x, ref_y    top-left corner of the reference region [pixels]: learned as ground; normally
+ref_w, ref_h    the bottom centre of the image, just in front of the robot [pixels]
+k               half-width of the default bands used before anything is learned [JND units]
+jnd_hue         just-noticeable hue difference [hue units, 1.875 degrees]; the histogram
+                smoothing radius of the hue sets
+jnd_luma        just-noticeable luminance difference [luma codes]; the luma smoothing radius
+s_min           minimum saturation of a reliable hue [0..255 saturation units]
+hue_centre0     centre of the default hue band [hue units]
+luma_centre0    centre of the default luma band [luma codes]
+y_lo, y_hi      clip levels [luma codes]: a hue is reliable only in between, and luma bins
+                outside are never ground
+frac            ground threshold: a bin is ground when its smoothed count reaches
+                support x frac / 1024 [1/1024 of the histogram's total]
+min_support     fewest reliable hue samples in the model for hue classification [samples];
+                below, the next frame falls back to luminance (status ``hue_fallback``)
+blend_shift     model memory: model' = model + (new - model) / 2**blend_shift [shift]
+hue_and_luma    1: a pixel with a reliable hue must also have its luma in the luma set
+==============  =============================================================================
 
-Bands, in just-noticeable-difference (JND) units::
-
-    hue ground band  = centre_h +- k * jnd_hue   (on the 192-unit circle: distances wrap)
-    luma ground band = centre_y +- k * jnd_luma  (codes; no wrap)
+Histograms, per frame over the reference region (clipped to the frame): hue, 192 bins, of the
+region pixels at even ``x + y`` (frame coordinates) with a reliable hue; luminance, 256 bins, of
+the region pixels at odd ``x + y``. Each region pixel feeds exactly one of the two, in a
+checkerboard, so both live in one block RAM updated read-modify-write at one pixel per clock
+through its two ports; half the pixels of a region still give thousands of samples per
+histogram (376 x 60 pixels at 752 x 480: 11,280 each). Counts are 16-bit, saturating at
+2**16 - 1.
 
 Where the JND values come from. Hue: the human hue-discrimination threshold for saturated
 colours is about 1-4 nm of wavelength across the visible range (Wright and Pitt, 1934), a few
 degrees of hue angle; one hue unit here is 1.875 degrees, so the default ``jnd_hue = 2``
 (3.75 degrees) is one JND. Luminance: gamma-coded 8-bit luma is roughly perceptually uniform, and
 a JND is about 1 % of the range (Weber fraction ~1-2 % in linear light, compressed by the gamma),
-so ``jnd_luma = 3`` codes. ``k`` (default 6) is how many JNDs of natural variation the ground's
-texture and lighting may show.
+so ``jnd_luma = 3`` codes. ``k`` (default 6) is how many JNDs of natural variation the default
+bands allow.
 
-Classification of each pixel (1 = ground, 0 = obstacle)::
+v1 classification (peak bands; the baseline), with the band centres learned as the histogram
+peaks of the previous frame::
 
-    mode OFF  (0): 0 everywhere (scenes with no floor)
-    mode LUMA (1): |Y - centre_y| <= k * jnd_luma                  (mono cameras, R = G = B)
-    mode HUE  (2): S >= s_min ? hue_dist(H, centre_h) <= k * jnd_hue
-                              : |Y - centre_y| <= k * jnd_luma     (too grey for a reliable hue)
-
-Learning runs in every mode (the histograms cost nothing extra), so switching modes takes effect
-with an already-learned band.
+    mode LUMA (1): |Y - centre_y| <= k * jnd_luma
+    mode HUE  (2): S >= s_min ? hue_dist(H, centre_h) <= k * jnd_hue : |Y - centre_y| <= k * jnd_luma
 """
 from dataclasses import dataclass
 from enum import IntEnum
@@ -42,9 +57,11 @@ import numpy as np
 from .color import HUE_STEPS
 
 __all__ = ["GroundMode", "GroundParams", "HIST_MAX", "hue_distance", "classify",
-           "learn_centres", "GroundModel", "ground_frames"]
+           "learn_centres", "PeakGroundModel", "GroundModel", "ground_frames",
+           "FREE_BANDS", "FREE_NONE", "FREE_BAND_W", "FREE_RUN_R", "free_space",
+           "reliable_hue", "region_histograms", "smoothed", "ground_set"]
 
-HIST_BITS = 18
+HIST_BITS = 16
 HIST_MAX = (1 << HIST_BITS) - 1
 
 
@@ -67,11 +84,20 @@ class GroundParams:
     s_min: int = 48
     hue_centre0: int = 64      # green, a typical floor / lawn default before anything is learned
     luma_centre0: int = 128
+    # model v2 (GroundModel): see its docstring
+    y_lo: int = 16
+    y_hi: int = 239
+    frac: int = 48
+    min_support: int = 256
+    blend_shift: int = 1
+    hue_and_luma: int = 0
 
     #: (field, bits) of every run-time parameter: the register widths of the RTL.
     FIELDS = (("mode", 2), ("ref_x", 11), ("ref_y", 11), ("ref_w", 11), ("ref_h", 11),
               ("k", 4), ("jnd_hue", 4), ("jnd_luma", 4), ("s_min", 8),
-              ("hue_centre0", 8), ("luma_centre0", 8))
+              ("hue_centre0", 8), ("luma_centre0", 8),
+              ("y_lo", 8), ("y_hi", 8), ("frac", 8), ("min_support", 16), ("blend_shift", 3),
+              ("hue_and_luma", 1))
 
     def validate(self):
         for name, bits in self.FIELDS:
@@ -116,12 +142,15 @@ def classify(y, h, s, params, centre_h, centre_y):
 
 
 def histograms(y, h, s, params):
-    """The (hue, luma) histograms of one frame's reference region, saturating like the RTL."""
+    """The (hue, luma) histograms of one frame's reference region (hue from the pixels at even
+    ``x + y``, luma from those at odd ``x + y``), saturating like the RTL."""
     region = (slice(params.ref_y, params.ref_y + params.ref_h),
               slice(params.ref_x, params.ref_x + params.ref_w))
     ry, rh, rs = (np.asarray(a)[region] for a in (y, h, s))
-    hue_hist = np.bincount(rh[rs >= params.s_min].ravel(), minlength=256)
-    luma_hist = np.bincount(ry.ravel(), minlength=256)
+    yy, xx = np.indices(np.asarray(y).shape)
+    even = ((xx + yy) % 2 == 0)[region]
+    hue_hist = np.bincount(rh[even & (rs >= params.s_min)].ravel(), minlength=256)
+    luma_hist = np.bincount(ry[~even].ravel(), minlength=256)
     return np.minimum(hue_hist, HIST_MAX), np.minimum(luma_hist, HIST_MAX)
 
 
@@ -136,8 +165,9 @@ def learn_centres(y, h, s, params, centre_h, centre_y):
     return centre_h, centre_y
 
 
-class GroundModel:
-    """The ground unit's state from reset: ``step`` classifies one frame with the current band
+class PeakGroundModel:
+    """Ground model v1 (the peak bands above), kept as the baseline ``sim/bench_ground.py``
+    compares the histogram model with: ``step`` classifies one frame with the current band
     centres, then learns the centres for the next frame."""
 
     def __init__(self, params):
@@ -151,13 +181,197 @@ class GroundModel:
         return mask
 
 
+# =============================================================================================
+# Ground model v2: classification by the reference histograms (what hdl/ground.py implements)
+# =============================================================================================
+
+#: Column bands of the free-space output, and the value of a band without an obstacle run.
+FREE_BANDS = 16
+FREE_NONE = 0xFFFF
+#: Fraction units of ``frac``: the ground threshold is ``support * frac >> FRAC_SHIFT``.
+FRAC_SHIFT = 10
+
+
+#: Free space defaults: columns per band, rows an obstacle run needs.
+FREE_BAND_W = 47
+FREE_RUN_R = 4
+
+
+def reliable_hue(y, s, params):
+    """Pixels whose hue is reliable: saturation >= s_min and luminance within the clip levels."""
+    y = np.asarray(y)
+    return (np.asarray(s) >= params.s_min) & (y >= params.y_lo) & (y <= params.y_hi)
+
+
+def region_histograms(y, h, s, params):
+    """v2 histograms of one frame's reference region (checkerboard as in v1; the hue histogram
+    counts only reliable hues), uint32, saturating at HIST_MAX."""
+    region = (slice(params.ref_y, params.ref_y + params.ref_h),
+              slice(params.ref_x, params.ref_x + params.ref_w))
+    yy, xx = np.indices(np.asarray(y).shape)
+    even = ((xx + yy) % 2 == 0)[region]
+    ry, rh = np.asarray(y)[region], np.asarray(h)[region]
+    ok = reliable_hue(y, s, params)[region]
+    hue = np.bincount(rh[even & ok].ravel(), minlength=256)[:HUE_STEPS]
+    lum = np.bincount(ry[~even].ravel(), minlength=256)
+    return (np.minimum(hue, HIST_MAX).astype(np.uint32), np.minimum(lum, HIST_MAX).astype(np.uint32))
+
+
+def smoothed(hist, radius, wrap):
+    """Sum of ``hist`` over bins b - radius .. b + radius (the hue circle wraps; luma bins
+    outside 0..255 count 0), uint32."""
+    n = len(hist)
+    out = np.zeros(n, dtype=np.uint32)
+    for d in range(-radius, radius + 1):
+        if wrap:
+            out += np.roll(hist, -d)
+        else:
+            shifted = np.zeros(n, dtype=np.uint32)
+            if d >= 0:
+                shifted[:n - d] = hist[d:]
+            else:
+                shifted[-d:] = hist[:n + d]
+            out += shifted
+    return out
+
+
+def ground_set(hist, radius, wrap, frac):
+    """Bins whose smoothed count reaches ``max(1, support * frac >> FRAC_SHIFT)``."""
+    support = int(hist.sum())
+    threshold = max(1, (support * int(frac)) >> FRAC_SHIFT)
+    return smoothed(hist, radius, wrap) >= threshold
+
+
+class GroundModel:
+    """Ground model v2, what the RTL implements (Ulrich & Nourbakhsh 2000, appearance-based
+    obstacle detection: a pixel is ground when its value is frequent in the reference area's
+    hue and intensity histograms).
+
+    State from reset: no model; frames are classified with the default bands (centre0 +-
+    k JND) until the first frame has been learned. After each frame the region's histograms
+    are blended into the model (the first one is taken as it is; then model' =
+    ((model << blend_shift) - model + new) >> blend_shift, in integers) and the ground sets for
+    the NEXT frame are the bins whose model count, smoothed over +-1 JND (``jnd_hue`` hue bins,
+    wrapping; ``jnd_luma`` luma codes, bins outside 0..255 counting 0), reaches
+    max(1, support x frac >> 10), support being that histogram's total. Luma bins below
+    ``y_lo`` or above ``y_hi`` are never in the set. When the hue model's support is below
+    ``min_support`` the next frame is in hue fallback.
+
+    Classification (1 = ground)::
+
+        luma_ok  = Y in [y_lo, y_hi] and (learned ? Lset[Y] : |Y - luma_centre0| <= k jnd_luma)
+        hue_ok   = learned ? Hset[H] : hue_dist(H, hue_centre0) <= k jnd_hue
+        reliable = S >= s_min and Y in [y_lo, y_hi]
+        OFF: 0     LUMA: luma_ok
+        HUE: reliable ? (hue_fallback ? 0 : hue_ok and (luma_ok if hue_and_luma else 1))
+                      : luma_ok
+
+    In hue fallback the floor showed no reliable hue: grey pixels are classified by luminance,
+    and a pixel with a reliable hue is an obstacle (the floor is grey).
+
+    Why ``min_support`` = 256 by default: the model's hue histogram needs enough reliable samples
+    that one bin's smoothed count is a fraction of a few per cent with a standard error of a few
+    tenths of it: with n samples spread over ~10 bins, a 5-bin window holds ~n/2 and its
+    relative error is sqrt(2/n): 9 % at n = 256. With fewer (23 saturated pixels on the grey
+    concrete of the motorcycle pair) a handful of coloured specks would define the floor's hue.
+
+    Defaults, measured with ``sim/bench_ground.py`` (floor recall / obstacle pixels marked
+    ground, last of three frames): ``frac`` = 48 (4.7 % of the support in a +-1 JND window)
+    and ``hue_and_luma`` = 0. With ``hue_and_luma`` = 1 the shadow-band floor drops from 0.984
+    to 0.853 recall (the shadow's luminance is not in the reference area) and nothing else
+    improves (obstacles are at 0.000 either way on the colour floors; the motorcycle pair runs
+    in hue fallback, where it has no effect). Lower ``frac`` raises recall and obstacle-as-ground
+    together: on the motorcycle pair in luminance mode 24 gives 0.724 / 0.115, 48 gives
+    0.675 / 0.095.
+
+    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,289 cycles at the
+    default JNDs), after the last row of the reference region; no frame is lost.
+    """
+
+    def __init__(self, params):
+        self.params = params.validate()
+        self.model = None                  # (hue, luma) uint32 blended histograms
+        self.sets = None                   # (hue set (192,), luma set (256,)) bool
+        self.hue_fallback = False
+
+    def classify(self, y, h, s):
+        p = self.params
+        y = np.asarray(y).astype(np.int32)
+        in_range = (y >= p.y_lo) & (y <= p.y_hi)
+        if self.sets is None:
+            luma_ok = np.abs(y - int(p.luma_centre0)) <= p.k * p.jnd_luma
+            hue_ok = hue_distance(h, p.hue_centre0) <= p.k * p.jnd_hue
+        else:
+            luma_ok = self.sets[1][y]
+            hue_ok = self.sets[0][np.minimum(np.asarray(h), HUE_STEPS - 1)]
+        luma_ok = luma_ok & in_range
+        if p.mode == GroundMode.OFF:
+            mask = np.zeros(y.shape, dtype=bool)
+        elif p.mode == GroundMode.LUMA:
+            mask = luma_ok
+        else:
+            rel = reliable_hue(y, s, p)
+            if self.hue_fallback:
+                # the floor shows no reliable hue: a pixel that does is not floor
+                sat_ok = np.zeros(y.shape, dtype=bool)
+            else:
+                sat_ok = hue_ok & luma_ok if p.hue_and_luma else hue_ok
+            mask = np.where(rel, sat_ok, luma_ok)
+        return mask.astype(np.uint8)
+
+    def learn(self, y, h, s):
+        p = self.params
+        new = region_histograms(y, h, s, p)
+        if self.model is None:
+            model = new
+        else:
+            model = tuple(((m << np.uint32(p.blend_shift)) - m + n) >> np.uint32(p.blend_shift)
+                          for m, n in zip(self.model, new))
+        self.model = model
+        lum_set = ground_set(model[1], p.jnd_luma, False, p.frac)
+        lum_set[:p.y_lo] = False
+        lum_set[p.y_hi + 1:] = False
+        self.sets = (ground_set(model[0], p.jnd_hue, True, p.frac), lum_set)
+        self.hue_fallback = int(model[0].sum()) < p.min_support
+
+    def step(self, y, h, s):
+        """Ground mask of one frame (uint8 0/1); the model moves on to the next frame's."""
+        mask = self.classify(y, h, s)
+        self.learn(y, h, s)
+        return mask
+
+
+def free_space(mask, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
+    """Per column band (``band_w`` columns from x = 0; FREE_BANDS bands, those past the image
+    FREE_NONE): the image row of the lowest obstacle run of at least ``run_r`` rows, scanning up
+    from the bottom row, as the run's bottom row; FREE_NONE when the band has none. A band's row
+    is an obstacle row when more than half of its pixels in that row are obstacle (mask 0).
+    Streaming form (what the RTL does, top to bottom): per band a run counter; on an obstacle
+    row it counts up (saturating at ``run_r``) and, once at ``run_r``, the band's result becomes
+    this row; any other row resets it."""
+    mask = np.asarray(mask)
+    h, w = mask.shape
+    out = np.full(FREE_BANDS, FREE_NONE, dtype=np.uint16)
+    for b in range(FREE_BANDS):
+        x0, x1 = b * band_w, min((b + 1) * band_w, w)
+        if x0 >= w:
+            break
+        obstacle = 2 * (mask[:, x0:x1] == 0).sum(axis=1) > (x1 - x0)
+        run = 0
+        for r in range(h):
+            run = min(run + 1, run_r) if obstacle[r] else 0
+            if run >= run_r:
+                out[b] = r
+    return out
+
+
 def ground_frames(frames, params):
-    """Run the ground unit over consecutive frames (each a (Y, H, S) tuple of (H, W) arrays),
-    starting from reset. Returns the list of ground masks and the list of (hue, luma) centres
-    each frame was classified with."""
+    """Run the ground unit (model v2) over consecutive frames (each a (Y, H, S) tuple of (H, W)
+    arrays), starting from reset. Returns the list of ground masks and the list of
+    ``(learned, hue_fallback)`` each frame was classified with."""
     model = GroundModel(params)
-    masks, centres = [], []
+    masks, status = [], []
     for y, h, s in frames:
-        centres.append(model.centres)
+        status.append((model.sets is not None, model.hue_fallback))
         masks.append(model.step(y, h, s))
-    return masks, centres
+    return masks, status

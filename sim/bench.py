@@ -43,6 +43,8 @@ import numpy as np
 from golden.matcher import DISPARITIES
 from sim import bench_matcher
 from station import bench as station_bench
+from sim.bench_ground import bench_section as bench_ground_section
+from sim.timing import bench_timing
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
 
@@ -207,10 +209,10 @@ def ground_agreement(bench, quick):
     for name in GROUND_SCENES:
         frames = [make_scene(name, w, h, brightness=b) for b in brightness]
         p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE)
-        masks, centres = ground_frames([rgb_to_yhs(f.left) for f in frames], p)
+        masks, status = ground_frames([rgb_to_yhs(f.left) for f in frames], p)
         acc = [float((m.astype(bool) == f.ground).mean()) for m, f in zip(masks[1:], frames[1:])]
         out["scenes"][name] = {"per_frame": acc, "min": min(acc),
-                               "centres": [list(map(int, c)) for c in centres]}
+                               "learned_fallback": [list(map(int, c)) for c in status]}
     bench.source("ground_agreement", f"golden.ground.ground_frames(GroundParams.bottom_centre("
                  f"{w}, {h}, mode=HUE)) on sim.scenes.make_scene(name, {w}, {h}, brightness) "
                  f"frames {brightness}; agreement = mean(mask == scene truth), frames 1..")
@@ -795,10 +797,12 @@ def main(argv=None):
 
     bench.progress("ground-mask agreement on the synthetic scenes")
     rep["ground_agreement"] = ground_agreement(bench, args.quick)
+    rep["ground_masks"] = bench_ground_section(bench, out)     # ground v1/v2 (sim.bench_ground)
 
     bench.progress("hardware resources" + (" (skipped: --quick)" if args.quick else
                                            " (sim.synth)"))
     rep["resources"] = resources(bench, out, args.quick)
+    rep["timing"] = bench_timing(bench, out, args.quick)    # ECP5 place and route (sim.timing)
 
     bench.progress("throughput: pipeline RTL on the Verilator harness")
     rep["throughput"], full_frame = throughput(bench, args.quick, (left, right))
@@ -824,8 +828,9 @@ def main(argv=None):
                    "python": platform.python_version(), "quick": args.quick,
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
-    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "resources",
-            "throughput", "sim_speed", "software_speed", "matcher_v2", "station", "provenance"]
+    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "ground_masks",
+            "resources", "timing", "throughput", "sim_speed", "software_speed", "matcher_v2",
+            "station", "provenance"]
     ordered = {k: rep[k] for k in keys}
     (out / "report.json").write_text(json.dumps(ordered, indent=1, default=_json) + "\n")
     write_markdown(out / "report.md", rep)

@@ -339,6 +339,7 @@ def _run_inputs(args):
 def cmd_run(args, flags):
     from .camera import load_camera, depth_error
     from .units import UNITS, Job, records_from_words
+    from .raw_outputs import write_raw_outputs
     from .views import write_outputs
     progress = Progress(5)
     left, right, grey, ground_default, camera, truth, obstacles, source = _run_inputs(args)
@@ -416,6 +417,7 @@ def cmd_run(args, flags):
                           params=params, summary=summary, obstacles=obstacles)
     # Further outputs of a run hook in here: they get ``run`` (the last frame's golden data in
     # run.golden[-1], the RTL's in run.result) and write into args.out.
+    paths.update(write_raw_outputs(args.out, run.golden[-1]))   # masks, edges, free space (raw)
     progress("done")
     _print_run(summary, last, failure, paths, args)
     return EXIT_BIT_EXACT if bit_exact else EXIT_MISMATCH

@@ -48,7 +48,7 @@ import numpy as np
 __all__ = [
     "Rig", "Box", "Cylinder", "Pole", "World", "StereoFrame",
     "render", "make_scene", "scene_names", "save_frame", "SCENES",
-    "ground_disparity", "horizon_row", "backproject",
+    "ground_disparity", "horizon_row", "backproject", "floor_scene", "FLOOR_KINDS",
     "LABEL_SKY", "LABEL_GROUND", "LABEL_BACK_WALL", "LABEL_SIDE_WALL", "LABEL_OBSTACLE0",
 ]
 
@@ -797,3 +797,69 @@ def save_frame(frame: StereoFrame, outdir, max_disparity: float = 64.0) -> dict:
     paths["depth_npy"] = out / "depth.npy"
     np.save(paths["depth_npy"], frame.depth)
     return {k: os.fspath(v) for k, v in paths.items()}
+
+
+# --- flat colour-floor scenes for the ground model (sim/bench_ground.py) ----------------------
+
+#: Floors of :func:`floor_scene`: name -> what it tests.
+FLOOR_KINDS = {
+    "tiles": "two-colour tiles (beige and terracotta, 22 degrees apart in hue)",
+    "planks": "wooden planks of varying shade with dark gaps between them",
+    "rug": "a pale floor too grey for a hue, with a red rug under the left half of the "
+           "reference area",
+    "shadow": "a green floor crossed by a shadow band (half the brightness) outside the "
+              "reference area",
+}
+
+
+def floor_scene(kind: str, width: int = 320, height: int = 240, seed: int = 0):
+    """A robot's-eye image of a flat floor in perspective (rows below the horizon at 35 % of
+    the height), a wall above it and four box obstacles standing on the floor, with camera noise
+    (sigma 3 per channel). Obstacle and wall colours differ from every floor colour by at least
+    20 degrees of hue. Returns ``(rgb uint8 (H, W, 3), floor truth bool (H, W))``."""
+    if kind not in FLOOR_KINDS:
+        raise ValueError(f"unknown floor {kind!r}; known: {', '.join(FLOOR_KINDS)}")
+    _check_positive("width", width, integer=True)
+    _check_positive("height", height, integer=True)
+    rng = np.random.default_rng(seed)
+    horizon = int(0.35 * height)
+    yy, xx = np.mgrid[0:height, 0:width].astype(np.float64)
+    depth = np.maximum(yy - horizon, 1.0)
+    fz = height / depth                          # distance along the floor
+    fx = (xx - width / 2) / depth * 4.0          # lateral position on the floor
+    img = np.zeros((height, width, 3))
+    if kind == "tiles":
+        checker = (np.floor(fx * 1.5) + np.floor(fz * 1.5)) % 2 == 0
+        img[:] = np.where(checker[..., None], (200, 170, 120), (170, 80, 50))
+    elif kind == "planks":
+        plank = np.floor(fx * 3.0)
+        shade = 0.85 + 0.3 * _noise_rows(rng, plank)
+        img[:] = np.array((150, 100, 60)) * shade[..., None]
+        gap = np.abs(fx * 3.0 - np.round(fx * 3.0)) < 0.04
+        img[gap] = (50, 35, 25)
+    elif kind == "rug":
+        img[:] = (180, 170, 150)
+        rug = (xx >= width * 0.2) & (xx < width * 0.5) & (yy >= height * 0.8)
+        img[rug] = (150, 40, 50)
+    else:  # shadow
+        img[:] = (90, 140, 60)
+        band = (yy >= height * 0.55) & (yy < height * 0.65)
+        img[band] *= 0.5
+    floor = yy >= horizon
+    img[~floor] = (110, 140, 190)                # wall: pale blue
+    boxes = [(0.08, 0.2, 0.50, (60, 100, 180)), (0.30, 0.42, 0.62, (70, 150, 80)),
+             (0.62, 0.72, 0.55, (120, 60, 160)), (0.80, 0.93, 0.70, (60, 100, 180))]
+    for x0, x1, foot, colour in boxes:
+        sel = (xx >= x0 * width) & (xx < x1 * width) & (yy < foot * height) & \
+              (yy >= foot * height - 0.3 * height)
+        img[sel] = colour
+        floor &= ~sel
+    img += rng.normal(0, 3, img.shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8), floor
+
+
+def _noise_rows(rng, index):
+    """A random value in [0, 1) per integer value of ``index`` (the shade of each plank)."""
+    lo = int(index.min())
+    table = rng.random(int(index.max()) - lo + 1)
+    return table[(index - lo).astype(np.int64)]

@@ -11,7 +11,13 @@ Verilog and counts the mapped cells:
 ``levels``     LUT levels on the longest combinational path between registers, RAMs,
                multipliers and ports: LUT/INV/MUXF cells count one, carry-chain cells (MUXCY,
                XORCY) none, since the carry chain is dedicated fast routing;
-``ltp``        the length of Yosys ``ltp`` over the combinational cells (carry cells included).
+``ltp``        the length of Yosys ``ltp`` over the combinational cells (carry cells included);
+``carry_bits`` bits of the longest carry chain (MUXCY cells joined carry-out to carry-in);
+``timing_ok``  ``levels`` <= 8 and ``carry_bits`` <= 16: the project's timing rule on this estimate
+               (the longest carry chain need not lie on the deepest LUT path, so this is
+               conservative);
+``deepest_path`` [start, end]: the named nets (register outputs) the deepest LUT path starts
+               from and ends at (to find what to pipeline).
 
 These are estimates: Yosys's Spartan-3 families are experimental, it gives no timing, and ISE's
 XST maps differently (it packs LUTs with carry logic and may build constant multipliers from
@@ -21,7 +27,6 @@ XC3S1000 budget) and ``build/synth/report.md``; Yosys logs to ``build/synth/<des
 ``python -m sim.synth [--out build/synth] [--ise] [NAME ...]``; ``--ise`` also writes the ISE
 build tree of the reference board (:mod:`hdl.platform`) under ``build/synth/ise/``.
 """
-import argparse
 import json
 import os
 import re
@@ -31,12 +36,17 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from sim.export import BUILD, all_designs, export_verilog
+from sim.export import BUILD, chosen_designs, design_arguments, export_verilog
 
-__all__ = ["BUDGET", "synthesize", "count_cells", "lut_levels", "write_report", "build_ise", "main"]
+__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "synthesize", "count_cells", "lut_levels",
+           "longest_path", "carry_length", "write_report", "build_ise", "main"]
 
 #: XC3S1000 resources (DS099).
 BUDGET = {"device": "XC3S1000-4FT256", "LUT4": 15360, "FF": 15360, "RAMB16": 24, "MULT18X18": 24}
+#: The project's timing rule on this estimate: every register-to-register path within this many
+#: LUT levels plus one carry chain of at most this many bits.
+MAX_LEVELS = 8
+MAX_CARRY = 16
 LTP_SELECTION = "t:LUT* t:INV t:MUXF* t:MUXCY t:XORCY w:*"
 _LEVEL_CELLS = re.compile(r"^(LUT\d|INV|MUXF\d)$")
 _CARRY_CELLS = re.compile(r"^(MUXCY|XORCY)$")
@@ -74,12 +84,10 @@ def count_cells(cells_by_type):
                                      "LUTRAM")}
 
 
-def lut_levels(netlist, top):
-    """LUT levels on the longest combinational path of a Yosys JSON netlist (see the module
-    docstring for what counts)."""
+def _comb_graph(netlist, top):
     module = netlist["modules"][top]
-    drivers = {}                    # bit -> combinational cell driving it
     cells = module["cells"]
+    drivers = {}                    # bit -> combinational cell driving it
     comb = {}
     for name, cell in cells.items():
         t = cell["type"]
@@ -90,7 +98,19 @@ def lut_levels(netlist, top):
                     for bit in cell["connections"][port]:
                         if isinstance(bit, int):
                             drivers[bit] = name
-    depth = {}
+    return module, cells, drivers, comb
+
+
+def longest_path(netlist, top):
+    """``(levels, [start, end])``: LUT levels on the longest combinational path of a Yosys JSON
+    netlist (see the module docstring for what counts) and the named nets where it starts (a
+    register, RAM or port output) and ends (the output of the register or RAM it feeds)."""
+    module, cells, drivers, comb = _comb_graph(netlist, top)
+    depth, pred = {}, {}
+
+    def inputs_of(n):
+        return [drivers[b] for p, d in cells[n]["port_directions"].items() if d == "input"
+                for b in cells[n]["connections"][p] if isinstance(b, int) and b in drivers]
 
     def visit(name):
         stack = [(name, False)]
@@ -98,16 +118,65 @@ def lut_levels(netlist, top):
             n, expanded = stack.pop()
             if n in depth:
                 continue
-            inputs = [drivers[b] for p, d in cells[n]["port_directions"].items() if d == "input"
-                      for b in cells[n]["connections"][p] if isinstance(b, int) and b in drivers]
+            inputs = inputs_of(n)
             if expanded:
-                depth[n] = comb[n] + max((depth[i] for i in inputs), default=0)
+                best = max(inputs, key=lambda i: depth[i], default=None)
+                depth[n] = comb[n] + (depth[best] if best is not None else 0)
+                pred[n] = best
             else:
                 stack.append((n, True))
                 stack.extend((i, False) for i in inputs if i not in depth)
         return depth[name]
 
-    return max((visit(n) for n in comb), default=0)
+    if not comb:
+        return 0, []
+    end = max(comb, key=visit)
+    names = {}
+    for net, info in module.get("netnames", {}).items():
+        if not info.get("hide_name"):
+            for b in info["bits"]:
+                if isinstance(b, int):
+                    names.setdefault(b, net)
+
+    def bits(cell, direction):
+        return [b for p, d in cells[cell]["port_directions"].items() if d == direction
+                for b in cells[cell]["connections"][p] if isinstance(b, int)]
+
+    first, n = end, end
+    while n is not None:
+        first, n = n, pred[n]
+    start = next((names[b] for b in bits(first, "input") if b not in drivers and b in names), "?")
+    out_bits = set(bits(end, "output"))
+    sink = next((names.get(q, name) for name, c in cells.items() if name not in comb
+                 and out_bits & set(bits(name, "input")) for q in bits(name, "output")), "?")
+    return depth[end], [start, sink]
+
+
+def lut_levels(netlist, top):
+    """LUT levels on the longest combinational path of a Yosys JSON netlist (see the module
+    docstring for what counts)."""
+    return longest_path(netlist, top)[0]
+
+
+def carry_length(netlist, top):
+    """Bits of the longest carry chain: MUXCY cells joined carry-out to carry-in."""
+    module, cells, drivers, comb = _comb_graph(netlist, top)
+    length = {}
+    best = 0
+    for name in cells:
+        if cells[name]["type"] != "MUXCY":
+            continue
+        chain, n = [], name
+        while n is not None and n not in length:
+            chain.append(n)
+            ci = [b for b in cells[n]["connections"].get("CI", []) if isinstance(b, int)]
+            up = drivers.get(ci[0]) if ci else None
+            n = up if up is not None and cells[up]["type"] == "MUXCY" else None
+        base = length[n] if n is not None else 0
+        for k, c in enumerate(reversed(chain)):
+            length[c] = base + k + 1
+        best = max(best, length[name])
+    return best
 
 
 def synthesize(name, out_dir=None, params=None):
@@ -141,7 +210,11 @@ def synthesize(name, out_dir=None, params=None):
     counts = count_cells(cells)
     m = re.search(r"length=(\d+)", (out / "ltp.txt").read_text())
     counts["ltp"] = int(m.group(1)) if m else None
-    counts["levels"] = lut_levels(json.loads((out / "netlist.json").read_text()), name)
+    netlist = json.loads((out / "netlist.json").read_text())
+    counts["levels"], path = longest_path(netlist, name)
+    counts["carry_bits"] = carry_length(netlist, name)
+    counts["timing_ok"] = counts["levels"] <= MAX_LEVELS and counts["carry_bits"] <= MAX_CARRY
+    counts["deepest_path"] = path
     counts["seconds"] = round(seconds, 1)
     (out / "netlist.json").unlink()     # large; the log and stat stay
     return counts
@@ -154,11 +227,13 @@ def write_report(results, out_dir):
                       "(experimental Spartan-3 support, no timing); ISE/XST results will differ.",
               "budget": BUDGET, "designs": results}
     (out / "report.json").write_text(json.dumps(report, indent=1) + "\n")
-    cols = ["LUT4", "FF", "RAMB16", "MULT18X18", "levels"]
+    cols = ["LUT4", "FF", "RAMB16", "MULT18X18", "levels", "carry_bits", "timing_ok"]
     lines = ["# Spartan-3 resource ESTIMATES", "",
              "Yosys `synth_xilinx -family xc3s -nowidelut -flatten` (experimental family, no "
              "timing); ISE/XST will differ. `LUT4` counts LUT1-LUT4 and INV cells; `levels` "
-             "counts LUT/MUXF cells on the longest combinational path (carry chains free).", "",
+             "counts LUT/MUXF cells on the longest combinational path (carry chains free); `carry_bits` is "
+             f"the longest carry chain in bits; `timing_ok`: levels <= {MAX_LEVELS} and carry <= "
+             f"{MAX_CARRY}.", "",
              "| design | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for name, r in results.items():
         lines.append(f"| {name} | " + " | ".join(str(r.get(c, "")) for c in cols) + " |")
@@ -181,16 +256,11 @@ def build_ise(design="soc", out_dir=None, platform=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m sim.synth", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default="build/synth", help="output folder (default %(default)s)")
+    ap = design_arguments("python -m sim.synth", __doc__.split("\n")[0], "build/synth")
     ap.add_argument("--ise", action="store_true", help="also write the ISE build tree")
-    known = all_designs()
-    ap.add_argument("names", nargs="*", help=f"designs (default: all of {', '.join(known)})")
     args = ap.parse_args(argv)
     results = {}
-    for name in args.names or known:
-        if name not in known:
-            ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
+    for name in chosen_designs(ap, args):
         print(f"synthesising {name} ...", file=sys.stderr, flush=True)
         results[name] = synthesize(name, args.out)
     path = write_report(results, args.out)

@@ -41,7 +41,7 @@ def test_golden_hue_is_rounded_division_and_in_range():
     chroma = mx > mn
     # The reciprocal table is round(65536/d); the quotient stays within one unit of exact.
     for d in range(1, 256):
-        assert abs(RECIP[d] * d - 65536) <= d // 2
+        assert abs(int(RECIP[d]) * d - 65536) <= d // 2
     ref = np.degrees(np.arctan2(np.sqrt(3) * (c[..., 1] - c[..., 2]),
                                 2 * c[..., 0] - c[..., 1] - c[..., 2]))  # continuous hue angle
     assert np.all(y == luma(img))

@@ -1,12 +1,14 @@
 """Ground model and classifier: golden rules, and RTL bit-exactness over consecutive frames
 (the band learned on frame n is applied on frame n+1) under stalls and malformed streams."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from golden.color import rgb_to_yhs
 from golden.ground import (GroundMode, GroundParams, ground_frames, classify, learn_centres,
                            hue_distance, HIST_MAX, histograms)
-from hdl.ground import GroundClassifier, SEARCH_CYCLES
+from hdl.ground import CLEAR_CYCLES, GroundClassifier, search_cycles
 from hdl.types import YHSPixel, GroundPixel
 from sim.data import motorcycle, crop
 from sim.streams import Packer, check_unit, malformed_cases
@@ -77,13 +79,12 @@ def test_learning_peak_ties_empty_and_saturation():
     assert yy[9] == HIST_MAX and hh[9] == HIST_MAX
 
 
-def test_band_learned_on_frame_n_applies_from_n_plus_1():
+def test_sets_learned_on_frame_n_apply_from_n_plus_1():
     rng = np.random.default_rng(0)
     f = [yhs(floor_image(rng, 8, 16, (40, 160, 60))) for _ in range(2)]
-    p = GroundParams.bottom_centre(16, 8, ref_w=8, ref_h=2, hue_centre0=150)
-    masks, centres = ground_frames([(x["y"], x["h"], x["s"]) for x in f], p)
-    assert centres[0] == (150, 128)
-    assert centres[1] != centres[0]
+    p = GroundParams.bottom_centre(16, 8, ref_w=8, ref_h=2, hue_centre0=150, min_support=2)
+    masks, status = ground_frames([(x["y"], x["h"], x["s"]) for x in f], p)
+    assert status == [(False, False), (True, False)]
     assert masks[1][4:].mean() > 0.9 and masks[0][4:].mean() < 0.1
 
 
@@ -138,19 +139,21 @@ def test_rtl_motorcycle_crops_and_size_change():
 
 def test_rtl_throughput_and_search_cycles():
     """Region away from the bottom: the search overlaps the frame, one pixel per clock; region
-    at the bottom: each frame ends with SEARCH_CYCLES of blanking the unit waits for."""
+    at the bottom: each frame ends with ``search_cycles`` of blanking the unit waits for."""
     rng = np.random.default_rng(6)
-    # 13 rows of 32 pixels after the region: more than the search needs
-    frames = [yhs(floor_image(rng, 16, 32, (40, 160, 60))) for _ in range(3)]
-    pixels = 3 * 16 * 32
-    mid = GroundParams(ref_x=8, ref_y=1, ref_w=16, ref_h=2)
-    r = run(frames, mid, name="ground_rate_mid")
-    assert r.cycles == pixels + SEARCH_CYCLES   # clear pass after reset, then 1 px/clock
-    frames = [f for f in frames for f in [{k: v[:8] for k, v in f.items()}]]
+    # 17 rows of 128 pixels after the region: more than the search needs
+    frames = [yhs(floor_image(rng, 20, 128, (40, 160, 60))) for _ in range(3)]
+    pixels = 3 * 20 * 128
+    tail = GroundClassifier.LATENCY - 1       # the output register counts in cycles already
+    mid = GroundParams(ref_x=8, ref_y=1, ref_w=16, ref_h=2, jnd_hue=1, jnd_luma=1)
+    assert search_cycles(1, 1) < 17 * 128
+    r = run(frames, mid, name="ground_rate_mid", max_width=128)
+    assert r.cycles == pixels + CLEAR_CYCLES + tail   # clear pass after reset, then 1 px/clock
+    frames = [{k: v[:8, :32] for k, v in f.items()} for f in frames]
     pixels = 3 * 8 * 32
-    bottom = GroundParams(ref_x=8, ref_y=6, ref_w=16, ref_h=2)
+    bottom = GroundParams(ref_x=8, ref_y=6, ref_w=16, ref_h=2, jnd_hue=1, jnd_luma=1)
     r = run(frames, bottom, name="ground_rate_bottom")
-    assert r.cycles == pixels + 3 * SEARCH_CYCLES
+    assert r.cycles == pixels + CLEAR_CYCLES + 2 * search_cycles(1, 1) + tail
 
 
 @pytest.mark.parametrize("case", ["missing_sof", "short_line", "long_line", "eof_without_eol",
@@ -202,7 +205,11 @@ def test_luma_mode_agreement_on_mono_scenes(scene):
     world = mono_world(SCENES[scene])
     frames = [render(world, Rig.scaled(320, 240), seed=s) for s in (0, 1, 2)]
     grey = [np.repeat(luma(f.left)[..., None], 3, axis=2) for f in frames]
-    acc = agreement(frames, grey, GroundParams.bottom_centre(320, 240, mode=GroundMode.LUMA))
+    # these rendered floors spread over more luma codes than the default +-3 smoothing covers
+    # (0.94 agreement at jnd_luma = 3); at 5 they agree to 0.98 (the motorcycle pair keeps 3:
+    # 5 lets 11 % of its obstacle pixels through in luminance mode, sim/bench_ground.py)
+    p = GroundParams.bottom_centre(320, 240, mode=GroundMode.LUMA, jnd_luma=5)
+    acc = agreement(frames, grey, p)
     assert min(acc) >= 0.98, acc
 
 
@@ -212,3 +219,182 @@ def test_rtl_synthetic_scene_crop_with_brightness_change():
     crops = [yhs(np.ascontiguousarray(f.left[88:108, 40:88])) for f in frames]
     p = GroundParams.bottom_centre(48, 20, ref_h=4)
     run(crops, p, name="ground_scene", seed=8, idle=0.2, stall=0.2)
+
+
+# --- ground model v2 (golden specification) and free space ------------------------------------
+
+from golden.ground import (FREE_BANDS, FREE_NONE, GroundModel, free_space, ground_set,
+                           region_histograms, smoothed)
+
+
+def test_smoothing_wraps_hue_and_clips_luma():
+    hist = np.array([1, 0, 0, 0, 5], dtype=np.uint32)
+    assert smoothed(hist, 1, True).tolist() == [6, 1, 0, 5, 6]
+    assert smoothed(hist, 1, False).tolist() == [1, 1, 0, 5, 5]
+    # threshold = support * frac >> 10, at least 1: 6 * 512 >> 10 = 3
+    assert ground_set(hist, 1, True, 512).tolist() == [True, False, False, True, True]
+    assert not ground_set(np.zeros(4, dtype=np.uint32), 1, False, 0).any()
+
+
+def test_v2_histograms_count_reliable_hues_only():
+    p = GroundParams(ref_x=0, ref_y=0, ref_w=4, ref_h=1, s_min=10, y_lo=16, y_hi=239)
+    y = np.array([[100, 100, 250, 100]], dtype=np.uint8)
+    h = np.array([[50, 40, 40, 50]], dtype=np.uint8)
+    s = np.array([[20, 20, 20, 20]], dtype=np.uint8)
+    hue, lum = region_histograms(y, h, s, p)
+    assert hue[50] == 1 and hue.sum() == 1          # x = 2 is clipped white: no hue
+    assert lum[100] == 2 and lum.sum() == 2         # odd x: luma
+
+
+def test_v2_first_frame_default_then_learned_multi_colour_floor():
+    rng = np.random.default_rng(3)
+    h, w = 24, 32
+    floor = np.where((np.arange(w) // 4 % 2 == 0)[None, :, None], (200, 170, 120), (170, 80, 50))
+    img = np.broadcast_to(floor, (h, w, 3)) + rng.normal(0, 3, (h, w, 3))
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    img[:8] = (60, 100, 180)                        # a blue obstacle band at the top
+    p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE, hue_centre0=120)
+    small = GroundModel(p)                          # 24 hue samples: below min_support
+    small.step(*rgb_to_yhs(img))
+    assert small.hue_fallback and small.step(*rgb_to_yhs(img))[8:].mean() < 0.1
+    model = GroundModel(replace(p, min_support=16))
+    first = model.step(*rgb_to_yhs(img))
+    assert first[8:].mean() < 0.1                   # default band (hue 120) is not this floor
+    second = model.step(*rgb_to_yhs(img))
+    assert second[8:].mean() > 0.95 and second[:8].mean() == 0   # both tile colours learned
+    assert not model.hue_fallback
+
+
+def test_v2_grey_floor_falls_back_to_luma_and_saturated_pixels_are_obstacles():
+    h, w = 16, 16
+    img = np.full((h, w, 3), 120, dtype=np.uint8)
+    img[:4, :8] = (200, 60, 60)                     # saturated red, similar luma as the floor
+    p = GroundParams.bottom_centre(w, h, mode=GroundMode.HUE)
+    model = GroundModel(p)
+    model.step(*rgb_to_yhs(img))
+    assert model.hue_fallback
+    mask = model.step(*rgb_to_yhs(img))
+    assert mask[4:].all() and not mask[:4, :8].any()
+
+
+def test_v2_blending_is_shift_based():
+    p = GroundParams(ref_x=0, ref_y=0, ref_w=2, ref_h=1, mode=GroundMode.LUMA, blend_shift=2)
+    model = GroundModel(p)
+    frame = lambda v: (np.array([[0, v]], dtype=np.uint8),) * 3
+    model.learn(*frame(100))
+    assert model.model[1][100] == 1
+    model.learn(*frame(50))                         # (1 << 2) - 1 + 0 >> 2 = 0; 0 + 1 >> 2 = 0
+    assert model.model[1][100] == 0 and model.model[1][50] == 0
+    model.learn(*frame(50))
+    assert model.model[1][50] == 0
+    big = GroundModel(GroundParams(ref_x=0, ref_y=0, ref_w=64, ref_h=8, mode=GroundMode.LUMA,
+                                   blend_shift=1))
+    f = lambda v: (np.full((8, 64), v, dtype=np.uint8),) * 3
+    big.learn(*f(100))
+    big.learn(*f(50))
+    assert big.model[1][100] == 128 and big.model[1][50] == 128   # (256 + 0) / 2, (0 + 256) / 2
+
+
+def test_v2_clipped_luma_never_ground():
+    p = GroundParams(ref_x=0, ref_y=0, ref_w=8, ref_h=4, mode=GroundMode.LUMA)
+    model = GroundModel(p)
+    dark = (np.zeros((4, 8), dtype=np.uint8),) * 3
+    model.step(*dark)
+    assert model.step(*dark).sum() == 0             # black is learned but never ground
+
+
+def test_free_space_lowest_run_per_band():
+    mask = np.ones((20, 30), dtype=np.uint8)
+    mask[5:12, 0:10] = 0          # band 0: a run of 7 rows ending at row 11
+    mask[15:17, 0:10] = 0         # ... and a lower run of 2 rows: too short
+    mask[10:14, 10:16] = 0        # band 1: 6 of 10 columns: majority, 4 rows ending at 13
+    mask[2:10, 20:24] = 0         # band 2: 4 of 10 columns: not a majority
+    rows = free_space(mask, band_w=10, run_r=4)
+    assert len(rows) == FREE_BANDS
+    assert rows[:3].tolist() == [11, 13, FREE_NONE] and (rows[3:] == FREE_NONE).all()
+
+
+def test_raw_outputs(tmp_path):
+    import csv
+    from PIL import Image
+    from golden.pipeline import default_params, pipeline_frames
+    from sim.raw_outputs import write_raw_outputs
+    from sim.scenes import make_scene
+    scene = make_scene("boxes", 96, 64)
+    frame = pipeline_frames([scene.left], [scene.right], default_params(96, 64))[-1]
+    paths = write_raw_outputs(tmp_path, frame)
+    ground = np.array(Image.open(paths["left_ground"]))
+    assert ground.dtype == np.uint8 and set(np.unique(ground)) <= {0, 255}
+    assert np.array_equal(ground == 255, frame.left.ground == 1)
+    assert np.array_equal(np.array(Image.open(paths["left_edges"])) == 255, frame.left.edge == 1)
+    rows = list(csv.DictReader(open(paths["free_space"])))
+    assert [r["camera"] for r in rows].count("left") == 3       # 96 columns, bands of 47
+    want = free_space(frame.left.ground)
+    assert [r["obstacle_row"] for r in rows[:3]] == ["" if v == FREE_NONE else str(v)
+                                                     for v in want[:3]]
+
+
+def test_bench_ground_figures():
+    """The figures the bench reports, and its check of the v2 requirements."""
+    from sim.bench_ground import FLOOR_LIMITS, check, floor_accuracy
+    floors = floor_accuracy()
+    assert set(floors) == {"tiles", "planks", "rug", "shadow"}
+    for kind, r in floors.items():
+        assert r["v2"]["recall"] >= FLOOR_LIMITS["recall"], (kind, r)
+        assert r["v2"]["obstacle_as_ground"] <= FLOOR_LIMITS["obstacle_as_ground"], (kind, r)
+    bad = {k: {"v2": {"recall": 0.5, "obstacle_as_ground": 0.5}} for k in floors}
+    moto = {m: {"v2": {"recall": 1.0, "obstacle_as_ground": 0.0, "edges_removed": 0.0}}
+            for m in ("hue", "luma")}
+    assert len(check(bad, moto)) == 8 and check(floors, moto) == []
+
+
+# --- ground model v2 RTL ------------------------------------------------------------------------
+
+
+
+def two_colour_floor(rng, h, w, k):
+    floor = np.where((np.arange(w) // 3 % 2 == 0)[None, :, None], (200, 170, 120), (170, 80, 50))
+    img = np.broadcast_to(floor, (h, w, 3)) * (1.0 - 0.1 * k) + rng.normal(0, 4, (h, w, 3))
+    img[: h // 3] = rng.integers(0, 256, (h // 3, w, 3))
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("seed,mode,both,shift", [(1, GroundMode.HUE, 0, 1),
+                                                  (2, GroundMode.HUE, 1, 2),
+                                                  (3, GroundMode.LUMA, 0, 0)])
+def test_rtl_v2_four_frames_with_stalls(seed, mode, both, shift):
+    rng = np.random.default_rng(seed)
+    frames = [yhs(two_colour_floor(rng, 9, 20, k)) for k in range(4)]
+    p = GroundParams(mode=mode, ref_x=2, ref_y=5, ref_w=16, ref_h=3, jnd_hue=1, jnd_luma=2,
+                     hue_centre0=150, frac=40, min_support=8, hue_and_luma=both,
+                     blend_shift=shift)
+    run(frames, p, name=f"ground_v2_{seed}", seed=seed, idle=0.3, stall=0.3)
+
+
+def test_rtl_v2_fallback_and_timing():
+    """A grey floor: hue fallback from frame 1; the region ends on the last row, so every frame
+    waits for the search."""
+    rng = np.random.default_rng(7)
+    img = lambda: np.clip(np.full((6, 16, 3), 120) + rng.normal(0, 3, (6, 16, 3)), 0, 255)
+    frames = [yhs(img().astype(np.uint8)) for _ in range(3)]
+    frames[2]["y"][0, :8] = 240                     # clipped white: never ground
+    p = GroundParams(mode=GroundMode.HUE, ref_x=0, ref_y=3, ref_w=16, ref_h=3, jnd_hue=1,
+                     jnd_luma=1, min_support=8)
+    per_frame = search_cycles(p.jnd_hue, p.jnd_luma)
+    tail = GroundClassifier.LATENCY - 1
+    for n in (2, 3):        # the clearing pass after reset, then a search between frames
+        r = run(frames[:n], p, name="ground_v2_fallback")
+        assert r.probes == {"errors": 0, "dropped": 0}
+        assert r.cycles == n * 6 * 16 + CLEAR_CYCLES + (n - 1) * per_frame + tail
+
+
+@pytest.mark.parametrize("case", ["short_line", "cut_short", "reset"])
+def test_rtl_v2_malformed_stream_recovers(case):
+    rng = np.random.default_rng(13)
+    bad = yhs(two_colour_floor(rng, 6, 10, 0))
+    good = [yhs(two_colour_floor(rng, 6, 10, k)) for k in range(2)]
+    words, errors, dropped = malformed_cases(PIN, bad)[case]
+    p = GroundParams(ref_x=1, ref_y=3, ref_w=8, ref_h=3, jnd_hue=1, jnd_luma=1, min_support=4)
+    r = run(good, p, name=f"ground_v2_bad_{case}", extra_words=words, seed=2, idle=0.2,
+            stall=0.2, max_width=16)
+    assert r.probes == {"errors": errors, "dropped": dropped}

@@ -398,3 +398,24 @@ def test_backproject_matches_independent_model():
     g = scenes.backproject(f.rig, *np.nonzero(f.ground)[::-1],
                            f.depth[f.ground], pose=f.pose)
     assert np.abs(g[:, 2]).max() < 1e-4               # ground pixels land on z = 0
+
+
+def test_floor_scenes():
+    from golden.color import rgb_to_yhs
+    from sim.scenes import FLOOR_KINDS, floor_scene
+    for kind in FLOOR_KINDS:
+        rgb, floor = floor_scene(kind, 160, 120, seed=1)
+        assert rgb.shape == (120, 160, 3) and rgb.dtype == np.uint8 and floor.shape == (120, 160)
+        assert 0.4 < floor.mean() < 0.65 and floor[-1].all() and not floor[0].any()
+        again, _ = floor_scene(kind, 160, 120, seed=1)
+        assert np.array_equal(rgb, again)
+    with pytest.raises(ValueError, match="unknown floor 'lava'"):
+        floor_scene("lava")
+    # obstacle and wall colours are at least 20 degrees of hue from every saturated floor colour
+    floors = [(200, 170, 120), (170, 80, 50), (150, 100, 60), (150, 40, 50), (90, 140, 60),
+              (45, 70, 30)]
+    others = [(60, 100, 180), (70, 150, 80), (120, 60, 160), (110, 140, 190)]
+    _, fh, _ = rgb_to_yhs(np.array([floors], dtype=np.uint8))
+    _, oh, _ = rgb_to_yhs(np.array([others], dtype=np.uint8))
+    d = np.abs(fh[0][:, None].astype(int) - oh[0][None, :].astype(int))
+    assert (np.minimum(d, 192 - d) * 1.875 >= 20).all()

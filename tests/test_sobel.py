@@ -532,7 +532,7 @@ def test_rtl_bad_streams(name, bad, errors, dropped, accepted, seed, idle, stall
                  lambda vcd: simulate(segments, vcd=vcd, **kw))
     assert (err, drop) == (errors, dropped)
     # The bad frame comes out truncated (no eof): exactly the pixels that had left the window
-    # when it was abandoned (W + 6 steps behind the input), as golden has them; the pixels still
+    # when it was abandoned (W + FLUSH_EXTRA steps behind the input), as golden has them; the pixels still
     # in the registers are dropped. A reset may also lose the word waiting in the output register.
     n = W * H
     start = n                               # the first good frame's output
@@ -577,7 +577,7 @@ def test_rtl_bad_then_bad():
 # ---------------------------------------------------------------------------------------------
 
 def test_one_pixel_per_clock():
-    """Without stalls a frame of W x H pixels takes W x H cycles plus the flush (W + 6)."""
+    """Without stalls a frame of W x H pixels takes W x H cycles plus the flush (W + FLUSH_EXTRA)."""
     crops = motorcycle_crops()
     frames = [crops[0], synthetic_frame(), crops[1]]
     words = frames_words(PIN, [dict(y=y, ground=g) for y, g in frames])

@@ -5,7 +5,8 @@ import json
 import pytest
 
 from hdl.platform import CAMERA_PINS, IIC_PINS, RobotBoardPlatform
-from sim.synth import BUDGET, build_ise, count_cells, lut_levels, synthesize, write_report
+from sim.synth import (BUDGET, build_ise, carry_length, count_cells, longest_path, lut_levels,
+                       synthesize, write_report)
 
 
 def test_count_cells():
@@ -29,6 +30,9 @@ def test_lut_levels_ignores_carry_cells():
         "side": cell("LUT4", {"I0": [1]}, {"O": [7]}),
     }}}}
     assert lut_levels(netlist, "t") == 3
+    netlist["modules"]["t"]["netnames"] = {"q": {"bits": [1]}, "$x": {"hide_name": 1, "bits": [2]}}
+    assert longest_path(netlist, "t") == (3, ["q", "q"])
+    assert carry_length(netlist, "t") == 2
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +46,9 @@ def test_color_estimate(color_counts):
     assert 2 <= c["MULT18X18"] <= 5         # two 8x17 products (Yosys also maps the luma weights)
     assert 100 < c["LUT4"] < 1500 and 100 < c["FF"] < 600
     assert 1 <= c["levels"] <= 20 and c["ltp"] >= c["levels"]
+    assert c["carry_bits"] >= 8                  # at least the 8-bit luma sum's chain
+    assert c["timing_ok"] == (c["levels"] <= 8 and c["carry_bits"] <= 16)
+    assert len(c["deepest_path"]) == 2
     print(f"color estimate: {c}")
 
 

@@ -21,6 +21,12 @@ typedef struct {
     uint16_t ref_h;          /**< GROUND_REF_SIZE.ref_h */
     uint8_t hue_centre0;     /**< GROUND_INIT.hue_centre0 (0..191) */
     uint8_t luma_centre0;    /**< GROUND_INIT.luma_centre0 */
+    uint8_t y_lo;            /**< GROUND_CLIP.y_lo (luma code) */
+    uint8_t y_hi;            /**< GROUND_CLIP.y_hi (luma code) */
+    uint8_t frac;            /**< GROUND_SET.frac (1/1024 of the support) */
+    uint16_t min_support;    /**< GROUND_SET.min_support (reliable hue samples) */
+    uint8_t blend_shift;     /**< GROUND_SET.blend_shift */
+    uint8_t hue_and_luma;    /**< GROUND_SET.hue_and_luma */
     uint16_t edge_threshold; /**< SOBEL.edge_threshold */
     uint8_t ratio; /**< SOBEL.ratio */
     uint8_t nms;             /**< SOBEL.nms */
@@ -53,6 +59,8 @@ typedef struct {
     uint16_t match_errors, match_dropped;
     uint32_t edges, sad_evals, matches, rejects, drops;
     uint16_t fifo_level, fifo_overflow;
+    uint8_t left_ground_learned, left_hue_fallback;    /**< GROUND_STATUS */
+    uint8_t right_ground_learned, right_hue_fallback;
 } pipeline_status_t;
 
 /** The register block's reset values (from the generated header). */

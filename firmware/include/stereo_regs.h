@@ -10,14 +10,14 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           3u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           4u           /**< ID.version value */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540003u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540004u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      3u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      4u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -105,7 +105,7 @@
 #define STEREO_SOBEL_RIGHT_RIGHT_THRESHOLD_RESET     96u          /**< right_threshold reset value */
 
 /* VIDEO (read/write): Video path (hdl/soc.py): cameras, pairing, pipeline. */
-#define STEREO_VIDEO_OFFSET                          0x24u        /**< Video path (hdl/soc.py): cameras, pairing, pipeline. */
+#define STEREO_VIDEO_OFFSET                          0x2Cu        /**< Video path (hdl/soc.py): cameras, pairing, pipeline. */
 #define STEREO_VIDEO_RESET                           0x0u         /**< VIDEO value after reset */
 #define STEREO_VIDEO_VIDEO_ENABLE_SHIFT              0u           /**< video_enable: 1: the video path runs; 0: it is held in reset (set it once both decoders report lock) */
 #define STEREO_VIDEO_VIDEO_ENABLE_MASK               0x1u         /**< video_enable mask (1 bits) */
@@ -132,6 +132,32 @@
 #define STEREO_MATCH_CAMERA_MODE_DROP_SHIFT          26u          /**< camera_mode_drop: 1: camera inputs that cannot stall: the matcher drops (and counts) edges it has no time for (hdl/matcher.py drop_mode) */
 #define STEREO_MATCH_CAMERA_MODE_DROP_MASK           0x04000000u  /**< camera_mode_drop mask (1 bits) */
 #define STEREO_MATCH_CAMERA_MODE_DROP_RESET          0u           /**< camera_mode_drop reset value */
+
+/* GROUND_CLIP (read/write): Ground model v2: luminance clip levels (golden/ground.py). */
+#define STEREO_GROUND_CLIP_OFFSET                    0x24u        /**< Ground model v2: luminance clip levels (golden/ground.py). */
+#define STEREO_GROUND_CLIP_RESET                     0xEF10u      /**< GROUND_CLIP value after reset */
+#define STEREO_GROUND_CLIP_Y_LO_SHIFT                0u           /**< y_lo: lowest luma code with a reliable hue; darker luma bins are never ground */
+#define STEREO_GROUND_CLIP_Y_LO_MASK                 0xFFu        /**< y_lo mask (8 bits) */
+#define STEREO_GROUND_CLIP_Y_LO_RESET                16u          /**< y_lo reset value */
+#define STEREO_GROUND_CLIP_Y_HI_SHIFT                8u           /**< y_hi: highest luma code with a reliable hue; brighter luma bins are never ground */
+#define STEREO_GROUND_CLIP_Y_HI_MASK                 0xFF00u      /**< y_hi mask (8 bits) */
+#define STEREO_GROUND_CLIP_Y_HI_RESET                239u         /**< y_hi reset value */
+
+/* GROUND_SET (read/write): Ground model v2: histogram sets and learning. */
+#define STEREO_GROUND_SET_OFFSET                     0x28u        /**< Ground model v2: histogram sets and learning. */
+#define STEREO_GROUND_SET_RESET                      0x01010030u  /**< GROUND_SET value after reset */
+#define STEREO_GROUND_SET_FRAC_SHIFT                 0u           /**< frac: a bin is ground when its count smoothed over +-1 JND reaches support x frac / 1024 (support: the histogram's total) */
+#define STEREO_GROUND_SET_FRAC_MASK                  0xFFu        /**< frac mask (8 bits) */
+#define STEREO_GROUND_SET_FRAC_RESET                 48u          /**< frac reset value */
+#define STEREO_GROUND_SET_MIN_SUPPORT_SHIFT          8u           /**< min_support: fewest reliable hue samples (pixels) in the model for hue classification; fewer: luminance fallback */
+#define STEREO_GROUND_SET_MIN_SUPPORT_MASK           0x00FFFF00u  /**< min_support mask (16 bits) */
+#define STEREO_GROUND_SET_MIN_SUPPORT_RESET          256u         /**< min_support reset value */
+#define STEREO_GROUND_SET_BLEND_SHIFT_SHIFT          24u          /**< blend_shift: model' = model + (new - model) / 2^blend_shift (0: the last frame only) */
+#define STEREO_GROUND_SET_BLEND_SHIFT_MASK           0x07000000u  /**< blend_shift mask (3 bits) */
+#define STEREO_GROUND_SET_BLEND_SHIFT_RESET          1u           /**< blend_shift reset value */
+#define STEREO_GROUND_SET_HUE_AND_LUMA_SHIFT         28u          /**< hue_and_luma: 1: a pixel with a reliable hue also needs its luminance in the luma set */
+#define STEREO_GROUND_SET_HUE_AND_LUMA_MASK          0x10000000u  /**< hue_and_luma mask (1 bits) */
+#define STEREO_GROUND_SET_HUE_AND_LUMA_RESET         0u           /**< hue_and_luma reset value */
 
 /* FRAME_COUNT (read-only): Frames completed by the matcher since reset. */
 #define STEREO_FRAME_COUNT_OFFSET                    0x40u        /**< Frames completed by the matcher since reset. */
@@ -260,6 +286,22 @@
 #define STEREO_HEALTH_STATUS_PAIRING_SHIFT           3u           /**< pairing: a pair is being forwarded */
 #define STEREO_HEALTH_STATUS_PAIRING_MASK            0x8u         /**< pairing mask (1 bits) */
 #define STEREO_HEALTH_STATUS_PAIRING_RESET           0u           /**< pairing reset value */
+
+/* GROUND_STATUS (read-only): Ground model status of the current frame, per camera. */
+#define STEREO_GROUND_STATUS_OFFSET                  0x78u        /**< Ground model status of the current frame, per camera. */
+#define STEREO_GROUND_STATUS_RESET                   0x0u         /**< GROUND_STATUS value after reset */
+#define STEREO_GROUND_STATUS_LEFT_LEARNED_SHIFT      0u           /**< left_learned: 1: classified by learned sets (0: the default bands) */
+#define STEREO_GROUND_STATUS_LEFT_LEARNED_MASK       0x1u         /**< left_learned mask (1 bits) */
+#define STEREO_GROUND_STATUS_LEFT_LEARNED_RESET      0u           /**< left_learned reset value */
+#define STEREO_GROUND_STATUS_LEFT_HUE_FALLBACK_SHIFT 1u           /**< left_hue_fallback: 1: too few reliable hues: classified by luminance */
+#define STEREO_GROUND_STATUS_LEFT_HUE_FALLBACK_MASK  0x2u         /**< left_hue_fallback mask (1 bits) */
+#define STEREO_GROUND_STATUS_LEFT_HUE_FALLBACK_RESET 0u           /**< left_hue_fallback reset value */
+#define STEREO_GROUND_STATUS_RIGHT_LEARNED_SHIFT     2u           /**< right_learned: as left_learned, right camera */
+#define STEREO_GROUND_STATUS_RIGHT_LEARNED_MASK      0x4u         /**< right_learned mask (1 bits) */
+#define STEREO_GROUND_STATUS_RIGHT_LEARNED_RESET     0u           /**< right_learned reset value */
+#define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_SHIFT 3u           /**< right_hue_fallback: as left_hue_fallback, right camera */
+#define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK 0x8u         /**< right_hue_fallback mask (1 bits) */
+#define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_RESET 0u           /**< right_hue_fallback reset value */
 
 /* RESULT (read pops): Result FIFO head; a read pops one record. */
 #define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one record. */

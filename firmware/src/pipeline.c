@@ -22,6 +22,12 @@ void pipeline_default_config(pipeline_config_t *cfg)
     cfg->ref_h = STEREO_GROUND_REF_SIZE_REF_H_RESET;
     cfg->hue_centre0 = STEREO_GROUND_INIT_HUE_CENTRE0_RESET;
     cfg->luma_centre0 = STEREO_GROUND_INIT_LUMA_CENTRE0_RESET;
+    cfg->y_lo = STEREO_GROUND_CLIP_Y_LO_RESET;
+    cfg->y_hi = STEREO_GROUND_CLIP_Y_HI_RESET;
+    cfg->frac = STEREO_GROUND_SET_FRAC_RESET;
+    cfg->min_support = STEREO_GROUND_SET_MIN_SUPPORT_RESET;
+    cfg->blend_shift = STEREO_GROUND_SET_BLEND_SHIFT_RESET;
+    cfg->hue_and_luma = STEREO_GROUND_SET_HUE_AND_LUMA_RESET;
     cfg->edge_threshold = STEREO_SOBEL_EDGE_THRESHOLD_RESET;
     cfg->ratio = STEREO_SOBEL_RATIO_RESET;
     cfg->nms = STEREO_SOBEL_NMS_RESET;
@@ -50,7 +56,8 @@ static int config_valid(const pipeline_config_t *c)
            c->jnd_luma <= FIELD_MAX(GROUND, JND_LUMA) &&
            c->ref_x <= FIELD_MAX(GROUND_REF_POS, REF_X) && c->ref_y <= FIELD_MAX(GROUND_REF_POS, REF_Y) &&
            c->ref_w <= FIELD_MAX(GROUND_REF_SIZE, REF_W) && c->ref_h <= FIELD_MAX(GROUND_REF_SIZE, REF_H) &&
-           c->hue_centre0 <= 191u &&
+           c->hue_centre0 <= 191u && c->y_lo <= c->y_hi &&
+           c->blend_shift <= FIELD_MAX(GROUND_SET, BLEND_SHIFT) && c->hue_and_luma <= 1u &&
            c->edge_threshold <= FIELD_MAX(SOBEL, EDGE_THRESHOLD) &&
            c->ratio <= FIELD_MAX(SOBEL, RATIO) && c->nms <= 1u &&
            c->right_threshold <= FIELD_MAX(SOBEL_RIGHT, RIGHT_THRESHOLD) &&
@@ -66,7 +73,7 @@ typedef struct {
 
 fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
 {
-    reg_write_t w[7];
+    reg_write_t w[9];
     uint32_t i;
     if (c == NULL || !config_valid(c)) {
         return FW_ERR_PARAM;
@@ -93,6 +100,13 @@ fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
                  STEREO_SET(MATCH, CANDIDATE_MODE, c->candidate_mode) |
                  STEREO_SET(MATCH, WIDEN, c->widen) |
                  STEREO_SET(MATCH, CAMERA_MODE_DROP, c->camera_mode_drop);
+    w[7].offset = STEREO_GROUND_CLIP_OFFSET;
+    w[7].value = STEREO_SET(GROUND_CLIP, Y_LO, c->y_lo) | STEREO_SET(GROUND_CLIP, Y_HI, c->y_hi);
+    w[8].offset = STEREO_GROUND_SET_OFFSET;
+    w[8].value = STEREO_SET(GROUND_SET, FRAC, c->frac) |
+                 STEREO_SET(GROUND_SET, MIN_SUPPORT, c->min_support) |
+                 STEREO_SET(GROUND_SET, BLEND_SHIFT, c->blend_shift) |
+                 STEREO_SET(GROUND_SET, HUE_AND_LUMA, c->hue_and_luma);
     for (i = 0u; i < ARRAY_SIZE(w); i++) {
         STEREO_WriteReg(base, w[i].offset, w[i].value);
     }
@@ -134,6 +148,14 @@ void pipeline_read_config(uint32_t base, pipeline_config_t *c)
     c->candidate_mode = (uint8_t)STEREO_GET(MATCH, CANDIDATE_MODE, v);
     c->widen = (uint8_t)STEREO_GET(MATCH, WIDEN, v);
     c->camera_mode_drop = (uint8_t)STEREO_GET(MATCH, CAMERA_MODE_DROP, v);
+    v = STEREO_ReadReg(base, STEREO_GROUND_CLIP_OFFSET);
+    c->y_lo = (uint8_t)STEREO_GET(GROUND_CLIP, Y_LO, v);
+    c->y_hi = (uint8_t)STEREO_GET(GROUND_CLIP, Y_HI, v);
+    v = STEREO_ReadReg(base, STEREO_GROUND_SET_OFFSET);
+    c->frac = (uint8_t)STEREO_GET(GROUND_SET, FRAC, v);
+    c->min_support = (uint16_t)STEREO_GET(GROUND_SET, MIN_SUPPORT, v);
+    c->blend_shift = (uint8_t)STEREO_GET(GROUND_SET, BLEND_SHIFT, v);
+    c->hue_and_luma = (uint8_t)STEREO_GET(GROUND_SET, HUE_AND_LUMA, v);
 }
 
 void pipeline_read_status(uint32_t base, pipeline_status_t *s)
@@ -157,6 +179,11 @@ void pipeline_read_status(uint32_t base, pipeline_status_t *s)
     v = STEREO_ReadReg(base, STEREO_RESULT_LEVEL_OFFSET);
     s->fifo_level = (uint16_t)STEREO_GET(RESULT_LEVEL, LEVEL, v);
     s->fifo_overflow = (uint16_t)STEREO_GET(RESULT_LEVEL, OVERFLOW, v);
+    v = STEREO_ReadReg(base, STEREO_GROUND_STATUS_OFFSET);
+    s->left_ground_learned = (uint8_t)STEREO_GET(GROUND_STATUS, LEFT_LEARNED, v);
+    s->left_hue_fallback = (uint8_t)STEREO_GET(GROUND_STATUS, LEFT_HUE_FALLBACK, v);
+    s->right_ground_learned = (uint8_t)STEREO_GET(GROUND_STATUS, RIGHT_LEARNED, v);
+    s->right_hue_fallback = (uint8_t)STEREO_GET(GROUND_STATUS, RIGHT_HUE_FALLBACK, v);
 }
 
 uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t max)

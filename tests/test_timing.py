@@ -1,0 +1,42 @@
+"""``make timing`` (sim/timing.py): the ECP5 place-and-route flow, run on one small unit so the
+flow cannot rot (the full run over every design and three seeds is part of ``make bench``)."""
+import json
+import re
+
+import pytest
+
+from sim.export import registered
+from sim.timing import SPARTAN3_SCALE, main, wrapper_verilog
+
+
+def test_wrapper_covers_every_port():
+    component, _ = registered("color")
+    text = wrapper_verilog("color", component)
+    # every port of the design is connected, inputs from the shift register, outputs to q
+    for port in ("i__valid", "i__payload", "i__ready", "o__valid", "o__payload", "o__ready",
+                 "errors", "dropped", "rst"):
+        assert re.search(rf"\.{port}\((sh|q)\[", text), port
+    n_in = int(re.search(r"reg \[(\d+):0\] sh", text).group(1)) + 1
+    n_out = int(re.search(r"wire \[(\d+):0\] q", text).group(1)) + 1
+    assert n_in == 1 + 1 + 27 + 1          # rst, i valid + payload, o ready
+    assert n_out == 1 + 1 + 27 + 16 + 32   # i ready, o valid + payload, errors, dropped
+
+
+def test_bad_arguments(capsys):
+    assert main(["--designs", "nosuch"]) == 2
+    assert capsys.readouterr().err.startswith("error: unknown design")
+    with pytest.raises(SystemExit, match="error: bad seed list"):
+        main(["--seeds", "one"])
+
+
+@pytest.mark.slow
+def test_flow_on_color(tmp_path):
+    assert main(["--designs", "color", "--seeds", "1", "--out", str(tmp_path)]) == 0
+    report = json.loads((tmp_path / "report.json").read_text())
+    r = report["color"]
+    assert set(r) >= {"fmax_mhz", "worst_mhz", "critical_path"}
+    assert 10 < r["fmax_mhz"]["1"] < 500 and r["worst_mhz"] == r["fmax_mhz"]["1"]
+    assert r["spartan3_estimate_mhz"] == round(r["worst_mhz"] * SPARTAN3_SCALE, 1)
+    assert r["critical_path"]["from"].startswith("dut") or r["critical_path"]["to"].startswith("dut")
+    md = (tmp_path / "report.md").read_text()
+    assert "NOT Spartan-3" in md and "| color |" in md
