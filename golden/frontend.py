@@ -32,6 +32,7 @@ class FrontEndFrame:
     edge: np.ndarray     # vertical obstacle edge (uint8 0/1)
     neg: np.ndarray      # sign of Gx at edges (uint8 0/1)
     status: tuple        # (learned, hue_fallback) of the ground model for this frame
+    sets: tuple = None   # (hue set, luma set) the frame was classified with; None: default bands
 
     def output(self):
         """The front end's output stream fields."""
@@ -63,9 +64,10 @@ class FrontEndModel:
     def step(self, rgb):
         y, h, s = rgb_to_yhs(rgb)
         status = (self.ground.sets is not None, self.ground.hue_fallback)
+        sets = self.ground.sets
         mask = self.ground.step(y, h, s)
         edge, neg = sobel_edges(y, mask, self.params.sobel)
-        return FrontEndFrame(y, h, s, mask, edge, neg, status)
+        return FrontEndFrame(y, h, s, mask, edge, neg, status, sets)
 
 
 def frontend_frames(rgb_frames, params):

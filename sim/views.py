@@ -151,7 +151,7 @@ def _rgb(hex_colour):
 
 def _ground_view(path, image, camera_frame, gp, title):
     from golden.color import HUE_STEPS
-    from golden.ground import GroundMode, histograms, learn_centres
+    from golden.ground import GroundMode, region_histograms
     from matplotlib.patches import Rectangle, Patch
     import matplotlib.colors as mcolors
     h, w = image.shape[:2]
@@ -169,22 +169,29 @@ def _ground_view(path, image, camera_frame, gp, title):
                        Patch(fill=False, edgecolor="red", linewidth=2,
                              label="reference region (learned as ground)")],
               loc="upper left", fontsize=7, framealpha=0.85)
-    # beside the image: the reference region's histograms this frame, the ground band each was
-    # classified with (shaded: the ground set) and the centre learned for the next frame (red)
-    hue_hist, luma_hist = histograms(camera_frame.y, camera_frame.h, camera_frame.s, gp)
-    centre_h, centre_y = camera_frame.centres
-    next_h, next_y = learn_centres(camera_frame.y, camera_frame.h, camera_frame.s, gp,
-                                   centre_h, centre_y)
+    # beside the image: the reference region's histograms this frame (what the model blends
+    # in for the next frame) and the ground set each value was classified with (shaded): the
+    # learned set, or the default band centre0 +- k JND before anything is learned
+    hue_hist, luma_hist = region_histograms(camera_frame.y, camera_frame.h, camera_frame.s, gp)
+    learned, fallback = camera_frame.status
+    if camera_frame.sets is None:
+        hue_spans = _band(gp.hue_centre0, gp.k * gp.jnd_hue, HUE_STEPS, wrap=True)
+        luma_spans = _band(gp.luma_centre0, gp.k * gp.jnd_luma, 256, wrap=False)
+        what = "default band"
+    else:
+        hue_spans, luma_spans = (_runs(np.asarray(st)) for st in camera_frame.sets)
+        what = "learned set"
     fw, fh = fig.get_size_inches() * DPI
     x0 = (10 + w * k + 50) / fw
     gap = 70
     ph = (fh - 55 - 45 - gap) / 2
-    panels = (("hue", hue_hist[:HUE_STEPS], centre_h, gp.k * gp.jnd_hue, next_h, True,
-               f"hue (1 unit = {360 / HUE_STEPS:g} deg) of pixels with S >= {gp.s_min}"),
-              ("luma", luma_hist, centre_y, gp.k * gp.jnd_luma, next_y, False,
-               "luminance Y" + (f" (ground band of pixels with S < {gp.s_min})"
+    panels = (("hue", hue_hist, hue_spans, True,
+               f"hue (1 unit = {360 / HUE_STEPS:g} deg) of reliable pixels (S >= {gp.s_min}, "
+               f"{gp.y_lo} <= Y <= {gp.y_hi})"),
+              ("luma", luma_hist, luma_spans, False,
+               "luminance Y" + (" (ground set of the pixels without a reliable hue)"
                                 if gp.mode == GroundMode.HUE else "")))
-    for row, (name, hist, centre, half, peak, wrap, xlabel) in enumerate(panels):
+    for row, (name, hist, spans, wrap, xlabel) in enumerate(panels):
         pax = fig.add_axes((x0, (10 + 45 + (1 - row) * (ph + gap)) / fh, (panel - 10) / fw, ph / fh))
         n = len(hist)
         bins = np.arange(n)
@@ -193,16 +200,18 @@ def _ground_view(path, image, camera_frame, gp, title):
         else:
             colours = np.repeat((0.15 + 0.7 * bins / 255)[:, None], 3, axis=1)
         pax.bar(bins, hist, width=1.0, color=colours, edgecolor="none")
-        for lo, hi in _band(centre, half, n, wrap=wrap):
+        for lo, hi in spans:
             pax.axvspan(lo - 0.5, hi + 0.5, color="green", alpha=0.25, linewidth=0)
-        pax.axvline(peak, color="red", linewidth=1)
         used = np.flatnonzero(hist)
-        span = [centre - half, centre + half, peak] + ([used.min(), used.max()] if len(used) else [])
-        lo, hi = max(0, min(span) - 10), min(n - 1, max(span) + 10)
+        ends = [v for span in spans for v in span] + ([used.min(), used.max()] if len(used) else [])
+        lo, hi = (max(0, min(ends) - 10), min(n - 1, max(ends) + 10)) if ends else (0, n - 1)
         pax.set_xlim(lo - 0.5, hi + 0.5)
-        active = gp.mode == GroundMode.HUE or (gp.mode == GroundMode.LUMA and name == "luma")
-        pax.set_title(f"{name}: band {centre} +- {half}{'' if active else ' (not used in this mode)'}"
-                      f", next centre {peak}", fontsize=7)
+        active = (gp.mode == GroundMode.HUE and not (name == "hue" and fallback)) or \
+            (gp.mode in (GroundMode.HUE, GroundMode.LUMA) and name == "luma")
+        note = "" if active else (" (hue fallback: not used)" if fallback and name == "hue"
+                                  else " (not used in this mode)")
+        pax.set_title(f"{name}: {what} shaded, {sum(b - a + 1 for a, b in spans)} bins{note}",
+                      fontsize=7)
         pax.set_xlabel(xlabel, fontsize=7)
         pax.set_ylabel("pixels", fontsize=7)
         pax.tick_params(labelsize=7)
@@ -210,6 +219,17 @@ def _ground_view(path, image, camera_frame, gp, title):
     _title(fig, f"{title}; ground mode {mode}; right: reference-region histograms, ground set "
                 f"shaded", k)
     return _save(fig, path)
+
+
+def _runs(mask):
+    """The runs of True in a boolean bin mask, as (first, last) bin pairs."""
+    idx = np.flatnonzero(mask)
+    if not len(idx):
+        return []
+    cuts = np.flatnonzero(np.diff(idx) > 1)
+    starts = np.concatenate([[idx[0]], idx[cuts + 1]])
+    ends = np.concatenate([idx[cuts], [idx[-1]]])
+    return list(zip(starts.tolist(), ends.tolist()))
 
 
 def _band(centre, half, n, wrap):
@@ -303,8 +323,10 @@ def _contact_sheet(path, frames, lefts, camera, vmin, vmax):
                         linewidths=0)
         ax.set_xlim(-0.5, w - 0.5)
         ax.set_ylim(h - 0.5, -0.5)
-        ax.set_title(f"frame {k}: {len(frame.records)} matches, band centres (hue, luma) "
-                     f"{tuple(int(v) for v in frame.left.centres)}", fontsize=7)
+        learned, fallback = frame.left.status
+        ground = ("learned ground sets" if learned else "default bands") + \
+            (", hue fallback" if fallback else "")
+        ax.set_title(f"frame {k}: {len(frame.records)} matches, {ground}", fontsize=7)
     cax = fig.add_axes(((fw - 75) / fw, 0.1, 14 / fw, 0.8))
     _colorbar(fig, sc, cax, "depth (m)", fontsize=8)
     return _save(fig, path)
