@@ -114,6 +114,9 @@ with ``widen`` (2.28 with 30 % random idle / backpressure on every port; 1.64 wi
 lanes (each lane costs 4 RAMB16, so a larger part or right lines shared between lanes by
 banking) and more line slack.
 """
+from functools import reduce
+from operator import or_
+
 from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array
 from amaranth.lib import wiring, stream, data, fifo
 from amaranth.lib.memory import Memory
@@ -122,7 +125,7 @@ from amaranth.utils import bits_for, ceil_log2
 
 from .types import EdgePixel
 from .framing import FrameTracker
-from .matcher_logic import lower_any, at_least_two, onehot_index
+from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_sad import SadTree
 from .matcher_winner import Winner
 from .matcher_skid import SkidBuffer
@@ -239,6 +242,8 @@ class Matcher(wiring.Component):
 
         # ---------------------------------------------------------------- frame control
         retired = Signal(YW)              # centre rows finished by the engine
+        wlim = Signal(YW + 1, init=ROWS - r)      # retired + ROWS - r: the write limit
+        wlim_m1 = Signal(YW + 1, init=ROWS - r - 1)
         sc_done = Signal()                # scanner has ended the frame
         eng_done = Signal()               # engine has popped the frame-end marker
         complete = Signal()               # frame finished: reset all per-frame state
@@ -278,7 +283,15 @@ class Matcher(wiring.Component):
             writable = Signal(name=f"{name}_writable")
             # An odd line rewrites a pair (the two lines ROWS older); an even line only `pend`
             # and its flags, so it may run one line further ahead.
-            m.d.comb += writable.eq(track.y < retired + (ROWS - r) + ~track.y[0])
+            # (line y < wlim, or y == wlim for an even line). Registered: the flags for the
+            # line being written and the next one, chosen by whether a line ended last cycle
+            # (wlim only grows within a frame, so a value a cycle old is on the safe side).
+            ok_this = Signal(name=f"{name}_ok_this")
+            ok_next = Signal(name=f"{name}_ok_next")
+            bumped = Signal(name=f"{name}_bumped")
+            m.d.sync += [ok_this.eq((c.rows < wlim) | (~c.rows[0] & (c.rows == wlim))),
+                         ok_next.eq((c.rows < wlim_m1) | (c.rows[0] & (c.rows == wlim_m1)))]
+            m.d.comb += writable.eq(Mux(bumped, ok_next, ok_this))
             in_data = Signal(name=f"{name}_in_data")   # a beat of the camera's current frame
             m.d.comb += in_data.eq(track.in_frame & c.open & ~c.ended)
             with m.If(p.sof):
@@ -334,7 +347,7 @@ class Matcher(wiring.Component):
             # the rule line `rows` would obey. The engine may still need it after the scanner
             # has ended the frame, so it does not depend on `sc_done`.
             with m.If(c.open & c.ended & c.rows[0] & (c.yrows != c.rows) & ~fl_active &
-                      ~pw_en & (c.rows < retired + (ROWS - r))):
+                      ~pw_en & (c.rows < wlim)):
                 m.d.sync += [fl_active.eq(1), fl_x.eq(0)]
             c.fl_active = fl_active
             wp = c.fmem.write_port()
@@ -344,6 +357,7 @@ class Matcher(wiring.Component):
                 m.d.sync += [c.open.eq(1), c.ended.eq(0)]
             with m.If(write):
                 m.d.sync += c.wrow.eq(track.y + 1)
+            m.d.sync += bumped.eq(counted & p.eol)
             with m.If(counted):
                 with m.If(p.eol):
                     m.d.sync += [c.rows.eq(track.y + 1),
@@ -364,7 +378,8 @@ class Matcher(wiring.Component):
             for c in (L, R):
                 m.d.sync += [c.open.eq(0), c.ended.eq(0), c.rows.eq(0), c.wrow.eq(0),
                              c.width.eq(0), c.slot.eq(0), c.yrows.eq(0), c.fl_active.eq(0)]
-            m.d.sync += [retired.eq(0), eng_done.eq(0)]
+            m.d.sync += [retired.eq(0), wlim.eq(ROWS - r), wlim_m1.eq(ROWS - r - 1),
+                         eng_done.eq(0)]
             with m.If((L.rows != R.rows) | (L.width != R.width) | (L.open != R.open)):
                 m.d.sync += _sat_inc(size_errors)
 
@@ -584,8 +599,10 @@ class Matcher(wiring.Component):
         w_lim = Signal(YW + 1); w_top = Signal(SB)
         credits = Signal(range(self._out_depth + 1), init=self._out_depth)
         eof_pending = Signal()
+        # two: at least two need bits left (the visited one is not the last). Registered a
+        # cycle ahead: after a visit, two remain if three were there.
         two = Signal()
-        m.d.comb += two.eq(at_least_two(w_need))
+        ls_two = Signal()
         w_free = Signal()
         m.d.comb += w_free.eq(~w_act | (w_kind != KIND_JOB) | ~two)
         take = Signal()
@@ -593,9 +610,11 @@ class Matcher(wiring.Component):
                             ((ls_kind == KIND_ROW) | ((credits != 0) &
                                                       ~((ls_kind == KIND_FRAME) & eof_pending))))
         fire_ext = Cat(Const(0, 2 * r), ls_mask)
-        need_of = fire_ext
-        for k_ in range(1, W):
-            need_of = need_of | fire_ext[k_:]
+        need_of = Signal(NE)
+        m.d.comb += need_of.eq(reduce(or_, [fire_ext[k_:] for k_ in range(W)]))
+        m.d.sync += ls_two.eq(at_least_two(need_of))
+        three = Signal()
+        m.d.comb += three.eq(at_least_three(m, w_need))
         lower = Signal(NE)
         m.d.comb += lower.eq(lower_any(w_need))
         t1_v = Signal(); t1_oh = Signal(NE); t1_ohf = Signal(ND); t1_first = Signal()
@@ -611,12 +630,13 @@ class Matcher(wiring.Component):
                      t1_base.eq(w_base), t1_x.eq(w_x), t1_y.eq(w_y), t1_lim.eq(w_lim),
                      t1_top.eq(w_top)]
         with m.If(w_act):
-            m.d.sync += [w_need.eq(w_need & lower), w_first.eq(0)]
+            m.d.sync += [w_need.eq(w_need & lower), w_first.eq(0), two.eq(three)]
             with m.If(w_free):
                 m.d.sync += w_act.eq(0)
         with m.If(take):
             m.d.sync += [w_act.eq(1), w_kind.eq(ls_kind), w_first.eq(1),
                          w_need.eq(Mux(ls_kind == KIND_JOB, need_of, 0)),
+                         two.eq(ls_two & (ls_kind == KIND_JOB)),
                          w_fire.eq(fire_ext), w_x.eq(ls_x), w_base.eq(ls_x + r),
                          w_y.eq(ls_y), w_lim.eq(ls_lim), w_top.eq(ls_top), ls_full.eq(0)]
 
@@ -668,7 +688,7 @@ class Matcher(wiring.Component):
         retired_inc = Signal()
         m.d.comb += retired_inc.eq(t4["mk"] == KIND_ROW)
         with m.If(retired_inc):
-            m.d.sync += retired.eq(retired + 1)
+            m.d.sync += [retired.eq(retired + 1), wlim.eq(wlim + 1), wlim_m1.eq(wlim_m1 + 1)]
         doomed4 = Signal()
         m.d.comb += doomed4.eq(self.drop_mode & ((L.wrow > t4["lim"]) | (R.wrow > t4["lim"])))
 

@@ -9,7 +9,7 @@ from amaranth.hdl import Module, Signal
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
-from hdl.matcher_logic import lower_any, at_least_two, onehot_index
+from hdl.matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from hdl.matcher_sad import SadTree, sad_latency
 from hdl.matcher_skid import SkidBuffer
 from hdl.matcher_winner import Winner
@@ -27,13 +27,16 @@ def simulate(m, bench, clock=True):
 @pytest.mark.parametrize("n", [1, 5, 16, 70])
 def test_bit_logic(n):
     v = Signal(n)
-    lower, two, idx = Signal(n), Signal(), Signal(max(1, (n - 1).bit_length()))
+    lower, two, three = Signal(n), Signal(), Signal()
+    idx = Signal(max(1, (n - 1).bit_length()))
     m = Module()
-    m.d.comb += [lower.eq(lower_any(v)), two.eq(at_least_two(v)),
+    m.d.comb += [lower.eq(lower_any(v)), two.eq(at_least_two(v)), three.eq(at_least_three(m, v)),
                  idx.eq(onehot_index(v & ~lower))]
     rng = random.Random(n)
-    values = [0, 1, (1 << n) - 1, 1 << (n - 1)] + [rng.getrandbits(n) & rng.getrandbits(n)
-                                                   for _ in range(200)]
+    sparse = [sum(1 << i for i in rng.sample(range(n), min(n, k))) for k in (2, 3, 4)
+              for _ in range(30)]
+    values = [0, 1, (1 << n) - 1, 1 << (n - 1)] + sparse + \
+        [rng.getrandbits(n) & rng.getrandbits(n) for _ in range(200)]
 
     async def bench(ctx):
         for x in values:
@@ -42,6 +45,7 @@ def test_bit_logic(n):
             want_lower = sum(1 << i for i in range(n) if x & ((1 << i) - 1))
             assert ctx.get(lower) == want_lower
             assert ctx.get(two) == (bin(x).count("1") >= 2)
+            assert ctx.get(three) == (bin(x).count("1") >= 3)
             low = (x & -x).bit_length() - 1 if x else 0
             assert ctx.get(idx) == low
     simulate(m, bench, clock=False)
