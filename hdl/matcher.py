@@ -312,47 +312,61 @@ class Matcher(wiring.Component):
             m.d.comb += slot_now.eq(Mux(p.sof, 0, c.slot))
             odd = Signal(name=f"{name}_odd")
             m.d.comb += odd.eq(~p.sof & track.y[0])
+            # The writes happen a cycle after the beat, from registers (stage B): the frame
+            # tracker's checks and the write logic are not one path.
+            b_write = Signal(name=f"{name}_b_write")
+            b_odd = Signal(name=f"{name}_b_odd")
+            b_x = Signal(XB, name=f"{name}_b_x")
+            b_slot = Signal(SB, name=f"{name}_b_slot")
+            b_y = Signal(8, name=f"{name}_b_y")
+            b_flags = Signal(2, name=f"{name}_b_flags")
+            b_eol = Signal(name=f"{name}_b_eol")
+            b_rows = Signal(YW, name=f"{name}_b_rows")
+            m.d.sync += [b_write.eq(write), b_odd.eq(odd), b_x.eq(track.x), b_slot.eq(slot_now),
+                         b_y.eq(p.y), b_flags.eq(Cat(p.edge, p.neg & p.edge)), b_eol.eq(p.eol),
+                         b_rows.eq(track.y + 1)]
             pend_w = c.pend.write_port()
             pend_r = c.pend.read_port()
-            m.d.comb += [pend_w.addr.eq(track.x), pend_w.data.eq(p.y), pend_w.en.eq(write & ~odd)]
-            # Pair write one cycle after the odd line's beat, with the even byte read from pend.
-            # The same stage flushes a last even line (frame of odd height) with a zero byte.
+            m.d.comb += [pend_w.addr.eq(b_x), pend_w.data.eq(b_y), pend_w.en.eq(b_write & ~b_odd)]
+            # Pair write one cycle after the odd line's stage B, with the even byte read from
+            # pend. The same stage flushes a last even line (frame of odd height) with a zero byte.
             pw_en = Signal(name=f"{name}_pw_en")
             pw_addr = Signal(XB, name=f"{name}_pw_addr")
             pw_y = Signal(8, name=f"{name}_pw_y")
             pw_pair = Signal(SB, name=f"{name}_pw_pair")
             pw_eol = Signal(name=f"{name}_pw_eol")
+            pw_rows = Signal(YW, name=f"{name}_pw_rows")
             fl_active = Signal(name=f"{name}_flush")
             fl_x = Signal(XW, name=f"{name}_flush_x")
             m.d.sync += pw_en.eq(0)
             with m.If(fl_active):
                 m.d.comb += pend_r.addr.eq(fl_x)
                 m.d.sync += [pw_en.eq(1), pw_addr.eq(fl_x), pw_y.eq(0), pw_pair.eq(c.slot >> 1),
-                             pw_eol.eq(fl_x + 1 == c.width), fl_x.eq(fl_x + 1)]
+                             pw_eol.eq(fl_x + 1 == c.width), pw_rows.eq(c.rows),
+                             fl_x.eq(fl_x + 1)]
                 with m.If(fl_x + 1 == c.width):
                     m.d.sync += fl_active.eq(0)
             with m.Else():
-                m.d.comb += pend_r.addr.eq(track.x)
-                with m.If(write & odd):
-                    m.d.sync += [pw_en.eq(1), pw_addr.eq(track.x), pw_y.eq(p.y),
-                                 pw_pair.eq(slot_now >> 1), pw_eol.eq(p.eol)]
+                m.d.comb += pend_r.addr.eq(b_x)
+                with m.If(b_write & b_odd):
+                    m.d.sync += [pw_en.eq(1), pw_addr.eq(b_x), pw_y.eq(b_y),
+                                 pw_pair.eq(b_slot >> 1), pw_eol.eq(b_eol), pw_rows.eq(b_rows)]
             for q, mem in enumerate(c.ymem):
                 wp = mem.write_port()
                 m.d.comb += [wp.addr.eq(pw_addr), wp.data.eq(Cat(pend_r.data, pw_y)),
                              wp.en.eq(pw_en & (pw_pair == q))]
             with m.If(pw_en & pw_eol):
-                m.d.sync += c.yrows.eq(c.rows)
+                m.d.sync += c.yrows.eq(pw_rows)
             # Flush: the frame ended after an even line (odd height) that never got its pair.
             # It rewrites the pair of lines `rows - 1 - ROWS` and `rows - ROWS`, so it waits for
             # the rule line `rows` would obey. The engine may still need it after the scanner
             # has ended the frame, so it does not depend on `sc_done`.
             with m.If(c.open & c.ended & c.rows[0] & (c.yrows != c.rows) & ~fl_active &
-                      ~pw_en & (c.rows < wlim)):
+                      ~pw_en & ~b_write & (c.rows < wlim)):
                 m.d.sync += [fl_active.eq(1), fl_x.eq(0)]
             c.fl_active = fl_active
             wp = c.fmem.write_port()
-            m.d.comb += [wp.addr.eq(Cat(track.x[:XB], Mux(p.sof, 0, c.slot))),
-                         wp.data.eq(Cat(p.edge, p.neg & p.edge)), wp.en.eq(write)]
+            m.d.comb += [wp.addr.eq(Cat(b_x, b_slot)), wp.data.eq(b_flags), wp.en.eq(b_write)]
             with m.If(track.accept & p.sof & ~c.open):
                 m.d.sync += [c.open.eq(1), c.ended.eq(0)]
             with m.If(write):
