@@ -77,6 +77,7 @@ class FrameTracker(Elaboratable):
         width_known = Signal()
         too_long = Signal()
         bad = Signal()
+        last_x = Signal.like(next_x)     # width - 1, registered with width (no adder in `bad`)
         m.d.comb += [
             self.x.eq(Mux(self.sof, 0, next_x)),
             self.y.eq(Mux(self.sof, 0, next_y)),
@@ -85,7 +86,7 @@ class FrameTracker(Elaboratable):
                                      (next_y >= self.max_height) |
                                      (width_known & (next_x >= self.width)))),
             bad.eq(too_long |
-                   (width_known & self.eol & (self.x != self.width - 1)) |
+                   (width_known & self.eol & (self.x != last_x)) |
                    (self.eof & ~self.eol)),
             self.accept.eq(self.beat & (self.sof | self.in_frame) & ~bad),
             self.frame_end.eq(self.accept & self.eof),
@@ -101,7 +102,7 @@ class FrameTracker(Elaboratable):
                 with m.If(self.eol):
                     m.d.sync += [next_x.eq(0), next_y.eq(self.y + 1)]
                     with m.If(~width_known):
-                        m.d.sync += self.width.eq(self.x + 1)
+                        m.d.sync += [self.width.eq(self.x + 1), last_x.eq(self.x)]
                 with m.Else():
                     m.d.sync += [next_x.eq(self.x + 1), next_y.eq(self.y)]
                     with m.If(self.sof):

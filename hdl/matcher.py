@@ -468,26 +468,33 @@ class Matcher(wiring.Component):
         s_doomed = Signal()
         m.d.comb += s_doomed.eq((L.wrow > s_row + ROWS) | (R.wrow > s_row + ROWS))
 
+        s_need = Signal(YW + 1, init=r)   # s_row + r
+        ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
+        m.d.comb += [ok_l.eq(L.open & (L.rows > s_need)), ok_r.eq(R.open & (R.rows > s_need)),
+                     has_l.eq(L.open & (L.rows > s_row)), has_r.eq(R.open & (R.rows > s_row))]
+        lacks = Signal()
+        m.d.comb += lacks.eq((L.ended & ~has_l) | (R.ended & ~has_r))
+        size_bad = Signal()
+        m.d.comb += size_bad.eq((L.rows != 0) & (R.rows != 0) & (L.width != R.width))
+        active = Signal()
+        m.d.comb += active.eq(~sc_done & (L.open | R.open) & ~complete)
+        sc_end = Signal(); sc_go = Signal(); sc_inside = Signal()
+        m.d.sync += [sc_end.eq(active & (lacks | size_bad)),
+                     sc_go.eq(active & (ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r),
+                     sc_inside.eq(ok_l & ok_r & (s_row >= r))]
         with m.FSM(name="scanner"):
             with m.State("WAIT"):
-                need = s_row + r
-                ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
-                m.d.comb += [ok_l.eq(L.open & (L.rows > need)), ok_r.eq(R.open & (R.rows > need)),
-                             has_l.eq(L.open & (L.rows > s_row)),
-                             has_r.eq(R.open & (R.rows > s_row))]
-                lacks = Signal()
-                m.d.comb += lacks.eq((L.ended & ~has_l) | (R.ended & ~has_r))
-                size_bad = Signal()
-                m.d.comb += size_bad.eq((L.rows != 0) & (R.rows != 0) & (L.width != R.width))
-                with m.If(~sc_done & (L.open | R.open)):
-                    with m.If(lacks | size_bad):
-                        m.next = "FRAME_END"
-                    with m.Elif((ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r):
-                        m.d.sync += [s_inside_row.eq(ok_l & ok_r & (s_row >= r)),
-                                     s_width.eq(L.width), ca.eq(0), v1.eq(0), v2.eq(0),
-                                     v3.eq(0), c1.eq(0), xmask.eq(0),
-                                     pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
-                        m.next = "SCAN"
+                # The decision is taken on registered conditions (computed below from this
+                # cycle's counts); SETTLE gives them a cycle after the row changed.
+                with m.If(sc_end):
+                    m.next = "FRAME_END"
+                with m.Elif(sc_go):
+                    m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width), ca.eq(0),
+                                 v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
+                                 pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
+                    m.next = "SCAN"
+            with m.State("SETTLE"):
+                m.next = "WAIT"
             with m.State("SCAN"):
                 with m.If(adv):
                     with m.If(ca <= s_width):
@@ -519,16 +526,16 @@ class Matcher(wiring.Component):
             with m.State("ROW_END"):
                 m.d.comb += [push.kind.eq(KIND_ROW), queue.w_en.eq(1)]
                 with m.If(queue.w_rdy):
-                    m.d.sync += [s_row.eq(s_row + 1),
+                    m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1),
                                  s_slot.eq(Mux(s_slot == ROWS - 1, 0, s_slot + 1))]
-                    m.next = "WAIT"
+                    m.next = "SETTLE"
             with m.State("FRAME_END"):
                 m.d.comb += [push.kind.eq(KIND_FRAME), queue.w_en.eq(1)]
                 with m.If(queue.w_rdy):
                     m.d.sync += sc_done.eq(1)
-                    m.next = "WAIT"
+                    m.next = "SETTLE"
         with m.If(complete):
-            m.d.sync += [s_row.eq(0), s_slot.eq(0), sc_done.eq(0)]
+            m.d.sync += [s_row.eq(0), s_need.eq(r), s_slot.eq(0), sc_done.eq(0)]
 
         # ---------------------------------------------------------------- engine
         # left stage (LS): takes an item from the queue; for a job, reads its W left columns
