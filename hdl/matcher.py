@@ -575,8 +575,10 @@ class Matcher(wiring.Component):
                 regs.append(sj)
             return regs
 
+        # Registered: lneed changes only when a row marker is popped, and the left stage then
+        # holds that marker for at least a cycle, so the value is fresh when a job can pop.
         lines_ready = Signal()
-        m.d.comb += lines_ready.eq(
+        m.d.sync += lines_ready.eq(
             ((L.yrows > lneed) | (L.ended & (L.yrows == L.rows))) &
             ((R.yrows > lneed) | (R.ended & (R.yrows == R.rows))))
         with m.If(queue.r_rdy & ~ls_full & ((pop.kind != KIND_JOB) | lines_ready)):
