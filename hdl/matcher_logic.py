@@ -21,14 +21,24 @@ def _any(bits):
 
 
 def _lower(bits):
-    """List of values: element ``i`` is the OR of ``bits[:i]``."""
+    """List of values: element ``i`` is the OR of ``bits[:i]``, as at most two LUT levels of
+    ORs over aligned blocks (ORs of 64, 16 and 4 bits, two levels each) and single bits."""
     n = len(bits)
-    if n <= 4:
-        return [_any(bits[:i]) for i in range(n)]
-    groups = [bits[i:i + 4] for i in range(0, n, 4)]
-    below = _lower([_any(g) for g in groups])
-    return [below[gi] | _any(g[:i]) if i else below[gi]
-            for gi, g in enumerate(groups) for i in range(len(g))]
+    blocks = {1: list(bits)}
+    size = 1
+    while size * 4 <= n:
+        lower_level = blocks[size]
+        blocks[size * 4] = [_any(lower_level[k:k + 4]) for k in range(0, len(lower_level) - 3, 4)]
+        size *= 4
+    out = []
+    for i in range(n):
+        terms, start = [], 0
+        for sz in sorted(blocks, reverse=True):
+            while start + sz <= i and start % sz == 0 and start // sz < len(blocks[sz]):
+                terms.append(blocks[sz][start // sz])
+                start += sz
+        out.append(_any(terms))
+    return out
 
 
 def lower_any(v):
