@@ -546,7 +546,10 @@ class Matcher(wiring.Component):
         NE = ND + 2 * r                   # need bits: window positions e = -2r .. D
         lrow = Signal(YW)                 # row of the jobs at the left stage
         lneed = Signal(YW + 1, init=r)    # lrow + r
-        llim = Signal(YW + 1, init=ROWS - r)  # lrow + ROWS - r (drop-mode doom limit)
+        # Drop-mode doom limit of a job of row lrow: the top line t = lrow - r of its window
+        # is overwritten by the odd line that completes its pair, t + ROWS + 1 for an even t and
+        # t + ROWS for an odd one (an even line only writes pend and the flags).
+        llim = Signal(YW + 1, init=ROWS - r)  # lrow + ROWS - r
         lslot = Signal(SB)                # slot of centre row lrow
         ls_full = Signal(); ls_kind = Signal(2); ls_x = Signal(XW); ls_mask = Signal(ND)
         ls_base = Signal(XW + 1)          # x - r
@@ -579,7 +582,7 @@ class Matcher(wiring.Component):
             m.d.comb += queue.r_en.eq(1)
             m.d.sync += [ls_full.eq(1), ls_kind.eq(pop.kind), ls_x.eq(pop.x),
                          ls_mask.eq(pop.mask), ls_base.eq(pop.x - r), ls_k.eq(0),
-                         ls_y.eq(lrow), ls_lim.eq(llim),
+                         ls_y.eq(lrow), ls_lim.eq(llim + (lrow[0] == (r & 1))),
                          ls_top.eq(Mux(lslot >= r, lslot - r, lslot + ROWS - r))]
             with m.If(pop.kind == KIND_ROW):
                 m.d.sync += [lrow.eq(lrow + 1), lneed.eq(lneed + 1), llim.eq(llim + 1),
