@@ -80,8 +80,9 @@ the engine has finished the previous frame and both cameras have ended it. Nothi
 condition that only the waiting input could satisfy, so neither input can deadlock the other.
 
 Drop mode (``drop_mode`` = 1, camera inputs that cannot stall): inside a frame the inputs are
-always ready and write regardless of the engine; the scanner drops (counts in ``drops``) an edge
-whose job does not fit in the queue, and the engine drops a job when, by the time its last
+always ready and write regardless of the engine; the scanner waits for room in the queue until
+its row's flags are being overwritten, then drops (counts in ``drops``) an edge whose job does
+not fit, and the engine drops a job when, by the time its last
 column has been read, any input has started writing the line that replaces the top line of its
 window (the check is on the job's row, carried with it). Records are therefore always a subset
 of the golden records, never corrupted. A ``sof`` still waits for the previous frame to finish:
@@ -428,7 +429,10 @@ class Matcher(wiring.Component):
         rp_lf = L.fmem.read_port()
         rp_rf = R.fmem.read_port()
         adv = Signal()
-        m.d.comb += [adv.eq(queue.w_rdy | self.drop_mode),
+        # In drop mode the scanner waits for the queue too, until the row's flags are being
+        # overwritten (s_doomed); then it runs and drops the jobs that do not fit.
+        s_doomed = Signal()
+        m.d.comb += [adv.eq(queue.w_rdy | (self.drop_mode & s_doomed)),
                      rp_lf.addr.eq(Cat(ca[:XB], s_slot)), rp_rf.addr.eq(Cat(ca[:XB], s_slot)),
                      rp_lf.en.eq(adv), rp_rf.en.eq(adv)]
         r_in_row = Signal()
@@ -459,8 +463,8 @@ class Matcher(wiring.Component):
         want_push = Signal()
         m.d.comb += want_push.eq(edge3 & ~border3 & (cand3 != 0))
         # Drop-mode doom test for the scanner's own row (its flags are being overwritten).
-        s_doomed = Signal()
-        m.d.comb += s_doomed.eq((L.wrow > s_row + ROWS) | (R.wrow > s_row + ROWS))
+        s_lim = Signal(YW + 1, init=ROWS)     # s_row + ROWS
+        m.d.comb += s_doomed.eq((L.wrow > s_lim) | (R.wrow > s_lim))
 
         s_need = Signal(YW + 1, init=r)   # s_row + r
         ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
@@ -520,7 +524,7 @@ class Matcher(wiring.Component):
             with m.State("ROW_END"):
                 m.d.comb += [push.kind.eq(KIND_ROW), queue.w_en.eq(1)]
                 with m.If(queue.w_rdy):
-                    m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1),
+                    m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1), s_lim.eq(s_lim + 1),
                                  s_slot.eq(Mux(s_slot == ROWS - 1, 0, s_slot + 1))]
                     m.next = "SETTLE"
             with m.State("FRAME_END"):
@@ -529,7 +533,7 @@ class Matcher(wiring.Component):
                     m.d.sync += sc_done.eq(1)
                     m.next = "SETTLE"
         with m.If(complete):
-            m.d.sync += [s_row.eq(0), s_need.eq(r), s_slot.eq(0), sc_done.eq(0)]
+            m.d.sync += [s_row.eq(0), s_need.eq(r), s_lim.eq(ROWS), s_slot.eq(0), sc_done.eq(0)]
 
         # ---------------------------------------------------------------- engine
         # left stage (LS): takes an item from the queue; for a job, reads its W left columns
