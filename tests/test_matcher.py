@@ -219,9 +219,9 @@ def _first_diff(a, b):
     return f"at {n}: lengths differ"
 
 
-def small_matcher(window=3, max_disparity=15, engines=2, **kw):
+def small_matcher(window=3, max_disparity=15, **kw):
     return Matcher(max_width=64, max_height=32, max_disparity=max_disparity, window=window,
-                   engines=engines, **kw)
+                   **kw)
 
 
 def run_checked(name, make_dut, left_words, right_words, expected, params, **kw):
@@ -290,18 +290,18 @@ def test_synthetic_always_valid():
     assert run.cycles / (2 * 12 * 32) < 2.5
 
 
-@pytest.mark.parametrize("window, engines, kw", [
-    (3, 2, {}),
-    (5, 1, {"widen": True, "uniqueness": 16}),
-    (5, 3, {"mode": "full", "d_min": 2, "d_max": 12}),
-    (3, 2, {"widen": True, "d_min": 1, "d_max": 9, "uniqueness": 0}),
+@pytest.mark.parametrize("window, seed, kw", [
+    (3, 5, {}),
+    (5, 6, {"widen": True, "uniqueness": 16}),
+    (5, 8, {"mode": "full", "d_min": 2, "d_max": 12}),
+    (3, 5, {"widen": True, "d_min": 1, "d_max": 9, "uniqueness": 0}),
 ])
-def test_synthetic_stalls(window, engines, kw):
+def test_synthetic_stalls(window, seed, kw):
     # Odd heights (13 lines) exercise the flush of a last line left without its pair.
-    fl, fr = synthetic_frames(2, h=12 + window % 4 // 2, seed=window + engines)
+    fl, fr = synthetic_frames(2, h=12 + window % 4 // 2, seed=seed)
     params = MatcherParams(**{"d_max": 15, "window": window, **kw})
-    runs, expected = run_and_check(f"synth_w{window}_p{engines}",
-                                   lambda: small_matcher(window=window, engines=engines),
+    runs, expected = run_and_check(f"synth_w{window}_s{seed}",
+                                   lambda: small_matcher(window=window),
                                    fl, fr, params, seeds=(1, 2), idle=0.3, stall=0.3)
     assert sum(st["matches"] for _, st in expected) > 20
 
@@ -408,7 +408,7 @@ def test_drop_mode(seed):
     fl, fr = synthetic_frames(2, seed=60 + seed)
     params = MatcherParams(d_max=15, window=5, mode="full")
     expected = [golden_records(a, b, params) for a, b in zip(fl, fr)]
-    run = run_matcher(small_matcher(window=5, engines=1), frames_words(EDGE, fl),
+    run = run_matcher(small_matcher(window=5), frames_words(EDGE, fl),
                       frames_words(EDGE, fr), frames=2, params=params, drop_mode=True,
                       seed=seed, stall=0.3 * seed)
     assert len(run.records) == 2
@@ -436,7 +436,7 @@ def test_drop_mode_without_pressure_is_exact():
 
 @pytest.mark.parametrize("kw, message", [
     ({"window": 4}, "odd"), ({"window": 1}, "odd"), ({"max_disparity": 64}, "max_disparity"),
-    ({"engines": 0}, "engines"), ({"queue_depth": 1}, "queue_depth"),
+    ({"out_depth": 1}, "out_depth"), ({"queue_depth": 1}, "queue_depth"),
     ({"extra_rows": 1}, "extra_rows"),
 ])
 def test_elaboration_errors(kw, message):

@@ -1,0 +1,72 @@
+"""Full-window SAD lane of the matcher: ``sum |L - R|`` over two W x W windows of bytes, one
+window pair a cycle, pipelined (specification: ``golden/matcher.py``, step 3).
+
+Stage 1 registers the W^2 absolute differences, then each stage adds pairs of the previous
+stage's sums (one carry chain of at most 14 bits a stage), so the latency is
+``1 + ceil(log2(W^2))`` cycles (7 for W = 7) and nothing stalls: a ``tag`` travels beside each
+window pair and comes out with its sum, ``valid`` marks the pairs that carry one.
+"""
+from amaranth.hdl import Module, Signal, Mux
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+from amaranth.utils import bits_for
+
+__all__ = ["SadTree", "sad_latency"]
+
+
+def sad_latency(window):
+    n, stages = window * window, 1
+    while n > 1:
+        n, stages = (n + 1) // 2, stages + 1
+    return stages
+
+
+class SadTree(wiring.Component):
+    """Ports: ``valid``, ``tag``, ``left`` and ``right`` (``window**2`` bytes each, index
+    ``column * window + line``) in; ``o_valid``, ``o_tag``, ``sad`` out, :func:`sad_latency`
+    cycles later."""
+
+    def __init__(self, window=7, tag_width=1):
+        self.window = window
+        self.latency = sad_latency(window)
+        self.sad_width = bits_for(255 * window * window)
+        n = window * window
+        super().__init__({
+            "valid": In(1), "tag": In(tag_width),
+            "left": In(8 * n), "right": In(8 * n),
+            "o_valid": Out(1), "o_tag": Out(tag_width), "sad": Out(self.sad_width),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        n = self.window * self.window
+        terms = []
+        for i in range(n):
+            a, b = self.left[8 * i:8 * i + 8], self.right[8 * i:8 * i + 8]
+            t = Signal(8, name=f"ad{i}")
+            m.d.sync += t.eq(Mux(a >= b, a - b, b - a))
+            terms.append((t, 255))
+        v, tag = self.valid, self.tag
+        vs, ts = Signal(name="v1"), Signal(len(tag), name="t1")
+        m.d.sync += [vs.eq(v), ts.eq(tag)]
+        level = 1
+        while len(terms) > 1:
+            level += 1
+            nxt = []
+            for i in range(0, len(terms), 2):
+                if i + 1 == len(terms):
+                    (a, ma) = terms[i]
+                    s = Signal(bits_for(ma), name=f"s{level}_{i // 2}")
+                    m.d.sync += s.eq(a)              # keeps every sum on the same stage
+                    nxt.append((s, ma))
+                    continue
+                (a, ma), (b, mb) = terms[i], terms[i + 1]
+                s = Signal(bits_for(ma + mb), name=f"s{level}_{i // 2}")
+                m.d.sync += s.eq(a + b)
+                nxt.append((s, ma + mb))
+            terms = nxt
+            v2, t2 = Signal(name=f"v{level}"), Signal(len(tag), name=f"t{level}")
+            m.d.sync += [v2.eq(vs), t2.eq(ts)]
+            vs, ts = v2, t2
+        m.d.comb += [self.sad.eq(terms[0][0]), self.o_valid.eq(vs), self.o_tag.eq(ts)]
+        return m
