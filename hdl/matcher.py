@@ -107,7 +107,7 @@ pair words per read port) and the candidate logic.
 
 Timing: every address from a register, block-RAM outputs registered, one adder per stage in the
 SAD tree, log-depth bit logic in the walk, registered decisions in the scanner and at the line
-store, a registered ``ready`` at both inputs (:class:`~hdl.matcher_skid.SkidBuffer`). Measured:
+store, a registered ``ready`` at both inputs (:class:`~hdl.skid.SkidBuffer`). Measured:
 8 LUT levels on the xc3s estimate (25 with the former two-lane engine); ECP5 LFE5U-25F speed 6,
 nextpnr: 95.3, 99.0 and 94.5 MHz on seeds 1-3 (42.4 before).
 
@@ -133,7 +133,7 @@ from .framing import FrameTracker
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_sad import SadTree
 from .matcher_winner import Winner
-from .matcher_skid import SkidBuffer
+from .skid import SkidBuffer
 
 __all__ = ["Matcher", "match_record_layout", "STAT_NAMES"]
 

@@ -130,15 +130,15 @@ class SystemSoC(wiring.Component):
     uart_tx, uart_rx
         The radio UART.
 
-    Elaboration parameters: ``max_width``, ``max_height``, ``engines`` (pipeline), ``lines``
+    Elaboration parameters: ``max_width``, ``max_height`` (pipeline), ``lines``
     (active lines per field), ``camera_fifo_depth``, ``skew`` (pairing), ``fifo_depth``
     (results), ``clk_div`` (IIC), ``uart_divisor``.
     """
 
-    def __init__(self, *, max_width=1024, max_height=256, engines=2, lines=240,
+    def __init__(self, *, max_width=1024, max_height=256, lines=240,
                  camera_fifo_depth=512, skew=1024, fifo_depth=512, clk_div=125,
                  uart_divisor=434):
-        self._pipeline = dict(max_width=max_width, max_height=max_height, engines=engines)
+        self._pipeline = dict(max_width=max_width, max_height=max_height)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
         self._skew = skew

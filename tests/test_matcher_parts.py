@@ -6,14 +6,11 @@ import random
 import numpy as np
 import pytest
 from amaranth.hdl import Module, Signal
-from amaranth.lib import data
 from amaranth.sim import Simulator
 
 from hdl.matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from hdl.matcher_sad import SadTree, sad_latency
-from hdl.matcher_skid import SkidBuffer
 from hdl.matcher_winner import Winner
-from sim.streams import run_stream_unit
 
 
 def simulate(m, bench, clock=True):
@@ -124,15 +121,3 @@ def test_winner():
     simulate(dut, bench)
     want = [(k & 0xFF, *reference_winner(job), len(job)) for k, job in enumerate(jobs)]
     assert got == want
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_skid_buffer_random_stalls(seed):
-    layout = data.StructLayout({"a": 8, "b": 3})
-    words = [random.Random(seed).getrandbits(11) for _ in range(300)]
-    result = run_stream_unit(SkidBuffer(layout), words, out_count=len(words), seed=seed,
-                             idle=0.3 * seed, stall=0.4, probes=())
-    assert result.words == words
-    # Full rate without stalls.
-    result = run_stream_unit(SkidBuffer(layout), words, out_count=len(words), probes=())
-    assert result.cycles <= len(words) + 3
