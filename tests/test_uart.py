@@ -76,3 +76,40 @@ def test_overrun_flagged():
     sim.run()
     assert state["status"] & 0b1010 == 0b1010          # rx_valid and rx_overrun
     assert state["data"] == 0x102 and state["after"] & 0b1010 == 0
+
+
+def test_baud_register_changes_the_bit_period():
+    """BAUD sets the bit period at run time (the firmware's XBee start-up talks at 9600 baud,
+    then at 115200); a value below 4 is ignored; the loopback still works."""
+    dut = UART(divisor=DIV, base=BASE)
+    m = Module()
+    m.submodules.uart = dut
+    m.d.comb += dut.rx.eq(dut.tx)
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    slow = 2 * DIV + 3
+    got, line = [], []
+
+    async def cpu(ctx):
+        assert await io_read(ctx, dut.bus, BASE + UART_REGS["BAUD"]) == DIV
+        await io_write(ctx, dut.bus, BASE + UART_REGS["BAUD"], 2)          # ignored
+        assert await io_read(ctx, dut.bus, BASE + UART_REGS["BAUD"]) == DIV
+        await io_write(ctx, dut.bus, BASE + UART_REGS["BAUD"], slow)
+        assert await io_read(ctx, dut.bus, BASE + UART_REGS["BAUD"]) == slow
+        await io_write(ctx, dut.bus, BASE + UART_REGS["DATA"], 0x55)
+        for _ in range(3000):
+            v = await io_read(ctx, dut.bus, BASE + UART_REGS["DATA"])
+            if v & 0x100:
+                got.append(v & 0xFF)
+                break
+
+    async def probe(ctx):
+        async for _c, _r, tx in ctx.tick().sample(dut.tx):
+            line.append(tx)
+
+    sim.add_testbench(cpu)
+    sim.add_testbench(probe, background=True)
+    sim.run()
+    assert got == [0x55]
+    start = line.index(0)
+    assert [line[start + slow // 2 + k * slow] for k in range(10)] == [0, 1] * 5

@@ -41,12 +41,14 @@ int32_t hal_uart_write(const uint8_t *data, uint32_t len);
 #define HAL_UART_DATA_OFFSET      0x0u  /**< write: send a byte */
 #define HAL_UART_STATUS_OFFSET    0x4u  /**< bit 0: a byte may be written */
 #define HAL_UART_STATUS_TX_READY  0x1u
+#define HAL_UART_BAUD_OFFSET      0x8u  /**< core cycles per bit (hdl/uart.py BAUD) */
+#define HAL_UART_DATA_RX_VALID    0x100u /**< DATA read: bit 8 set when a byte was received */
 /** One byte takes 87 us at 115200 baud; a status poll at least 2 bus cycles (40 ns at 50 MHz):
  *  10000 polls (>= 400 us) cover a byte with margin. */
 #define HAL_UART_TIMEOUT_POLLS 10000u
 
 #ifndef HAL_CPU_HZ
-#define HAL_CPU_HZ 50000000u /**< MicroBlaze MCS clock */
+#define HAL_CPU_HZ 50000000u /**< the CPU and SoC core clock */
 #endif
 
 /** Register access for the generated stereo_regs.h map. */

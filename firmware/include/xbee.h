@@ -62,7 +62,7 @@ typedef struct {
 fw_status_t xbee_configure(const xbee_io_t *io, const xbee_config_t *cfg,
                            xbee_result_t *result);
 
-/** The MicroBlaze MCS UART as an xbee_io_t (xbee_mcs.c, target builds). */
-void xbee_mcs_io(xbee_io_t *io);
+/** The SoC's radio UART (hdl/uart.py) as an xbee_io_t (xbee_uart.c, target builds). */
+void xbee_uart_io(xbee_io_t *io);
 
 #endif /* XBEE_H */

@@ -31,7 +31,7 @@ int main(void)
     fw_status_t st_dec, st_pipe, st_video = FW_ERR_NO_LOCK;
     /* the radio module: API mode 2 at 115200 baud (a failure leaves the reports unheard but
      * the pipeline running) */
-    xbee_mcs_io(&radio_io);
+    xbee_uart_io(&radio_io);
     (void)xbee_configure(&radio_io, &radio_cfg, NULL);
     st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
     st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);
