@@ -22,7 +22,7 @@ __all__ = ["write_raw_outputs"]
 
 def write_raw_outputs(out_dir, frame, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
     """Write the files above for ``frame`` (a :class:`golden.pipeline.PipelineFrame`) into
-    ``out_dir``; returns ``{name: path}``."""
+    ``out_dir``; returns ``{name: path}``, named ``raw_*`` beside the views' names."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
@@ -30,7 +30,7 @@ def write_raw_outputs(out_dir, frame, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
                         ("left_edges", frame.left.edge)):
         path = out / f"{name}.png"
         Image.fromarray((np.asarray(plane) != 0).astype(np.uint8) * 255).save(path)
-        paths[name] = path
+        paths[f"raw_{name}"] = path
     path = out / "free_space.csv"
     width = frame.left.ground.shape[1]
     with open(path, "w", newline="") as f:
@@ -44,5 +44,5 @@ def write_raw_outputs(out_dir, frame, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
                     break
                 w.writerow([camera, band, x0, min(width, x0 + band_w) - 1,
                             "" if row == FREE_NONE else int(row)])
-    paths["free_space"] = path
+    paths["raw_free_space"] = path
     return paths

@@ -323,11 +323,11 @@ def test_raw_outputs(tmp_path):
     scene = make_scene("boxes", 96, 64)
     frame = pipeline_frames([scene.left], [scene.right], default_params(96, 64))[-1]
     paths = write_raw_outputs(tmp_path, frame)
-    ground = np.array(Image.open(paths["left_ground"]))
+    ground = np.array(Image.open(paths["raw_left_ground"]))
     assert ground.dtype == np.uint8 and set(np.unique(ground)) <= {0, 255}
     assert np.array_equal(ground == 255, frame.left.ground == 1)
-    assert np.array_equal(np.array(Image.open(paths["left_edges"])) == 255, frame.left.edge == 1)
-    rows = list(csv.DictReader(open(paths["free_space"])))
+    assert np.array_equal(np.array(Image.open(paths["raw_left_edges"])) == 255, frame.left.edge == 1)
+    rows = list(csv.DictReader(open(paths["raw_free_space"])))
     assert [r["camera"] for r in rows].count("left") == 3       # 96 columns, bands of 47
     want = free_space(frame.left.ground)
     assert [r["obstacle_row"] for r in rows[:3]] == ["" if v == FREE_NONE else str(v)
