@@ -186,8 +186,7 @@ def _ground_view(path, image, camera_frame, gp, title):
     gap = 70
     ph = (fh - 55 - 45 - gap) / 2
     panels = (("hue", hue_hist, hue_spans, True,
-               f"hue (1 unit = {360 / HUE_STEPS:g} deg) of reliable pixels (S >= {gp.s_min}, "
-               f"{gp.y_lo} <= Y <= {gp.y_hi})"),
+               f"hue (unit {360 / HUE_STEPS:g} deg), S >= {gp.s_min}, Y {gp.y_lo}..{gp.y_hi}"),
               ("luma", luma_hist, luma_spans, False,
                "luminance Y" + (" (ground set of the pixels without a reliable hue)"
                                 if gp.mode == GroundMode.HUE else "")))
