@@ -11,18 +11,32 @@ BASE = 0xC002_0000
 DIV = 8
 
 
-def test_bad_parameters():
-    with pytest.raises(ValueError, match="divisor"):
-        UART(divisor=2)
-
-
-def test_loopback_and_line_format():
+def loopback():
+    """A UART whose tx is wired to its rx, and its simulator."""
     dut = UART(divisor=DIV, base=BASE)
     m = Module()
     m.submodules.uart = dut
     m.d.comb += dut.rx.eq(dut.tx)
     sim = Simulator(m)
     sim.add_clock(1e-8)
+    return dut, sim
+
+
+def line_probe(dut, line):
+    """A testbench that appends the tx line's level every cycle to ``line``."""
+    async def probe(ctx):
+        async for _c, _r, tx in ctx.tick().sample(dut.tx):
+            line.append(tx)
+    return probe
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="divisor"):
+        UART(divisor=2)
+
+
+def test_loopback_and_line_format():
+    dut, sim = loopback()
     sent = [0x55, 0x00, 0xFF, 0xA7]
     got, line = [], []
 
@@ -39,12 +53,8 @@ def test_loopback_and_line_format():
                     break
         assert await io_read(ctx, dut.bus, BASE + UART_REGS["DATA"]) == 0
 
-    async def probe(ctx):
-        async for _c, _r, tx in ctx.tick().sample(dut.tx):
-            line.append(tx)
-
     sim.add_testbench(cpu)
-    sim.add_testbench(probe, background=True)
+    sim.add_testbench(line_probe(dut, line), background=True)
     sim.run()
     assert got == sent
     # the first frame on the line: start bit, 0x55 LSB first, stop bit, DIV cycles each
@@ -54,12 +64,7 @@ def test_loopback_and_line_format():
 
 
 def test_overrun_flagged():
-    dut = UART(divisor=DIV, base=BASE)
-    m = Module()
-    m.submodules.uart = dut
-    m.d.comb += dut.rx.eq(dut.tx)
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
+    dut, sim = loopback()
     state = {}
 
     async def cpu(ctx):
@@ -81,12 +86,7 @@ def test_overrun_flagged():
 def test_baud_register_changes_the_bit_period():
     """BAUD sets the bit period at run time (the firmware's XBee start-up talks at 9600 baud,
     then at 115200); a value below 4 is ignored; the loopback still works."""
-    dut = UART(divisor=DIV, base=BASE)
-    m = Module()
-    m.submodules.uart = dut
-    m.d.comb += dut.rx.eq(dut.tx)
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
+    dut, sim = loopback()
     slow = 2 * DIV + 3
     got, line = [], []
 
@@ -103,12 +103,8 @@ def test_baud_register_changes_the_bit_period():
                 got.append(v & 0xFF)
                 break
 
-    async def probe(ctx):
-        async for _c, _r, tx in ctx.tick().sample(dut.tx):
-            line.append(tx)
-
     sim.add_testbench(cpu)
-    sim.add_testbench(probe, background=True)
+    sim.add_testbench(line_probe(dut, line), background=True)
     sim.run()
     assert got == [0x55]
     start = line.index(0)
