@@ -117,7 +117,7 @@ Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 
   dense against 0.47 % for version 1 with widen on the motorcycle pair, plus 38 % more left
   edges at threshold 128: 14,976 against 10,832).
 """
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view

@@ -9,7 +9,7 @@ with each candidate (computed a stage earlier) so that no adder sits in front of
 At ``last`` the result is registered on ``o_*`` for one cycle, with the ``tag`` of that
 candidate and the number of candidates (``evals``); the next edge may follow at once.
 """
-from amaranth.hdl import Module, Signal, Mux, Const
+from amaranth.hdl import Module, Signal, Mux
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 

@@ -14,9 +14,8 @@ DIV = 4
 BASE = regmap.REGS_BASEADDR
 
 
-def run(chunks):
-    """Send each chunk of bytes (None: a gap longer than the bridge's limit); collect the
-    response frames."""
+def bridge_and_registers():
+    """The UART bridge driving a register block's bus, and their simulator."""
     bridge = UartBridge(divisor=DIV)
     regs = RegisterBlock(fifo_depth=4)
     m = Module()
@@ -25,6 +24,13 @@ def run(chunks):
     wiring.connect(m, bridge.bus, regs.bus)
     sim = Simulator(m)
     sim.add_clock(1e-8)
+    return bridge, regs, sim
+
+
+def run(chunks):
+    """Send each chunk of bytes (None: a gap longer than the bridge's limit); collect the
+    response frames."""
+    bridge, regs, sim = bridge_and_registers()
     line = []
     state = {}
 
@@ -92,18 +98,11 @@ def test_firmware_drives_the_register_block_through_the_bridge():
     from sim.bridge_host import BridgeHost
     from sim.cosim import fwlib
 
-    bridge = UartBridge(divisor=DIV)
-    regs = RegisterBlock(fifo_depth=4)
-    m = Module()
-    m.submodules.bridge = bridge
-    m.submodules.regs = regs
-    wiring.connect(m, bridge.bus, regs.bus)
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
+    bridge, regs, sim = bridge_and_registers()
     mailbox = {"send": b"", "recv": b""}
 
     async def line(ctx):
-        bits, sample = [], []
+        bits = []
         while True:
             if mailbox["send"]:
                 b, mailbox["send"] = mailbox["send"][0], mailbox["send"][1:]

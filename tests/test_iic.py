@@ -170,7 +170,6 @@ def test_clock_stretching():
     dut = IICMaster(clk_div=CLK_DIV)
     dev = I2CDevice(0x20, stretch=100)
     mon = I2CMonitor()
-    cycles = {}
 
     async def bench(ctx):
         drv = Driver(ctx, dut)

@@ -121,7 +121,6 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
     sim = Simulator(m)
     sim.add_clock(CLOCK, domain="sync")
     run = MatchRun()
-    rec = dut.record
     state = {"cycle": 0, "start": 0}
     stat_ports = [getattr(dut, f"frame_{n}") for n in STAT_NAMES]
 

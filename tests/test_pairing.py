@@ -9,7 +9,7 @@ from amaranth.sim import Simulator
 from golden.pairing import Frame, pair_frames
 from hdl.pairing import FramePairing
 from hdl.types import RGBPixel
-from sim.streams import Packer, Reset, frame_words, run_streams, stream_put
+from sim.streams import Packer, frame_words, stream_put
 
 W, H = 8, 4
 PERIOD = 400            # cycles between field starts

@@ -1,6 +1,4 @@
 """hdl/skid.py: the registered-ready stream buffer."""
-import random
-
 import numpy as np
 import pytest
 from amaranth.sim import Simulator

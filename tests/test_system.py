@@ -1,7 +1,6 @@
 """System simulation (sim/system.py): the SoC under Verilator from two BT.656 cameras at
 independent phases, the firmware's host build on the CPU bus; every camera fault on a small
 field (64 x 16, NTSC line blanking, 4 blanking lines a field)."""
-import json
 import subprocess
 import sys
 
