@@ -20,7 +20,7 @@ import time
 
 from dataclasses import dataclass
 
-from sim.export import BUILD, ROOT, export_verilog, ports as get_ports
+from sim.export import BUILD, ROOT, export_verilog, ports as get_ports, text_hash
 
 __all__ = ["SIMULATORS", "SimulatorMissing", "CocotbFailure", "CocotbRun", "check_simulator",
            "run_cocotb", "simulate", "icarus_fixup"]
@@ -73,7 +73,7 @@ def _verilator_runtime_dir(build_args):
     """Where the compiled Verilator runtime of cocotb's Verilator builds is kept
     (``verilated*.o``: the same for every design built with the same Verilator, flags and
     cocotb; two thirds of a small design's build otherwise)."""
-    from sim.verilator import text_hash, verilator_bin
+    from sim.verilator import verilator_bin
     import cocotb
     inc = verilator_bin().parent / "include"
     key = text_hash((inc / "verilated.mk").read_text(), (inc / "verilated.cpp").read_bytes(),
