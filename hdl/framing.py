@@ -19,6 +19,8 @@ from amaranth.hdl import Elaboratable, Module, Signal, Mux
 from amaranth.lib import wiring
 from amaranth.utils import bits_for
 
+from .counter import wide_counter
+
 __all__ = ["FrameTracker", "FramedUnit", "check_frame_size"]
 
 
@@ -45,7 +47,8 @@ class FrameTracker(Elaboratable):
 
     Registered outputs: ``in_frame`` (between an accepted ``sof`` and the end of that frame),
     ``width`` (learned line length of the current frame, 0 until its first ``eol``),
-    ``errors`` (16-bit) and ``dropped`` (32-bit) saturating counters.
+    ``errors`` (16-bit) and ``dropped`` (32-bit, :func:`hdl.counter.wide_counter`: 16-bit carry
+    chains) saturating counters.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024):
@@ -116,9 +119,10 @@ class FrameTracker(Elaboratable):
                 with m.If(self.sof & self.in_frame):
                     m.d.sync += saturating_inc(self.errors)
             with m.Else():
-                m.d.sync += [dropping.eq(1), self.in_frame.eq(0), saturating_inc(self.dropped)]
+                m.d.sync += [dropping.eq(1), self.in_frame.eq(0)]
                 with m.If(~dropping | self.in_frame):
                     m.d.sync += saturating_inc(self.errors)
+        wide_counter(m, self.dropped, self.beat & ~self.accept)
         return m
 
 
