@@ -25,7 +25,8 @@ from amaranth.sim import Simulator
 
 from hdl.types import FRAMING
 
-__all__ = ["Packer", "frame_words", "frames_words", "words_to_frames", "Reset", "Deadlock",
+__all__ = ["Packer", "frame_words", "frames_words", "words_to_frames", "Reset", "Configure",
+           "Deadlock",
            "malformed_cases", "run_streams", "run_simulation",
            "stream_put", "stream_get", "run_stream_unit", "StreamRun"]
 
@@ -124,6 +125,15 @@ class Reset:
         self.cycles = cycles
 
 
+class Configure:
+    """In a word list given to :func:`run_streams`: wait until the unit has delivered every frame
+    offered before this item on each frame-counted output (it is idle), then run ``setup(ctx)``
+    (async) to change configuration inputs between frames."""
+
+    def __init__(self, setup):
+        self.setup = setup
+
+
 class Deadlock(AssertionError):
     pass
 
@@ -150,11 +160,11 @@ async def stream_put(ctx, port, words, *, rng=None, idle=0.0, reset=None):
 
 
 async def stream_get(ctx, port, *, count=None, until_eof=None, eof_bit=None, rng=None,
-                     stall=0.0, timeout=10000):
+                     stall=0.0, timeout=10000, on_eof=None):
     """Take words from a stream source ``port`` until ``count`` words or ``until_eof`` frames
     (words with the ``eof`` bit, whose position is ``eof_bit``) have arrived. ``ready`` is held low
-    with probability ``stall`` each cycle. Raises :class:`Deadlock` after ``timeout`` cycles
-    without a transfer."""
+    with probability ``stall`` each cycle; ``on_eof()`` (optional) is called at every ``eof``.
+    Raises :class:`Deadlock` after ``timeout`` cycles without a transfer."""
     payload = port.payload.as_value() if hasattr(port.payload, "as_value") else port.payload
     words, frames, quiet = [], 0, 0
     while (count is None or len(words) < count) and (until_eof is None or frames < until_eof):
@@ -166,6 +176,8 @@ async def stream_get(ctx, port, *, count=None, until_eof=None, eof_bit=None, rng
             quiet = 0
             if eof_bit is not None and (word >> eof_bit) & 1:
                 frames += 1
+                if on_eof is not None:
+                    on_eof()
         else:
             quiet += 1
             if quiet > timeout:
@@ -207,7 +219,8 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
                 timeout=10000, settle=20, probes=("errors", "dropped")):
     """Simulate ``dut`` under Amaranth's simulator with several stream ports.
 
-    ``inputs`` maps input port names to word lists (which may hold :class:`Reset` items);
+    ``inputs`` maps input port names to word lists (which may hold :class:`Reset` and
+    :class:`Configure` items);
     ``outputs`` maps output port names to the number of frames (words with ``eof``) to collect,
     or to ``("count", n)`` for a fixed number of words. Every port has its own seeded random
     generator, so a failure is reproducible from ``seed``. ``setup(ctx)`` (optional, async) sets
@@ -224,6 +237,7 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
     sim.add_clock(1e-8, domain="sync")
     result = StreamRun(words={})
     state = {"cycle": 0, "start": None, "last": 0, "done": 0}
+    delivered = {name: 0 for name, want in outputs.items() if not isinstance(want, tuple)}
 
     async def clock_counter(ctx):
         async for _ in ctx.tick():
@@ -242,8 +256,21 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
             else:
                 while state["start"] is None:
                     await ctx.tick()
-            await stream_put(ctx, getattr(dut, name), words,
-                             rng=random.Random(seed * 16 + 1 + k), idle=idle, reset=unit_reset)
+            port = getattr(dut, name)
+            rng = random.Random(seed * 16 + 1 + k)
+            eof_bit, offered, chunk = _eof_bit(port), 0, []
+            for word in list(words) + [None]:
+                if word is not None and not isinstance(word, Configure):
+                    chunk.append(word)
+                    continue
+                await stream_put(ctx, port, chunk, rng=rng, idle=idle, reset=unit_reset)
+                offered += sum(1 for w in chunk if not isinstance(w, Reset) and eof_bit is not None
+                               and (w >> eof_bit) & 1)
+                chunk = []
+                if word is not None:
+                    while min(delivered.values(), default=offered) < offered:
+                        await ctx.tick()
+                    await word.setup(ctx)
         return run
 
     def consumer(k, name, want):
@@ -253,7 +280,9 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
             count, frames = (want[1], None) if isinstance(want, tuple) else (None, want)
             result.words[name] = await stream_get(
                 ctx, port, count=count, until_eof=frames, eof_bit=_eof_bit(port),
-                rng=random.Random(seed * 16 + 9 + k), stall=stall, timeout=timeout)
+                rng=random.Random(seed * 16 + 9 + k), stall=stall, timeout=timeout,
+                on_eof=(lambda: delivered.__setitem__(name, delivered[name] + 1))
+                if name in delivered else None)
             state["last"] = max(state["last"], state["cycle"])
             state["done"] += 1
             if state["done"] == len(outputs):

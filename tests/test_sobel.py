@@ -4,26 +4,21 @@ RTL tests run Amaranth's Python simulator on small crops; every output frame is 
 ``golden.sobel.sobel_edges`` by ``np.array_equal``. A failing comparison re-runs the simulation
 with a VCD under ``build/waves/`` and names it in the assertion message.
 """
-import random
-
 import numpy as np
 import pytest
-from amaranth.hdl import ClockDomain, Module, ResetInserter, Signal
-from amaranth.sim import Simulator
 
 from golden.color import luma
 from golden.sobel import (DEFAULT_THRESHOLD, SobelParams, edge_density, gradients,
                           sobel_edges)
 from hdl.sobel import SobelEdges
 from hdl.types import EdgePixel, GroundPixel
-from sim.streams import (Deadlock, Packer, Reset, frame_words, frames_words, run_simulation,
-                         run_stream_unit, stream_get, stream_put, words_to_frames)
+from sim.streams import (Configure, Deadlock, Packer, Reset, frame_words, frames_words,
+                         run_stream_unit, words_to_frames)
 
 PIN = Packer(GroundPixel)
 POUT = Packer(EdgePixel)
 EOF_BIT = POUT.fields["eof"][0]     # output flags
 SOF_BIT = POUT.fields["sof"][0]
-IN_EOF_BIT = PIN.fields["eof"][0]   # input flag
 
 
 # ---------------------------------------------------------------------------------------------
@@ -257,51 +252,22 @@ def split_frames(words):
 def simulate(segments, *, out_frames, seed=0, idle=0.0, stall=0.0, max_width=32, max_height=32,
              vcd=None, timeout=3000):
     """Run a :class:`SobelEdges` on ``segments``: a list of ``(params, words)``; before the words
-    of a segment with ``params`` the producer waits until every frame offered so far has come
-    out (the unit is idle) and sets the parameters. Returns (output words, errors, dropped,
-    cycles)."""
+    of a segment with ``params`` the unit finishes every frame offered so far and the parameters
+    are set (:class:`sim.streams.Configure`). Returns (output words, errors, dropped, cycles)."""
     dut = SobelEdges(max_width=max_width, max_height=max_height)
-    m = Module()
-    m.domains.sync = ClockDomain("sync")
-    # Reset items reset the unit only: the domain's own reset would stop the testbenches' ticks.
-    unit_reset = Signal()
-    m.submodules.dut = ResetInserter(unit_reset)(dut)
-    sim = Simulator(m)
-    sim.add_clock(1e-8, domain="sync")
-    state = {"eofs": 0, "words": [], "errors": None, "dropped": None, "cycles": 0}
 
-    async def producer(ctx):
-        rng = random.Random(seed * 2 + 1)
-        offered = 0                        # eofs offered so far
-        for params, words in segments:
-            if params is not None:
-                while state["eofs"] < offered:
-                    await ctx.tick()
-                ctx.set(dut.threshold, params.threshold)
-                ctx.set(dut.ratio, params.ratio)
-                ctx.set(dut.nms, int(params.nms))
-            await stream_put(ctx, dut.i, words, rng=rng, idle=idle, reset=unit_reset)
-            offered += sum(1 for w in words if not isinstance(w, Reset) and (w >> IN_EOF_BIT) & 1)
+    def configure(params):
+        async def setup(ctx):
+            ctx.set(dut.threshold, params.threshold)
+            ctx.set(dut.ratio, params.ratio)
+            ctx.set(dut.nms, int(params.nms))
+        return Configure(setup)
 
-    async def consumer(ctx):
-        rng = random.Random(seed * 2 + 2)
-        while state["eofs"] < out_frames:
-            word, = await stream_get(ctx, dut.o, count=1, rng=rng, stall=stall, timeout=timeout)
-            state["words"].append(word)
-            state["eofs"] += (word >> EOF_BIT) & 1
-        await ctx.tick().repeat(5)
-        state["errors"] = ctx.get(dut.errors)
-        state["dropped"] = ctx.get(dut.dropped)
-
-    async def counter(ctx):
-        async for _ in ctx.tick():
-            state["cycles"] += 1
-
-    sim.add_process(counter)
-    sim.add_testbench(producer, background=True)
-    sim.add_testbench(consumer)
-    run_simulation(sim, vcd, name="SobelEdges")
-    return state["words"], state["errors"], state["dropped"], state["cycles"]
+    words = [w for params, seg in segments
+             for w in ([configure(params)] if params is not None else []) + list(seg)]
+    run = run_stream_unit(dut, words, out_frames=out_frames, seed=seed, idle=idle, stall=stall,
+                          vcd=vcd, timeout=timeout, settle=5)
+    return run.words, run.probes["errors"], run.probes["dropped"], run.cycles
 
 
 def simulate_checked(name, segments, **kw):
