@@ -238,8 +238,11 @@ def _field(img, name):
 
 
 def matched_values(y, params):
-    """What the window cost compares: luminance (int32) or census words (uint8)."""
+    """What the window cost compares: luminance (int32) or census words (uint8). Luminance is
+    8-bit (0..255); anything else is a :class:`ValueError`."""
     y = np.asarray(y)
+    if y.size and (int(y.min()) < 0 or int(y.max()) > 255):
+        raise ValueError(f"luminance must be in 0..255, not {int(y.min())}..{int(y.max())}")
     if params.cost == "census":
         return census(y.astype(np.uint8))
     return y.astype(np.int32)
@@ -429,16 +432,19 @@ class WindowCosts:
                     else:
                         out[s:s + m] += counts[:m, :k].sum(axis=1, dtype=np.int32)
             return out
-        fl, fr = self.vl.ravel(), self.vr.ravel()
-        offs = np.arange(2 * r + 1)
+        # gather each pair's two k x k windows from sliding views of the uint8 luminance
+        # (one copy per window), |a - b| as max - min in uint8, summed in int32
+        k = 2 * r + 1
+        wl, wr = (sliding_window_view(v.astype(np.uint8), (k, k)) for v in (self.vl, self.vr))
+        row, col = np.divmod(il, w)                      # y - r, x - r
+        colr = col - (il - ir)                           # x - d - r
         for s in range(0, n, _CHUNK):
-            a, b = il[s:s + _CHUNK], ir[s:s + _CHUNK]
-            acc = np.zeros(len(a), dtype=np.int32)
-            for j in range(2 * r + 1):
-                ia = (a + j * w)[:, None] + offs[None, :]
-                ib = (b + j * w)[:, None] + offs[None, :]
-                acc += np.abs(fl[ia] - fr[ib]).sum(axis=1, dtype=np.int32)
-            out[s:s + _CHUNK] = acc
+            e = min(n, s + _CHUNK)
+            a, b = wl[row[s:e], col[s:e]], wr[row[s:e], colr[s:e]]
+            hi = np.maximum(a, b)
+            np.minimum(a, b, out=a)
+            np.subtract(hi, a, out=hi)
+            out[s:e] = hi.reshape(e - s, -1).sum(axis=1, dtype=np.int32)
         return out
 
 
