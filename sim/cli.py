@@ -191,6 +191,22 @@ def check_size(w, h, args):
                        f"most {MAX_SIZE[0]}x{MAX_SIZE[1]})")
 
 
+#: Matcher parameters of golden version 2 that the RTL (hdl/matcher.py, version 1) lacks: the
+#: value it implements for each.
+RTL_MATCHER = {"cost": "sad", "sign": "same", "consistency": "none", "subpixel": False}
+
+
+def rtl_unsupported(mp):
+    """The matcher settings of ``mp`` the RTL cannot run, as ``--flag value`` strings."""
+    def shown(v):
+        return {True: "on", False: "off"}.get(v, v) if isinstance(v, bool) else v
+    out = [f"--{name} {shown(getattr(mp, name))}" for name, value in RTL_MATCHER.items()
+           if getattr(mp, name) != value]
+    if int(mp.widen) > 1:
+        out.append(f"--widen {int(mp.widen)} (the RTL widens by 0 or 1)")
+    return out
+
+
 def build_params(args, flags, width, height, grey, ground_default):
     """The pipeline parameters of the command line for a width x height pair; CliError when
     they are not usable."""
@@ -203,6 +219,10 @@ def build_params(args, flags, width, height, grey, ground_default):
         params.validate(max_disparity=args.max_disparity)
     except ValueError as e:
         raise CliError(str(e)) from None
+    unsupported = rtl_unsupported(params.matcher)
+    if unsupported:
+        raise CliError("the RTL matcher implements version 1 only (golden/matcher.py); not "
+                       "available in RTL: " + ", ".join(unsupported))
     gp = params.frontend.ground
     if gp.ref_x >= width or gp.ref_y >= height:
         raise CliError(f"the ground reference region {gp.ref_w}x{gp.ref_h}+{gp.ref_x}+{gp.ref_y} "
