@@ -45,7 +45,8 @@ class GroundClassifier(FramedUnit):
         the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
         is abandoned before its search (its counts are cleared first).
     o : Out(stream of :data:`GroundPixel`)
-        ``y`` and the ground bit, ``LATENCY`` = 3 cycles after the input transfer.
+        ``y`` and the ground bit, ``LATENCY`` = 4 cycles after the input transfer (a pixel that
+        does not end its line also waits for the next one: its right neighbour).
     config : In(:data:`GroundConfig`)
         Run-time parameters (:class:`golden.ground.GroundParams`); change them between frames.
         ``k`` x JND and the region's end are registered (computed once, not per pixel).
@@ -56,7 +57,9 @@ class GroundClassifier(FramedUnit):
         Malformed-stream counters (:mod:`hdl.framing`).
 
     Classification pipeline: (1) input register, saturation and clip tests; (2) set lookups
-    (distributed RAM) and default-band distances; (3) output register.
+    (distributed RAM) and default-band distances; (3) the neighbour stage: a pixel waits there
+    for its right neighbour's ``luma_ok`` (not at the end of a line), and leaves with its left
+    neighbour's, for ``luma_row`` in hue fallback; (4) output register.
 
     Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
     (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel (address
@@ -68,10 +71,11 @@ class GroundClassifier(FramedUnit):
     Search, after the beat that ends the reference region: a blend pass over the 512 words
     (model' = count on the first frame, else ((model << blend_shift) - model + count) >>
     blend_shift; the count is cleared; 5 pipeline stages so no path has more than one adder or
-    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) and
+    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) (in
+    hue fallback the luma one max(1, (support x frac >> 10) >> fallback_shift)) and
     the set pass: each bin's window sum over +-JND (hue wrapping), one read per window position.
     """
-    LATENCY = 3
+    LATENCY = 4
 
     i: In(stream.Signature(YHSPixel))
     o: Out(stream.Signature(GroundPixel))
@@ -158,10 +162,28 @@ class GroundClassifier(FramedUnit):
                 m.d.comb += ground.eq(luma_ok)
             with m.Case(2):
                 m.d.comb += ground.eq(Mux(rel1, sat_ok, luma_ok))
+        # hue fallback: ground = luma_row and not a reliable hue
+        lum_only = Signal()
+        m.d.comb += lum_only.eq((cfg.mode == 2) & fb1)
+
+        # neighbour stage: holds one pixel until its right neighbour's luma_ok is known
+        hv = Signal(); hy = Signal(8); hflags = Signal(3); hplain = Signal(); hl = Signal()
+        hk = Signal(); hlo = Signal(); hleft = Signal(init=1)
+        h_last = hflags[1] | hflags[2]                  # eol or eof: no right neighbour
+        emit = Signal(); right = Signal()
+        m.d.comb += [emit.eq(hv & (h_last | v1)),
+                     right.eq(h_last | flags1[0] | luma_ok)]
         o = self.o.payload
         with m.If(advance):
-            m.d.sync += [self.o.valid.eq(v1), o.y.eq(y1), o.ground.eq(ground),
-                         Cat(o.sof, o.eol, o.eof).eq(flags1)]
+            m.d.sync += self.o.valid.eq(emit)
+            with m.If(emit):
+                m.d.sync += [o.y.eq(hy), Cat(o.sof, o.eol, o.eof).eq(hflags),
+                             o.ground.eq(Mux(hlo, hleft & hl & right & ~hk, hplain))]
+            with m.If(emit | ~hv):
+                m.d.sync += [hv.eq(v1), hy.eq(y1), hflags.eq(flags1), hplain.eq(ground),
+                             hl.eq(luma_ok), hk.eq(rel1), hlo.eq(lum_only)]
+                with m.If(v1):
+                    m.d.sync += hleft.eq(~hv | h_last | flags1[0] | hl)
 
         # --- histogram update: word = {model, count} ----------------------------------------
         in_region = Signal()
@@ -206,7 +228,7 @@ class GroundClassifier(FramedUnit):
         a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
         sup_h = Signal(24); sup_y = Signal(24)
         t_step = Signal(3)                                         # threshold computation
-        thr_h = Signal(24); thr_y = Signal(24)
+        thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24)
         prod_h = Signal(32); prod_y = Signal(32)
         b_run = Signal(); b_luma = Signal()
         b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
@@ -298,8 +320,11 @@ class GroundClassifier(FramedUnit):
         with m.If(t_step == 2):
             m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
         with m.If(t_step == 3):
-            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y))]
+            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y)),
+                         thr_f.eq(thr_y >> cfg.fallback_shift)]
         with m.If(t_step == 4):
+            with m.If((cfg.mode == 2) & fallback_next):
+                m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
             hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
             m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
                          b_addr.eq(hue_start), b_start.eq(hue_start)]
