@@ -228,7 +228,7 @@ class GroundClassifier(FramedUnit):
         a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
         sup_h = Signal(24); sup_y = Signal(24)
         t_step = Signal(3)                                         # threshold computation
-        thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24)
+        thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24); f_left = Signal(3)
         prod_h = Signal(32); prod_y = Signal(32)
         b_run = Signal(); b_luma = Signal()
         b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
@@ -321,10 +321,12 @@ class GroundClassifier(FramedUnit):
             m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
         with m.If(t_step == 3):
             m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y)),
-                         thr_f.eq(thr_y >> cfg.fallback_shift)]
+                         thr_f.eq(thr_y), f_left.eq(cfg.fallback_shift)]
+        # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
+        # 192 cycles), taken as the luma threshold when the luma bins start
+        with m.Elif(f_left != 0):
+            m.d.sync += [thr_f.eq(thr_f >> 1), f_left.eq(f_left - 1)]
         with m.If(t_step == 4):
-            with m.If((cfg.mode == 2) & fallback_next):
-                m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
             hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
             m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
                          b_addr.eq(hue_start), b_start.eq(hue_start)]
@@ -345,6 +347,8 @@ class GroundClassifier(FramedUnit):
             with m.Elif(~b_luma):
                 m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma),
                              b_start.eq(-cfg.jnd_luma)]
+                with m.If((cfg.mode == 2) & fallback_next):
+                    m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
             with m.Else():
                 m.d.sync += [b_run.eq(0), drain.eq(6)]
         m.d.sync += [
