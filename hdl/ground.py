@@ -163,27 +163,28 @@ class GroundClassifier(FramedUnit):
             with m.Case(2):
                 m.d.comb += ground.eq(Mux(rel1, sat_ok, luma_ok))
         # hue fallback: ground = luma_row and not a reliable hue
-        lum_only = Signal()
-        m.d.comb += lum_only.eq((cfg.mode == 2) & fb1)
+        fb_pixel = Signal()
+        m.d.comb += fb_pixel.eq((cfg.mode == 2) & fb1)
 
-        # neighbour stage: holds one pixel until its right neighbour's luma_ok is known
-        hv = Signal(); hy = Signal(8); hflags = Signal(3); hplain = Signal(); hl = Signal()
-        hk = Signal(); hlo = Signal(); hleft = Signal(init=1)
-        h_last = hflags[1] | hflags[2]                  # eol or eof: no right neighbour
+        # neighbour stage: holds one pixel until its right neighbour's luma_ok is known; h_left
+        # is its left neighbour's (1 at a line or frame start)
+        h_valid = Signal(); h_y = Signal(8); h_flags = Signal(3); h_plain = Signal()
+        h_luma = Signal(); h_rel = Signal(); h_fb = Signal(); h_left = Signal(init=1)
+        h_last = h_flags[1] | h_flags[2]                # eol or eof: no right neighbour
         emit = Signal(); right = Signal()
-        m.d.comb += [emit.eq(hv & (h_last | v1)),
+        m.d.comb += [emit.eq(h_valid & (h_last | v1)),
                      right.eq(h_last | flags1[0] | luma_ok)]
         o = self.o.payload
         with m.If(advance):
             m.d.sync += self.o.valid.eq(emit)
             with m.If(emit):
-                m.d.sync += [o.y.eq(hy), Cat(o.sof, o.eol, o.eof).eq(hflags),
-                             o.ground.eq(Mux(hlo, hleft & hl & right & ~hk, hplain))]
-            with m.If(emit | ~hv):
-                m.d.sync += [hv.eq(v1), hy.eq(y1), hflags.eq(flags1), hplain.eq(ground),
-                             hl.eq(luma_ok), hk.eq(rel1), hlo.eq(lum_only)]
+                m.d.sync += [o.y.eq(h_y), Cat(o.sof, o.eol, o.eof).eq(h_flags),
+                             o.ground.eq(Mux(h_fb, h_left & h_luma & right & ~h_rel, h_plain))]
+            with m.If(emit | ~h_valid):
+                m.d.sync += [h_valid.eq(v1), h_y.eq(y1), h_flags.eq(flags1), h_plain.eq(ground),
+                             h_luma.eq(luma_ok), h_rel.eq(rel1), h_fb.eq(fb_pixel)]
                 with m.If(v1):
-                    m.d.sync += hleft.eq(~hv | h_last | flags1[0] | hl)
+                    m.d.sync += h_left.eq(~h_valid | h_last | flags1[0] | h_luma)
 
         # --- histogram update: word = {model, count} ----------------------------------------
         in_region = Signal()

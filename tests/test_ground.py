@@ -348,6 +348,26 @@ def test_bench_ground_figures():
     assert len(check(bad, moto)) == 8 and check(floors, moto) == []
 
 
+def test_bench_ground_table_and_exit_status(tmp_path, monkeypatch, capsys):
+    """The per-scene table states each verdict; a missed requirement exits 1 with an error."""
+    import sim.bench_ground as bg
+    v = {"recall": 0.9, "obstacle_as_ground": 0.01, "edges_removed": 0.02}
+    rep = {"floors": {"tiles": {"v1": v, "v2": v}},
+           "motorcycle": {m: {"v1": v, "v2": dict(v, edges_removed=0.2 if m == "hue" else 0.0)}
+                          for m in ("hue", "luma")}}
+    rep["failed"] = bg.check(rep["floors"], rep["motorcycle"])
+    monkeypatch.setattr(bg, "run", lambda: rep)
+    assert rep["failed"] == ["tiles: recall 0.9", "motorcycle hue: edges_removed 0.2"]
+    assert bg.main(["--out", str(tmp_path)]) == 1
+    out, err = capsys.readouterr()
+    v2_table = out.split("Baseline v1")[0]
+    rows = [line for line in v2_table.splitlines() if line.startswith(("| floor ", "| moto"))]
+    assert [r.rsplit("|", 2)[1].strip() for r in rows] == ["FAIL", "FAIL", "ok"]
+    assert err.startswith("error: ground-mask requirements not met: tiles: recall 0.9")
+    rep["failed"] = []
+    assert bg.main(["--out", str(tmp_path)]) == 0
+
+
 # --- ground model v2 RTL ------------------------------------------------------------------------
 
 
