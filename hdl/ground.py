@@ -45,7 +45,8 @@ class GroundClassifier(FramedUnit):
         the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
         is abandoned before its search (its counts are cleared first).
     o : Out(stream of :data:`GroundPixel`)
-        ``y`` and the ground bit, ``LATENCY`` = 3 cycles after the input transfer.
+        ``y`` and the ground bit, ``LATENCY`` = 4 cycles after the input transfer (a pixel that
+        does not end its line also waits for the next one: its right neighbour).
     config : In(:data:`GroundConfig`)
         Run-time parameters (:class:`golden.ground.GroundParams`); change them between frames.
         ``k`` x JND and the region's end are registered (computed once, not per pixel).
@@ -56,7 +57,9 @@ class GroundClassifier(FramedUnit):
         Malformed-stream counters (:mod:`hdl.framing`).
 
     Classification pipeline: (1) input register, saturation and clip tests; (2) set lookups
-    (distributed RAM) and default-band distances; (3) output register.
+    (distributed RAM) and default-band distances; (3) the neighbour stage: a pixel waits there
+    for its right neighbour's ``luma_ok`` (not at the end of a line), and leaves with its left
+    neighbour's, for ``luma_row`` in hue fallback; (4) output register.
 
     Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
     (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel (address
@@ -68,10 +71,11 @@ class GroundClassifier(FramedUnit):
     Search, after the beat that ends the reference region: a blend pass over the 512 words
     (model' = count on the first frame, else ((model << blend_shift) - model + count) >>
     blend_shift; the count is cleared; 5 pipeline stages so no path has more than one adder or
-    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) and
+    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) (in
+    hue fallback the luma one max(1, (support x frac >> 10) >> fallback_shift)) and
     the set pass: each bin's window sum over +-JND (hue wrapping), one read per window position.
     """
-    LATENCY = 3
+    LATENCY = 4
 
     i: In(stream.Signature(YHSPixel))
     o: Out(stream.Signature(GroundPixel))
@@ -158,10 +162,29 @@ class GroundClassifier(FramedUnit):
                 m.d.comb += ground.eq(luma_ok)
             with m.Case(2):
                 m.d.comb += ground.eq(Mux(rel1, sat_ok, luma_ok))
+        # hue fallback: ground = luma_row and not a reliable hue
+        fb_pixel = Signal()
+        m.d.comb += fb_pixel.eq((cfg.mode == 2) & fb1)
+
+        # neighbour stage: holds one pixel until its right neighbour's luma_ok is known; h_left
+        # is its left neighbour's (1 at a line or frame start)
+        h_valid = Signal(); h_y = Signal(8); h_flags = Signal(3); h_plain = Signal()
+        h_luma = Signal(); h_rel = Signal(); h_fb = Signal(); h_left = Signal(init=1)
+        h_last = h_flags[1] | h_flags[2]                # eol or eof: no right neighbour
+        emit = Signal(); right = Signal()
+        m.d.comb += [emit.eq(h_valid & (h_last | v1)),
+                     right.eq(h_last | flags1[0] | luma_ok)]
         o = self.o.payload
         with m.If(advance):
-            m.d.sync += [self.o.valid.eq(v1), o.y.eq(y1), o.ground.eq(ground),
-                         Cat(o.sof, o.eol, o.eof).eq(flags1)]
+            m.d.sync += self.o.valid.eq(emit)
+            with m.If(emit):
+                m.d.sync += [o.y.eq(h_y), Cat(o.sof, o.eol, o.eof).eq(h_flags),
+                             o.ground.eq(Mux(h_fb, h_left & h_luma & right & ~h_rel, h_plain))]
+            with m.If(emit | ~h_valid):
+                m.d.sync += [h_valid.eq(v1), h_y.eq(y1), h_flags.eq(flags1), h_plain.eq(ground),
+                             h_luma.eq(luma_ok), h_rel.eq(rel1), h_fb.eq(fb_pixel)]
+                with m.If(v1):
+                    m.d.sync += h_left.eq(~h_valid | h_last | flags1[0] | h_luma)
 
         # --- histogram update: word = {model, count} ----------------------------------------
         in_region = Signal()
@@ -206,7 +229,7 @@ class GroundClassifier(FramedUnit):
         a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
         sup_h = Signal(24); sup_y = Signal(24)
         t_step = Signal(3)                                         # threshold computation
-        thr_h = Signal(24); thr_y = Signal(24)
+        thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24); f_left = Signal(3)
         prod_h = Signal(32); prod_y = Signal(32)
         b_run = Signal(); b_luma = Signal()
         b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
@@ -298,7 +321,12 @@ class GroundClassifier(FramedUnit):
         with m.If(t_step == 2):
             m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
         with m.If(t_step == 3):
-            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y))]
+            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y)),
+                         thr_f.eq(thr_y), f_left.eq(cfg.fallback_shift)]
+        # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
+        # 192 cycles), taken as the luma threshold when the luma bins start
+        with m.Elif(f_left != 0):
+            m.d.sync += [thr_f.eq(thr_f >> 1), f_left.eq(f_left - 1)]
         with m.If(t_step == 4):
             hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
             m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
@@ -320,6 +348,8 @@ class GroundClassifier(FramedUnit):
             with m.Elif(~b_luma):
                 m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma),
                              b_start.eq(-cfg.jnd_luma)]
+                with m.If((cfg.mode == 2) & fallback_next):
+                    m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
             with m.Else():
                 m.d.sync += [b_run.eq(0), drain.eq(6)]
         m.d.sync += [

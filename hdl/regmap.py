@@ -43,7 +43,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 4
+MAP_VERSION = 5
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
@@ -153,6 +153,8 @@ REGISTERS: tuple[Register, ...] = (
                                                 "(0: the last frame only)"),
         F("hue_and_luma", 28, 1, _G.hue_and_luma, "1: a pixel with a reliable hue also needs its "
                                                   "luminance in the luma set"),
+        F("fallback_shift", 29, 3, _G.fallback_shift, "in hue fallback the luma set's threshold "
+                                                      "is the luma threshold >> fallback_shift"),
     )),
     Register("FRAME_COUNT", 0x40, "ro", "Frames completed by the matcher since reset.", (
         F("frames", 0, 32, 0, "frame counter (wraps)"),

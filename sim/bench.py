@@ -624,8 +624,12 @@ def acceptance(rep):
             f"{_pct(bm['density'], 2)} % ({'ok' if ok_density else 'FAIL'}); SAD evaluations "
             f"{_pct(d['sad_eval_fraction'], 3)} % of dense, limit "
             f"{_pct(ACCEPT_EVAL_FRACTION, 0)} % ({'ok' if ok_evals else 'FAIL'})")
-    return {"pass": ok_bad2 and ok_density and ok_evals, "bad2_ok": ok_bad2,
-            "density_ok": ok_density, "eval_fraction_ok": ok_evals, "text": text}
+    ground_failed = rep["ground_masks"]["failed"]         # sim.bench_ground.check
+    text += "; ground masks " + ("ok" if not ground_failed else
+                                 "FAIL (" + "; ".join(ground_failed) + ")")
+    return {"pass": ok_bad2 and ok_density and ok_evals and not ground_failed,
+            "bad2_ok": ok_bad2, "density_ok": ok_density, "eval_fraction_ok": ok_evals,
+            "ground_masks_ok": not ground_failed, "text": text}
 
 
 def write_markdown(path, rep):

@@ -51,6 +51,20 @@ def test_motorcycle_crops_luma_and_off_modes():
         run(frames, p, name=f"frontend_moto_{mode.name}", seed=4, idle=0.2, stall=0.3)
 
 
+def test_motorcycle_floor_crops_hue_fallback():
+    """The grey concrete under the motorcycle: hue fallback from frame 1 (its wide luma set and
+    neighbour rule), three frames, stalls on both sides."""
+    left, right, _ = motorcycle()
+    frames = [crop(left, 40, 12, 560, 430), crop(right, 40, 12, 560, 430),
+              crop(left, 40, 12, 150, 330)]
+    p = FrontEndParams(GroundParams(mode=GroundMode.HUE, ref_x=8, ref_y=8, ref_w=24, ref_h=4),
+                       SobelParams(threshold=60, nms=False))
+    golden = frontend_frames(frames, p)
+    assert [f.status for f in golden] == [(False, False), (True, True), (True, True)]
+    assert all(0 < f.ground.mean() < 1 for f in golden[1:]) and golden[2].edge.any()
+    run(frames, p, name="frontend_moto_fallback", seed=6, idle=0.3, stall=0.3)
+
+
 def test_grayscale_input_runs_in_luma_mode():
     left, _, _ = motorcycle()
     grey, was_grey = as_rgb(crop(left, 24, 10, 400, 300)[..., 1])

@@ -348,6 +348,26 @@ def test_bench_ground_figures():
     assert len(check(bad, moto)) == 8 and check(floors, moto) == []
 
 
+def test_bench_ground_table_and_exit_status(tmp_path, monkeypatch, capsys):
+    """The per-scene table states each verdict; a missed requirement exits 1 with an error."""
+    import sim.bench_ground as bg
+    v = {"recall": 0.9, "obstacle_as_ground": 0.01, "edges_removed": 0.02}
+    rep = {"floors": {"tiles": {"v1": v, "v2": v}},
+           "motorcycle": {m: {"v1": v, "v2": dict(v, edges_removed=0.2 if m == "hue" else 0.0)}
+                          for m in ("hue", "luma")}}
+    rep["failed"] = bg.check(rep["floors"], rep["motorcycle"])
+    monkeypatch.setattr(bg, "run", lambda: rep)
+    assert rep["failed"] == ["tiles: recall 0.9", "motorcycle hue: edges_removed 0.2"]
+    assert bg.main(["--out", str(tmp_path)]) == 1
+    out, err = capsys.readouterr()
+    v2_table = out.split("Baseline v1")[0]
+    rows = [line for line in v2_table.splitlines() if line.startswith(("| floor ", "| moto"))]
+    assert [r.rsplit("|", 2)[1].strip() for r in rows] == ["FAIL", "FAIL", "ok"]
+    assert err.startswith("error: ground-mask requirements not met: tiles: recall 0.9")
+    rep["failed"] = []
+    assert bg.main(["--out", str(tmp_path)]) == 0
+
+
 # --- ground model v2 RTL ------------------------------------------------------------------------
 
 
@@ -398,3 +418,54 @@ def test_rtl_v2_malformed_stream_recovers(case):
     r = run(good, p, name=f"ground_v2_bad_{case}", extra_words=words, seed=2, idle=0.2,
             stall=0.2, max_width=16)
     assert r.probes == {"errors": errors, "dropped": dropped}
+
+
+# --- hue fallback: the wide luma set and the neighbour rule -----------------------------------
+
+def test_v2_fallback_wide_luma_set_and_neighbour_rule():
+    h, w = 16, 32
+    y = np.full((h, w), 120, dtype=np.uint8)
+    y[8:, ::32] = 90                                # 1 in 32 region pixels: under frac, over >> 4
+    y[2, 10] = 30                                   # a dark pixel on the floor, above the region
+    grey = (y, np.zeros_like(y), np.zeros_like(y))
+    p = GroundParams(ref_x=0, ref_y=8, ref_w=w, ref_h=8, mode=GroundMode.HUE, jnd_luma=1)
+    wide, strict = GroundModel(p), GroundModel(replace(p, fallback_shift=0))
+    luma_mode = GroundModel(replace(p, mode=GroundMode.LUMA))
+    for model in (wide, strict, luma_mode):
+        model.learn(*grey)
+    assert wide.hue_fallback and strict.hue_fallback
+    assert wide.sets[1][90] and not strict.sets[1][90] and not luma_mode.sets[1][90]
+    assert wide.sets[1][120] and strict.sets[1][120] and luma_mode.sets[1][120]
+    m = wide.classify(*grey)
+    assert m[8:].all()                              # the 90s are floor in fallback
+    assert m[2, 9:12].tolist() == [0, 0, 0] and m[2, 8] == 1 and m[2, 12] == 1
+    assert m[2, 0] == 1 and m[2, w - 1] == 1        # row ends: the missing neighbour counts as ok
+    ml = luma_mode.classify(*grey)
+    assert ml[2, 9:12].tolist() == [1, 0, 1]        # luminance mode: no neighbour rule
+    sat = (y, np.full_like(y, 10), np.full_like(y, 200))
+    assert not wide.classify(*sat).any()            # in fallback a reliable hue is an obstacle
+
+
+def grey_floor(rng, h, w):
+    """A speckled grey floor with dark and coloured specks: hue fallback."""
+    img = np.clip(np.full((h, w, 3), 130.0) + rng.normal(0, 6, (h, w, 1)), 0, 255)
+    img[rng.random((h, w)) < 0.08] = (40, 40, 40)
+    img[rng.random((h, w)) < 0.05] = (200, 60, 60)
+    return img.astype(np.uint8)
+
+
+@pytest.mark.parametrize("seed,shift", [(21, 4), (22, 0), (23, 7)])
+def test_rtl_v2_fallback_neighbour_rule_three_frames_with_stalls(seed, shift, monkeypatch):
+    import golden.ground
+    rng = np.random.default_rng(seed)
+    frames = [yhs(grey_floor(rng, 8, 24)) for _ in range(3)]
+    p = GroundParams(mode=GroundMode.HUE, ref_x=2, ref_y=4, ref_w=20, ref_h=4, jnd_luma=2,
+                     min_support=64, fallback_shift=shift)
+    yhs_frames = [(f["y"], f["h"], f["s"]) for f in frames]
+    masks, status = ground_frames(yhs_frames, p)
+    assert [s[1] for s in status] == [False, True, True]           # fallback from frame 1
+    with monkeypatch.context() as mp:               # the same frames without the neighbour rule
+        mp.setattr(golden.ground, "with_neighbours", lambda bits: np.asarray(bits, dtype=bool))
+        unruled, _ = ground_frames(yhs_frames, p)
+    assert not np.array_equal(masks[2], unruled[2])                # the rule is exercised
+    run(frames, p, name=f"ground_fallback_{seed}", seed=seed, idle=0.3, stall=0.3)

@@ -27,6 +27,7 @@ typedef struct {
     uint16_t min_support;    /**< GROUND_SET.min_support (reliable hue samples) */
     uint8_t blend_shift;     /**< GROUND_SET.blend_shift */
     uint8_t hue_and_luma;    /**< GROUND_SET.hue_and_luma */
+    uint8_t fallback_shift;  /**< GROUND_SET.fallback_shift (hue fallback luma threshold shift) */
     uint16_t edge_threshold; /**< SOBEL.edge_threshold */
     uint8_t ratio; /**< SOBEL.ratio */
     uint8_t nms;             /**< SOBEL.nms */

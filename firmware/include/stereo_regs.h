@@ -10,14 +10,14 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           4u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           5u           /**< ID.version value */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540004u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540005u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      4u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      5u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -145,7 +145,7 @@
 
 /* GROUND_SET (read/write): Ground model v2: histogram sets and learning. */
 #define STEREO_GROUND_SET_OFFSET                     0x28u        /**< Ground model v2: histogram sets and learning. */
-#define STEREO_GROUND_SET_RESET                      0x01010030u  /**< GROUND_SET value after reset */
+#define STEREO_GROUND_SET_RESET                      0x81010030u  /**< GROUND_SET value after reset */
 #define STEREO_GROUND_SET_FRAC_SHIFT                 0u           /**< frac: a bin is ground when its count smoothed over +-1 JND reaches support x frac / 1024 (support: the histogram's total) */
 #define STEREO_GROUND_SET_FRAC_MASK                  0xFFu        /**< frac mask (8 bits) */
 #define STEREO_GROUND_SET_FRAC_RESET                 48u          /**< frac reset value */
@@ -158,6 +158,9 @@
 #define STEREO_GROUND_SET_HUE_AND_LUMA_SHIFT         28u          /**< hue_and_luma: 1: a pixel with a reliable hue also needs its luminance in the luma set */
 #define STEREO_GROUND_SET_HUE_AND_LUMA_MASK          0x10000000u  /**< hue_and_luma mask (1 bits) */
 #define STEREO_GROUND_SET_HUE_AND_LUMA_RESET         0u           /**< hue_and_luma reset value */
+#define STEREO_GROUND_SET_FALLBACK_SHIFT_SHIFT       29u          /**< fallback_shift: in hue fallback the luma set's threshold is the luma threshold >> fallback_shift */
+#define STEREO_GROUND_SET_FALLBACK_SHIFT_MASK        0xE0000000u  /**< fallback_shift mask (3 bits) */
+#define STEREO_GROUND_SET_FALLBACK_SHIFT_RESET       4u           /**< fallback_shift reset value */
 
 /* FRAME_COUNT (read-only): Frames completed by the matcher since reset. */
 #define STEREO_FRAME_COUNT_OFFSET                    0x40u        /**< Frames completed by the matcher since reset. */

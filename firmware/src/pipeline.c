@@ -28,6 +28,7 @@ void pipeline_default_config(pipeline_config_t *cfg)
     cfg->min_support = STEREO_GROUND_SET_MIN_SUPPORT_RESET;
     cfg->blend_shift = STEREO_GROUND_SET_BLEND_SHIFT_RESET;
     cfg->hue_and_luma = STEREO_GROUND_SET_HUE_AND_LUMA_RESET;
+    cfg->fallback_shift = STEREO_GROUND_SET_FALLBACK_SHIFT_RESET;
     cfg->edge_threshold = STEREO_SOBEL_EDGE_THRESHOLD_RESET;
     cfg->ratio = STEREO_SOBEL_RATIO_RESET;
     cfg->nms = STEREO_SOBEL_NMS_RESET;
@@ -58,6 +59,7 @@ static int config_valid(const pipeline_config_t *c)
            c->ref_w <= FIELD_MAX(GROUND_REF_SIZE, REF_W) && c->ref_h <= FIELD_MAX(GROUND_REF_SIZE, REF_H) &&
            c->hue_centre0 <= 191u && c->y_lo <= c->y_hi &&
            c->blend_shift <= FIELD_MAX(GROUND_SET, BLEND_SHIFT) && c->hue_and_luma <= 1u &&
+           c->fallback_shift <= FIELD_MAX(GROUND_SET, FALLBACK_SHIFT) &&
            c->edge_threshold <= FIELD_MAX(SOBEL, EDGE_THRESHOLD) &&
            c->ratio <= FIELD_MAX(SOBEL, RATIO) && c->nms <= 1u &&
            c->right_threshold <= FIELD_MAX(SOBEL_RIGHT, RIGHT_THRESHOLD) &&
@@ -106,7 +108,8 @@ fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
     w[8].value = STEREO_SET(GROUND_SET, FRAC, c->frac) |
                  STEREO_SET(GROUND_SET, MIN_SUPPORT, c->min_support) |
                  STEREO_SET(GROUND_SET, BLEND_SHIFT, c->blend_shift) |
-                 STEREO_SET(GROUND_SET, HUE_AND_LUMA, c->hue_and_luma);
+                 STEREO_SET(GROUND_SET, HUE_AND_LUMA, c->hue_and_luma) |
+                 STEREO_SET(GROUND_SET, FALLBACK_SHIFT, c->fallback_shift);
     for (i = 0u; i < ARRAY_SIZE(w); i++) {
         STEREO_WriteReg(base, w[i].offset, w[i].value);
     }
@@ -156,6 +159,7 @@ void pipeline_read_config(uint32_t base, pipeline_config_t *c)
     c->min_support = (uint16_t)STEREO_GET(GROUND_SET, MIN_SUPPORT, v);
     c->blend_shift = (uint8_t)STEREO_GET(GROUND_SET, BLEND_SHIFT, v);
     c->hue_and_luma = (uint8_t)STEREO_GET(GROUND_SET, HUE_AND_LUMA, v);
+    c->fallback_shift = (uint8_t)STEREO_GET(GROUND_SET, FALLBACK_SHIFT, v);
 }
 
 void pipeline_read_status(uint32_t base, pipeline_status_t *s)

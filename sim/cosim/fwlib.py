@@ -64,7 +64,7 @@ class PipelineConfigC(C.Structure):
         ("ref_w", C.c_uint16), ("ref_h", C.c_uint16), ("hue_centre0", C.c_uint8),
         ("luma_centre0", C.c_uint8), ("y_lo", C.c_uint8), ("y_hi", C.c_uint8),
         ("frac", C.c_uint8), ("min_support", C.c_uint16), ("blend_shift", C.c_uint8),
-        ("hue_and_luma", C.c_uint8), ("edge_threshold", C.c_uint16),
+        ("hue_and_luma", C.c_uint8), ("fallback_shift", C.c_uint8), ("edge_threshold", C.c_uint16),
         ("ratio", C.c_uint8), ("nms", C.c_uint8), ("right_threshold", C.c_uint16),
         ("d_min", C.c_uint8),
         ("d_max", C.c_uint8), ("uniqueness", C.c_uint8), ("candidate_mode", C.c_uint8),
