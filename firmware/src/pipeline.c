@@ -50,6 +50,13 @@ fw_status_t pipeline_check_id(uint32_t base)
     return FW_OK;
 }
 
+/* v <= max, through a function so that a field as wide as its uint8_t member (MATCH.d_min,
+ * d_max) needs no always-true comparison, and a narrower map still gets its check. */
+static int fits(uint32_t v, uint32_t max)
+{
+    return v <= max;
+}
+
 static int config_valid(const pipeline_config_t *c)
 {
     return c->mode <= 2u && c->k <= FIELD_MAX(GROUND, K) && c->jnd_hue <= FIELD_MAX(GROUND, JND_HUE) &&
@@ -61,8 +68,9 @@ static int config_valid(const pipeline_config_t *c)
            c->edge_threshold <= FIELD_MAX(SOBEL, EDGE_THRESHOLD) &&
            c->ratio <= FIELD_MAX(SOBEL, RATIO) && c->nms <= 1u &&
            c->right_threshold <= FIELD_MAX(SOBEL_RIGHT, RIGHT_THRESHOLD) &&
-           c->d_min <= FIELD_MAX(MATCH, D_MIN) && c->d_max <= FIELD_MAX(MATCH, D_MAX) &&
-           c->d_min <= c->d_max && c->candidate_mode <= 1u && c->widen <= 1u &&
+           fits(c->d_min, FIELD_MAX(MATCH, D_MIN)) && fits(c->d_max, FIELD_MAX(MATCH, D_MAX)) &&
+           c->d_min <= c->d_max && (uint32_t)(c->d_max - c->d_min) < STEREO_MATCH_SPAN &&
+           c->candidate_mode <= 1u && c->widen <= 1u &&
            c->camera_mode_drop <= 1u;
 }
 

@@ -67,6 +67,12 @@ static void test_configure_rejects_bad_values(void)
     c.d_min = 40; c.d_max = 20;
     FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
     FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], 0u); /* nothing written */
+    c.d_min = 100; c.d_max = 100 + STEREO_MATCH_SPAN; /* a window of 65 disparities */
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
+    c.d_max = 100 + STEREO_MATCH_SPAN - 1;            /* 64: the widest window */
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);
+    FWT_CHECK_EQ(STEREO_GET(MATCH, D_MAX, sim.regfile[STEREO_MATCH_OFFSET / 4]), 163u);
+    setup();
     pipeline_default_config(&c);
     c.mode = 3;
     FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
