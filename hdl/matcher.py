@@ -169,8 +169,10 @@ class Matcher(wiring.Component):
         Records ``(x, y, d, cost)`` in raster order, then one ``eof`` record per frame. Accepts
         backpressure. Latency: a left edge's record appears after both inputs have delivered
         line ``y + r`` plus the queue and the engine time.
-    d_min, d_max : In(6)
-        Disparity range (``d_max <= max_disparity``). Sampled continuously: change between frames.
+    d_min, d_max : In(bits_for(max_disparity))
+        Disparity window (``d_min <= d_max <= max_disparity``; candidates beyond the first
+        ``DISPARITY_SPAN`` = 64 from ``d_min`` are never tried). Latched between frames: a
+        change applies from the next frame that starts after it.
     uniqueness : In(8)
         Uniqueness margin u (1/256 units).
     mode_full, widen, drop_mode : In(1)
@@ -395,6 +397,13 @@ class Matcher(wiring.Component):
             c.writable = writable
 
         L, R = cams["left"], cams["right"]
+        # The disparity window of the frame: follows d_min / d_max between frames and holds
+        # from the first sof a camera delivers until the frame is complete, so a register
+        # write takes effect at the next frame whenever it happens.
+        f_dmin = Signal(DB)
+        f_dmax = Signal(DB, init=min(D, DISPARITY_SPAN - 1))
+        with m.If(~L.open & ~R.open):
+            m.d.sync += [f_dmin.eq(self.d_min), f_dmax.eq(self.d_max)]
         m.d.comb += complete.eq(eng_done & (L.ended | ~L.open) & (R.ended | ~R.open))
         with m.If(complete):
             for c in (L, R):
@@ -469,7 +478,7 @@ class Matcher(wiring.Component):
         span = Signal(DB + 1)             # d_max - d_min, negative: empty window
         xmin = Signal(DB + 1)             # d_min + r: the smallest x with a candidate
         rng = Signal(ND)
-        m.d.sync += [span.eq(self.d_max - self.d_min), xmin.eq(self.d_min + r),
+        m.d.sync += [span.eq(f_dmax - f_dmin), xmin.eq(f_dmin + r),
                      rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
         xl2 = Signal(XW)
         m.d.comb += xl2.eq(c2 - 1)
@@ -513,7 +522,7 @@ class Matcher(wiring.Component):
                     m.next = "FRAME_END"
                 with m.Elif(sc_go):
                     m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width), ca.eq(0),
-                                 car.eq(-self.d_min), c1r.eq(-self.d_min),
+                                 car.eq(-f_dmin), c1r.eq(-f_dmin),
                                  v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
                                  pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
                     m.next = "SCAN"
@@ -649,7 +658,7 @@ class Matcher(wiring.Component):
         w_lim = Signal(YW + 1); w_top = Signal(SB)
         # r - d_min: the walker's right columns are x - d_min - e - r (registered, static).
         roff = Signal(max(XW, DB) + 2)
-        m.d.sync += roff.eq(r - self.d_min)
+        m.d.sync += roff.eq(r - f_dmin)
         credits = Signal(range(self._out_depth + 1), init=self._out_depth)
         eof_pending = Signal()
         # two: at least two need bits left (the visited one is not the last). Registered a
@@ -777,7 +786,7 @@ class Matcher(wiring.Component):
         e_fm = Signal(CB); e_x = Signal(XW); e_y = Signal(YW); e_doomed = Signal()
         e_evals = Signal.like(winner.evals); e_thr = Signal(CB + 9)
         m.d.sync += [e_v.eq(winner.o_valid), e_frame.eq(w_frame), e_bc.eq(winner.best_cost),
-                     e_bd.eq(winner.best_d + self.d_min), e_fm.eq(winner.far_min), e_x.eq(wt.x),
+                     e_bd.eq(winner.best_d + f_dmin), e_fm.eq(winner.far_min), e_x.eq(wt.x),
                      e_y.eq(wt.y), e_doomed.eq(wt.doomed), e_evals.eq(winner.evals),
                      e_thr.eq(winner.best_cost * (256 + self.uniqueness))]
         reject = Signal()

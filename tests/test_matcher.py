@@ -108,13 +108,14 @@ async def put_words(ctx, port, words, *, rng, idle=0.0, reset=None):
 
 
 def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(), drop_mode=False,
-                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None):
+                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None, retune=None):
     """Drive ``dut`` (a :class:`Matcher`) with two word lists (``Reset`` items allowed in
     ``left_words``: they reset the whole unit) and collect ``frames`` end-of-frame markers.
 
     Each input and the output has its own seeded random generator (``idle`` / ``stall``
     probabilities). Returns a :class:`MatchRun`; raises :class:`Deadlock` when nothing comes
-    out for ``timeout`` cycles."""
+    out for ``timeout`` cycles. ``retune = (cycles, params)`` writes the disparity window of
+    ``params`` that many cycles after the start."""
     m = Module()
     m.domains.sync = cd = ClockDomain("sync")
     m.submodules.dut = dut
@@ -186,7 +187,14 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
         run.dropped = ctx.get(dut.dropped)
         run.frames = ctx.get(dut.frames)
 
+    async def write_window(ctx):
+        await ctx.tick().repeat(retune[0])
+        ctx.set(dut.d_min, retune[1].d_min)
+        ctx.set(dut.d_max, retune[1].d_max)
+
     sim.add_process(clock_counter)
+    if retune is not None:
+        sim.add_testbench(write_window, background=True)
     sim.add_testbench(put_left, background=True)
     sim.add_testbench(put_right, background=True)
     sim.add_testbench(get)
@@ -317,6 +325,19 @@ def test_near_field_window():
         fl, fr, params, seeds=(1,), idle=0.3, stall=0.3)
     ds = np.concatenate([recs[:, 2] for recs, _ in expected])
     assert (ds > 63).sum() > 20 and (ds < 50).sum() > 20
+
+
+def test_window_change_mid_frame_applies_at_the_next_frame():
+    # The window is written while frame 0 is being matched: frame 0 keeps the old one, frame 1
+    # (and its records' d = d_min + index) has the new one.
+    fl, fr = synthetic_frames(2, seed=95)
+    first, second = MatcherParams(d_max=15, window=3), MatcherParams(d_min=2, d_max=9, window=3)
+    expected = [golden_records(fl[0], fr[0], first), golden_records(fl[1], fr[1], second)]
+    assert not np.array_equal(expected[1][0], golden_records(fl[1], fr[1], first)[0])
+    run = run_matcher(small_matcher(), frames_words(EDGE, fl), frames_words(EDGE, fr),
+                      frames=2, params=first, seed=3, idle=0.2, stall=0.2, retune=(150, second))
+    assert run.frames == 2 and len(run.records[0]) > 0
+    check_frames(run, expected, "retune")
 
 
 def test_window7_default_parameters():

@@ -126,6 +126,20 @@ fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
     return FW_OK;
 }
 
+fw_status_t pipeline_set_window(uint32_t base, uint8_t d_min, uint8_t d_max)
+{
+    uint32_t keep = ~(STEREO_MATCH_D_MIN_MASK | STEREO_MATCH_D_MAX_MASK);
+    uint32_t v;
+    if (d_min > d_max || (uint32_t)(d_max - d_min) >= STEREO_MATCH_SPAN ||
+        !fits(d_min, FIELD_MAX(MATCH, D_MIN)) || !fits(d_max, FIELD_MAX(MATCH, D_MAX))) {
+        return FW_ERR_PARAM;
+    }
+    v = (STEREO_ReadReg(base, STEREO_MATCH_OFFSET) & keep) |
+        STEREO_SET(MATCH, D_MIN, d_min) | STEREO_SET(MATCH, D_MAX, d_max);
+    STEREO_WriteReg(base, STEREO_MATCH_OFFSET, v);
+    return STEREO_ReadReg(base, STEREO_MATCH_OFFSET) == v ? FW_OK : FW_ERR_ID;
+}
+
 void pipeline_read_config(uint32_t base, pipeline_config_t *c)
 {
     uint32_t v = STEREO_ReadReg(base, STEREO_GROUND_OFFSET);
