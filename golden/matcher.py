@@ -126,15 +126,20 @@ from .census import census
 
 __all__ = ["MatcherParams", "match", "candidates", "window_costs", "RECORD_DTYPE",
            "RECORD_DTYPE_V2", "STAT_KEYS", "accuracy", "MAX_DISPARITY", "DISPARITIES",
-           "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "CONFIDENCE_OFFSET",
+           "DISPARITY_BITS", "DISPARITY_SPAN", "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "CONFIDENCE_OFFSET",
            "v2_params", "WindowCosts", "record_dtype"]
 
-#: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``);
-#: disparities are ``DISPARITY_BITS`` wide.
-DISPARITY_BITS = 6
+#: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``,
+#: the MATCH register's d_min / d_max and the RESULT register's d); disparities are
+#: ``DISPARITY_BITS`` wide. 255 reaches 0.28 m on the default rig (sim/camera.py).
+DISPARITY_BITS = 8
 MAX_DISPARITY = (1 << DISPARITY_BITS) - 1
-#: Number of disparities of a dense matcher over the whole range (the 100 % of ``eval_fraction``).
-DISPARITIES = MAX_DISPARITY + 1
+#: Disparities one run may search: the window ``[d_min, d_max]`` holds at most DISPARITY_SPAN
+#: values (``d_max - d_min <= DISPARITY_SPAN - 1``) anywhere in ``0..max_disparity``. The RTL's
+#: candidate masks are this wide, whatever its ``max_disparity`` (hdl/matcher.py).
+DISPARITY_SPAN = 64
+#: Number of disparities of a dense matcher over one window (the 100 % of ``eval_fraction``).
+DISPARITIES = DISPARITY_SPAN
 #: Subpixel disparities ``d16`` are in units of 1 / SUBPIXEL_ONE pixel.
 SUBPIXEL_BITS = 4
 SUBPIXEL_ONE = 1 << SUBPIXEL_BITS
@@ -163,7 +168,7 @@ class MatcherParams:
     """Matcher parameters. The defaults are version 1, the algorithm the RTL implements;
     :func:`v2_params` gives version 2."""
     d_min: int = 0
-    d_max: int = MAX_DISPARITY
+    d_max: int = DISPARITY_SPAN - 1
     window: int = 7
     #: Uniqueness margin u / 256 (0..255). 48 = 18.75 %: chosen on the motorcycle pair (see
     #: tests/test_matcher_golden.py): with widen and front-end thresholds 192 (left) / 96
@@ -198,6 +203,10 @@ class MatcherParams:
         if self.d_max > max_disparity:
             raise ValueError(f"d_max {self.d_max} is beyond the elaborated maximum disparity "
                              f"{max_disparity}")
+        if self.d_max - self.d_min >= DISPARITY_SPAN:
+            raise ValueError(f"the disparity window d_min {self.d_min} .. d_max {self.d_max} "
+                             f"holds {self.d_max - self.d_min + 1} disparities; at most "
+                             f"{DISPARITY_SPAN} (d_max - d_min <= {DISPARITY_SPAN - 1})")
         if not 0 <= self.uniqueness <= 255:
             raise ValueError(f"uniqueness must be in 0..255 (1/256 units), not {self.uniqueness}")
         if self.mode not in ("adaptive", "full"):

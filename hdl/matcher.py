@@ -128,6 +128,8 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for, ceil_log2
 
+from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
+
 from .types import EdgePixel
 from .framing import FrameTracker
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
@@ -135,21 +137,18 @@ from .matcher_sad import SadTree
 from .matcher_winner import Winner
 from .skid import SkidBuffer
 
-__all__ = ["Matcher", "match_record_layout", "STAT_NAMES"]
-
-#: Per-frame statistics ports, ``frame_<name>``, in this order (as in golden.matcher.STAT_KEYS).
-STAT_NAMES = ("edge_pixels", "border", "no_candidate", "sad_evaluations", "matches",
-              "rejected", "drops")
+__all__ = ["Matcher", "match_record_layout"]
 
 
-def match_record_layout(max_width=1024, max_height=1024):
-    """Output record: ``x``, ``y``, ``d`` (6 bits), ``cost`` (16 bits) and ``eof``.
+def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY):
+    """Output record: ``x``, ``y``, ``d`` (``bits_for(max_disparity)``), ``cost`` (16 bits) and
+    ``eof``.
 
     A record with ``eof`` = 1 is the end-of-frame marker: it carries no match (its other fields
     are 0) and is emitted after the last match of the frame, in the same cycle as the
     ``frame_*`` statistics outputs take that frame's values."""
     return data.StructLayout({"x": bits_for(max_width - 1), "y": bits_for(max_height - 1),
-                              "d": 6, "cost": 16, "eof": 1})
+                              "d": bits_for(max_disparity), "cost": 16, "eof": 1})
 
 
 def _sat_inc(counter, by=1):
@@ -170,14 +169,16 @@ class Matcher(wiring.Component):
         Records ``(x, y, d, cost)`` in raster order, then one ``eof`` record per frame. Accepts
         backpressure. Latency: a left edge's record appears after both inputs have delivered
         line ``y + r`` plus the queue and the engine time.
-    d_min, d_max : In(6)
-        Disparity range (``d_max <= max_disparity``). Sampled continuously: change between frames.
+    d_min, d_max : In(bits_for(max_disparity))
+        Disparity window (``d_min <= d_max <= max_disparity``; candidates beyond the first
+        ``DISPARITY_SPAN`` = 64 from ``d_min`` are never tried). Latched between frames: a
+        change applies from the next frame that starts after it.
     uniqueness : In(8)
         Uniqueness margin u (1/256 units).
     mode_full, widen, drop_mode : In(1)
         Full mode (every d is a candidate); widen candidates by one pixel; camera mode.
     frame_<stat> : Out(32)
-        Statistics of the last finished frame, see :data:`STAT_NAMES`.
+        Statistics of the last finished frame, see :data:`STAT_KEYS`.
     frames : Out(32)
         Frames finished.
     errors : Out(16), dropped : Out(32)
@@ -185,7 +186,7 @@ class Matcher(wiring.Component):
         both trackers (saturating, cleared by reset).
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=63, window=7,
+    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
                  queue_depth=16, out_depth=8, extra_rows=0):
         try:
             self._check(max_width, max_height, max_disparity, window, queue_depth, out_depth,
@@ -202,16 +203,18 @@ class Matcher(wiring.Component):
         self._out_depth = out_depth
         self.max_disparity = max_disparity
         self.window = window
-        self.record = match_record_layout(max_width, max_height)
+        self.record = match_record_layout(max_width, max_height, max_disparity)
         ports = {
             "left": In(stream.Signature(EdgePixel)),
             "right": In(stream.Signature(EdgePixel)),
             "o": Out(stream.Signature(self.record)),
-            "d_min": In(6), "d_max": In(6, init=max_disparity), "uniqueness": In(8),
+            "d_min": In(bits_for(max_disparity)),
+            "d_max": In(bits_for(max_disparity), init=min(max_disparity, DISPARITY_SPAN - 1)),
+            "uniqueness": In(8),
             "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
             "frames": Out(32), "errors": Out(16), "dropped": Out(32),
         }
-        for name in STAT_NAMES:
+        for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
         super().__init__(ports)
 
@@ -219,8 +222,8 @@ class Matcher(wiring.Component):
     def _check(max_width, max_height, max_disparity, window, queue_depth, out_depth, extra_rows):
         if window < 3 or window % 2 == 0:
             raise ValueError(f"window must be odd and at least 3, not {window}")
-        if not 1 <= max_disparity <= 63:
-            raise ValueError(f"max_disparity must be in 1..63, not {max_disparity}")
+        if not 1 <= max_disparity <= MAX_DISPARITY:
+            raise ValueError(f"max_disparity must be in 1..{MAX_DISPARITY}, not {max_disparity}")
         if out_depth < 2:
             raise ValueError(f"out_depth must be at least 2, not {out_depth}")
         if queue_depth < 2:
@@ -235,7 +238,9 @@ class Matcher(wiring.Component):
         W = self._window
         r = W // 2
         D = self._max_disparity
-        ND = D + 1                         # mask bits: d = 0..D
+        DB = bits_for(D)                   # disparity width
+        ND = min(D + 1, DISPARITY_SPAN)    # mask bits: d = d_min + k, k = 0..ND - 1
+        KB = bits_for(ND - 1)              # window index width
         ROWS = self._rows
         MW = self._max_width
         XB = ceil_log2(MW) if MW > 1 else 1
@@ -392,6 +397,13 @@ class Matcher(wiring.Component):
             c.writable = writable
 
         L, R = cams["left"], cams["right"]
+        # The disparity window of the frame: follows d_min / d_max between frames and holds
+        # from the first sof a camera delivers until the frame is complete, so a register
+        # write takes effect at the next frame whenever it happens.
+        f_dmin = Signal(DB)
+        f_dmax = Signal(DB, init=min(D, DISPARITY_SPAN - 1))
+        with m.If(~L.open & ~R.open):
+            m.d.sync += [f_dmin.eq(self.d_min), f_dmax.eq(self.d_max)]
         m.d.comb += complete.eq(eng_done & (L.ended | ~L.open) & (R.ended | ~R.open))
         with m.If(complete):
             for c in (L, R):
@@ -428,13 +440,18 @@ class Matcher(wiring.Component):
         s_inside_row = Signal()
         s_width = Signal(XW)
         ca = Signal(XW)                   # column address issued
+        # Right column address: ca - d_min (two's complement, XW + 1 bits; negative = outside)
+        CW = max(XW, DB) + 1
+        car = Signal(CW)
         v1 = Signal()                     # stage 1 holds the data of column c1
         c1 = Signal(XW)
-        pos_mask = Signal(ND + 2)         # bit k: right column (c1 - k) is a positive edge
+        c1r = Signal(CW)                  # c1 - d_min
+        # bit k: right column (c1 - d_min - k) is a positive edge
+        pos_mask = Signal(ND + 2)
         neg_mask = Signal(ND + 2)
         l_edge = Signal()                 # left pixel c1 - 1 (delayed one column)
         l_neg = Signal()
-        stat = {name: Signal(32, name=f"cnt_{name}") for name in STAT_NAMES}
+        stat = {name: Signal(32, name=f"cnt_{name}") for name in STAT_KEYS}
 
         rp_lf = L.fmem.read_port()
         rp_rf = R.fmem.read_port()
@@ -443,19 +460,26 @@ class Matcher(wiring.Component):
         # overwritten (s_doomed); then it runs and drops the jobs that do not fit.
         s_doomed = Signal()
         m.d.comb += [adv.eq(queue.w_rdy | (self.drop_mode & s_doomed)),
-                     rp_lf.addr.eq(Cat(ca[:XB], s_slot)), rp_rf.addr.eq(Cat(ca[:XB], s_slot)),
+                     rp_lf.addr.eq(Cat(ca[:XB], s_slot)), rp_rf.addr.eq(Cat(car[:XB], s_slot)),
                      rp_lf.en.eq(adv), rp_rf.en.eq(adv)]
         r_in_row = Signal()
         m.d.comb += r_in_row.eq(c1 < s_width)
+        rr_in_row = Signal()              # right column c1 - d_min inside the row
+        m.d.comb += rr_in_row.eq(~c1r[CW - 1] & (c1r[:CW - 1] < s_width))
         r_edge = Signal()
         r_neg = Signal()
-        m.d.comb += [r_edge.eq(rp_rf.data[0] & r_in_row), r_neg.eq(rp_rf.data[1] & r_in_row)]
+        m.d.comb += [r_edge.eq(rp_rf.data[0] & rr_in_row), r_neg.eq(rp_rf.data[1] & rr_in_row)]
 
         # Stage 2: left pixel c2 - 1 against the masks of right columns c2, c2 - 1, ...
         v2 = Signal(); c2 = Signal(XW); le2 = Signal(); ln2 = Signal()
-        xmask = Signal(ND)                # bit d: xl2 >= d + r (a thermometer, shifted per column)
-        rng = Signal(ND)                  # bit d: d_min <= d <= d_max
-        m.d.sync += rng.eq(Cat(*[(self.d_min <= d) & (self.d_max >= d) for d in range(ND)]))
+        # bit k: xl2 >= d_min + k + r (a thermometer, shifted per column)
+        xmask = Signal(ND)
+        # bit k: d_min + k <= d_max. Registered in two steps from the (static) registers.
+        span = Signal(DB + 1)             # d_max - d_min, negative: empty window
+        xmin = Signal(DB + 1)             # d_min + r: the smallest x with a candidate
+        rng = Signal(ND)
+        m.d.sync += [span.eq(f_dmax - f_dmin), xmin.eq(f_dmin + r),
+                     rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
         xl2 = Signal(XW)
         m.d.comb += xl2.eq(c2 - 1)
         same = Signal(ND + 2)
@@ -498,6 +522,7 @@ class Matcher(wiring.Component):
                     m.next = "FRAME_END"
                 with m.Elif(sc_go):
                     m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width), ca.eq(0),
+                                 car.eq(-f_dmin), c1r.eq(-f_dmin),
                                  v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
                                  pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
                     m.next = "SCAN"
@@ -506,8 +531,8 @@ class Matcher(wiring.Component):
             with m.State("SCAN"):
                 with m.If(adv):
                     with m.If(ca <= s_width):
-                        m.d.sync += ca.eq(ca + 1)
-                    m.d.sync += [v1.eq(ca <= s_width), c1.eq(ca)]
+                        m.d.sync += [ca.eq(ca + 1), car.eq(car + 1)]
+                    m.d.sync += [v1.eq(ca <= s_width), c1.eq(ca), c1r.eq(car)]
                     with m.If(v1):
                         m.d.sync += [pos_mask.eq(Cat(r_edge & ~r_neg, pos_mask[:-1])),
                                      neg_mask.eq(Cat(r_edge & r_neg, neg_mask[:-1])),
@@ -515,7 +540,7 @@ class Matcher(wiring.Component):
                                      l_neg.eq(rp_lf.data[1])]
                     m.d.sync += [v2.eq(v1), c2.eq(c1), le2.eq(l_edge), ln2.eq(l_neg)]
                     with m.If(v2):
-                        m.d.sync += xmask.eq(Cat(c2 >= r, xmask[:-1]))
+                        m.d.sync += xmask.eq(Cat(c2 >= xmin, xmask[:-1]))
                     m.d.sync += [v3.eq(v2 & (c2 >= 1)), edge3.eq(v2 & (c2 >= 1) & le2),
                                  border3.eq(~s_inside_row | (xl2 < r) | (xl2 + r >= s_width)),
                                  cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_width))]
@@ -631,6 +656,9 @@ class Matcher(wiring.Component):
         w_act = Signal(); w_kind = Signal(2); w_need = Signal(NE); w_fire = Signal(NE)
         w_first = Signal(); w_x = Signal(XW); w_base = Signal(XW + 1); w_y = Signal(YW)
         w_lim = Signal(YW + 1); w_top = Signal(SB)
+        # r - d_min: the walker's right columns are x - d_min - e - r (registered, static).
+        roff = Signal(max(XW, DB) + 2)
+        m.d.sync += roff.eq(r - f_dmin)
         credits = Signal(range(self._out_depth + 1), init=self._out_depth)
         eof_pending = Signal()
         # two: at least two need bits left (the visited one is not the last). Registered a
@@ -671,7 +699,7 @@ class Matcher(wiring.Component):
             m.d.sync += [w_act.eq(1), w_kind.eq(ls_kind), w_first.eq(1),
                          w_need.eq(Mux(ls_kind == KIND_JOB, need_of, 0)),
                          two.eq(ls_two & (ls_kind == KIND_JOB)),
-                         w_fire.eq(fire_ext), w_x.eq(ls_x), w_base.eq(ls_x + r),
+                         w_fire.eq(fire_ext), w_x.eq(ls_x), w_base.eq(ls_x + roff),
                          w_y.eq(ls_y), w_lim.eq(ls_lim), w_top.eq(ls_top), ls_full.eq(0)]
 
         # D1: column address and candidate.
@@ -682,11 +710,11 @@ class Matcher(wiring.Component):
         with m.If(t1_v):
             m.d.sync += seen.eq(Mux(t1_first, fire1, seen | fire1))
         t2 = dict(v=Signal(), fire=Signal(), ff=Signal(), last=Signal(), mk=Signal(2),
-                  d=Signal(6), d1=Signal(7), x=Signal(XW), y=Signal(YW), lim=Signal(YW + 1),
+                  d=Signal(KB), d1=Signal(KB + 1), x=Signal(XW), y=Signal(YW), lim=Signal(YW + 1),
                   top=Signal(SB), first=Signal())
         t2_addr = Signal(XW + 1)
-        d1v = Signal(6)
-        m.d.comb += d1v.eq(onehot_index(t1_ohf, 6))
+        d1v = Signal(KB)                  # window index k of the visited candidate
+        m.d.comb += d1v.eq(onehot_index(t1_ohf, KB))
         m.d.sync += [t2_addr.eq(t1_base - onehot_index(t1_oh)),
                      t2["v"].eq(t1_v), t2["fire"].eq(t1_v & fire1),
                      t2["ff"].eq(t1_v & fire1 & (t1_first | ~seen)), t2["last"].eq(t1_last),
@@ -727,8 +755,8 @@ class Matcher(wiring.Component):
         m.d.comb += doomed4.eq(self.drop_mode & ((L.wrow > t4["lim"]) | (R.wrow > t4["lim"])))
 
         # D5: SAD tree over (lwin, rwin) for the positions that are candidates.
-        tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": 6,
-                                        "d1": 7, "x": XW, "y": YW, "doomed": 1})
+        tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": KB,
+                                        "d1": KB + 1, "x": XW, "y": YW, "doomed": 1})
         m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size)
         t5_tag = Signal(tag_layout)
         m.d.sync += [t5_tag.fire.eq(t4["fire"]), t5_tag.ff.eq(t4["ff"]),
@@ -742,7 +770,7 @@ class Matcher(wiring.Component):
 
         # Winner over the candidates of each job.
         win_tag = data.StructLayout({"x": XW, "y": YW, "doomed": 1})
-        m.submodules.winner = winner = Winner(CB, 6, tag_width=win_tag.size,
+        m.submodules.winner = winner = Winner(CB, KB, tag_width=win_tag.size,
                                               max_candidates=ND)
         wt_in = Signal(win_tag)
         m.d.comb += [wt_in.x.eq(s_tag.x), wt_in.y.eq(s_tag.y), wt_in.doomed.eq(s_tag.doomed),
@@ -754,11 +782,11 @@ class Matcher(wiring.Component):
         wt = data.View(win_tag, winner.o_tag)
 
         # Uniqueness test (E2) and output.
-        e_v = Signal(); e_frame = Signal(); e_bc = Signal(CB); e_bd = Signal(6)
+        e_v = Signal(); e_frame = Signal(); e_bc = Signal(CB); e_bd = Signal(DB)
         e_fm = Signal(CB); e_x = Signal(XW); e_y = Signal(YW); e_doomed = Signal()
         e_evals = Signal.like(winner.evals); e_thr = Signal(CB + 9)
         m.d.sync += [e_v.eq(winner.o_valid), e_frame.eq(w_frame), e_bc.eq(winner.best_cost),
-                     e_bd.eq(winner.best_d), e_fm.eq(winner.far_min), e_x.eq(wt.x),
+                     e_bd.eq(winner.best_d + f_dmin), e_fm.eq(winner.far_min), e_x.eq(wt.x),
                      e_y.eq(wt.y), e_doomed.eq(wt.doomed), e_evals.eq(winner.evals),
                      e_thr.eq(winner.best_cost * (256 + self.uniqueness))]
         reject = Signal()
@@ -790,7 +818,7 @@ class Matcher(wiring.Component):
             # frame's end waits until it has left (eof_pending), so they hold until then.
             m.d.sync += [eng_done.eq(1), eof_pending.eq(1), edrops.eq(0),
                          self.frames.eq(self.frames + 1)]
-            for name in STAT_NAMES:
+            for name in STAT_KEYS:
                 m.d.sync += [getattr(self, f"frame_{name}").eq(stat[name]), stat[name].eq(0)]
             total = stat["drops"] + edrops
             m.d.sync += self.frame_drops.eq(Mux(total[32], 0xFFFFFFFF, total))

@@ -4,10 +4,13 @@ from amaranth.hdl import Module
 from amaranth.lib import wiring, stream
 from amaranth.lib.wiring import In, Out
 
+from amaranth.utils import bits_for
+
+from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .frontend import FrontEnd
 from .ground import GroundConfig
-from .matcher import Matcher, STAT_NAMES, match_record_layout
+from .matcher import Matcher, match_record_layout
 from .types import RGBPixel
 
 __all__ = ["StereoPipeline"]
@@ -33,7 +36,7 @@ class StereoPipeline(wiring.Component):
     d_min, d_max, uniqueness, mode_full, widen, drop_mode : In
         Matcher parameters.
     frame_<stat>, frames : Out(32)
-        Matcher statistics of the last finished frame (:data:`~hdl.matcher.STAT_NAMES`).
+        Matcher statistics of the last finished frame (:data:`~golden.matcher.STAT_KEYS`).
     left_errors, left_dropped, right_errors, right_dropped : Out(16), Out(32)
         Malformed-stream counters at each camera input.
     match_errors, match_dropped : Out(16), Out(32)
@@ -45,7 +48,7 @@ class StereoPipeline(wiring.Component):
     ``window``, ``queue_depth`` (edge jobs buffered).
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=63, window=7,
+    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
                  queue_depth=16):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._matcher = dict(max_disparity=max_disparity, window=window,
@@ -55,11 +58,14 @@ class StereoPipeline(wiring.Component):
         ports = {
             "left": In(stream.Signature(RGBPixel)),
             "right": In(stream.Signature(RGBPixel)),
-            "o": Out(stream.Signature(match_record_layout(max_width, max_height))),
+            "o": Out(stream.Signature(match_record_layout(max_width, max_height,
+                                                                  max_disparity))),
             "ground": In(GroundConfig),
             "threshold": In(THRESHOLD_BITS), "right_threshold": In(THRESHOLD_BITS),
             "ratio": In(RATIO_BITS), "nms": In(1),
-            "d_min": In(6), "d_max": In(6, init=max_disparity), "uniqueness": In(8),
+            "d_min": In(bits_for(max_disparity)),
+            "d_max": In(bits_for(max_disparity), init=min(max_disparity, DISPARITY_SPAN - 1)),
+            "uniqueness": In(8),
             "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
             "frames": Out(32),
             "match_errors": Out(16), "match_dropped": Out(32),
@@ -69,7 +75,7 @@ class StereoPipeline(wiring.Component):
             ports[f"{side}_dropped"] = Out(32)
             ports[f"{side}_ground_learned"] = Out(1)
             ports[f"{side}_hue_fallback"] = Out(1)
-        for name in STAT_NAMES:
+        for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
         super().__init__(ports)
 
@@ -97,6 +103,6 @@ class StereoPipeline(wiring.Component):
             self.frames.eq(matcher.frames),
             self.match_errors.eq(matcher.errors), self.match_dropped.eq(matcher.dropped),
         ]
-        for name in STAT_NAMES:
+        for name in STAT_KEYS:
             m.d.comb += getattr(self, f"frame_{name}").eq(getattr(matcher, f"frame_{name}"))
         return m

@@ -30,11 +30,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import SimpleNamespace
 
+from golden.matcher import DISPARITY_BITS, DISPARITY_SPAN
 from golden.pipeline import default_params
 
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
-           "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "register", "field", "parameter_fields",
-           "status_fields"]
+           "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "MAX_WIDTH", "MAX_HEIGHT", "DISPARITY_SPAN",
+           "register", "field", "parameter_fields", "status_fields"]
 
 #: MCS I/O bus addresses: the I/O bus occupies 0xC0000000..0xFFFFFFFF on the MCS.
 REGS_BASEADDR = 0xC000_0000
@@ -43,7 +44,16 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 5
+MAP_VERSION = 6
+
+#: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
+#: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
+#: elaborated beyond them does not fit the map (hdl/regs.py ``check_result_limits``).
+MAX_WIDTH = 1024              #: widest frame (x < MAX_WIDTH)
+MAX_HEIGHT = 1024             #: tallest frame (y < MAX_HEIGHT)
+_XB = (MAX_WIDTH - 1).bit_length()
+_YB = (MAX_HEIGHT - 1).bit_length()
+_DB = DISPARITY_BITS          #: disparities 0 .. golden.matcher.MAX_DISPARITY
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
@@ -130,8 +140,10 @@ REGISTERS: tuple[Register, ...] = (
                                    "both decoders report lock)"),
     )),
     Register("MATCH", 0x1C, "rw", "Stereo matcher (golden/matcher.py, hdl/matcher.py).", (
-        F("d_min", 0, 6, _M.d_min, "smallest disparity tried"),
-        F("d_max", 8, 6, _M.d_max, "largest disparity tried (d_min <= d_max)"),
+        F("d_min", 0, _DB, _M.d_min, "smallest disparity tried"),
+        F("d_max", 8, _DB, _M.d_max, f"largest disparity tried (d_min <= d_max <= d_min + "
+                                     f"{DISPARITY_SPAN - 1}: a window of at most "
+                                     f"{DISPARITY_SPAN} disparities)"),
         F("uniqueness", 16, 8, _M.uniqueness, "margin u in 1/256 units: reject the best d if a "
                                                "candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d)"),
         F("candidate_mode", 24, 1, 0 if _M.mode == "adaptive" else 1,
@@ -219,13 +231,15 @@ REGISTERS: tuple[Register, ...] = (
         F("right_hue_fallback", 3, 1, 0, "as left_hue_fallback, right camera"),
     )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one record.", (
-        F("x", 0, 10, 0, "column of the left edge pixel"),
-        F("y", 10, 10, 0, "row"),
-        F("d", 20, 7, 0, "disparity"),
-        F("eof", 27, 1, 0, "1: an end-of-frame marker, no match (x, y, d = 0): the records "
-                           "since the previous marker are one frame's (SystemSoC)"),
-        F("abort", 28, 1, 0, "with eof: that frame was cut by CTRL.restart_video or "
-                             "VIDEO.video_enable = 0: discard its records"),
+        F("x", 0, _XB, 0, "column of the left edge pixel"),
+        F("y", _XB, _YB, 0, "row"),
+        F("d", _XB + _YB, _DB, 0, "disparity"),
+        F("eof", _XB + _YB + _DB, 1, 0, "1: an end-of-frame marker, no match (x, y, d = 0): "
+                                        "the records since the previous marker are one "
+                                        "frame's (SystemSoC)"),
+        F("abort", _XB + _YB + _DB + 1, 1, 0, "with eof: that frame was cut by "
+                                              "CTRL.restart_video or VIDEO.video_enable = 0: "
+                                              "discard its records"),
         F("valid", 31, 1, 0, "1: a record; 0: the FIFO was empty"),
     )),
     Register("RESULT_LEVEL", 0x84, "ro", "Result FIFO state.", (

@@ -28,9 +28,11 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
+from golden.matcher import MAX_DISPARITY
+
 from . import regmap
 
-__all__ = ["IOBusSignature", "BusWindow", "check_window_base", "ResultLayout", "RegisterBlock",
+__all__ = ["IOBusSignature", "BusWindow", "check_window_base", "check_result_limits", "ResultLayout", "RegisterBlock",
            "status_port_name"]
 
 
@@ -84,9 +86,35 @@ class BusWindow:
                            bus.read_data.eq(Mux(self.read, value, 0))]
 
 
+def _result_layout():
+    """The RESULT register's fields below ``valid``, packed from bit 0 as the FIFO holds them."""
+    fields = [f for f in regmap.register("RESULT").fields if f.name != "valid"]
+    lsb = 0
+    for f in fields:
+        if f.lsb != lsb:
+            raise ValueError(f"RESULT.{f.name} at bit {f.lsb}: the record fields must be packed "
+                             f"from bit 0 (expected {lsb})")
+        lsb += f.width
+    return data.StructLayout({f.name: f.width for f in fields})
+
+
 #: One result record: the (x, y, d) of a matched obstacle-edge pixel, or an end-of-frame
-#: marker (``eof``; ``abort`` when the frame was cut by a restart of the video path).
-ResultLayout = data.StructLayout({"x": 10, "y": 10, "d": 7, "eof": 1, "abort": 1})
+#: marker (``eof``; ``abort`` when the frame was cut by a restart of the video path). Derived
+#: from the RESULT register (its widths from hdl/regmap.py's elaboration limits).
+ResultLayout = _result_layout()
+
+
+def check_result_limits(component, *, max_width, max_height, max_disparity=MAX_DISPARITY):
+    """Raise ``ValueError`` unless records of a pipeline elaborated for these limits fit the
+    RESULT register (``component`` is silenced, as it will never be elaborated)."""
+    for name, value, fld in (("max_width", max_width, "x"), ("max_height", max_height, "y"),
+                             ("max_disparity", max_disparity + 1, "d")):
+        limit = 1 << regmap.field("RESULT", fld).width
+        if value > limit:
+            component._MustUse__silence = True
+            shown = value - 1 if name == "max_disparity" else value
+            raise ValueError(f"{name} {shown} does not fit the RESULT register's {fld} field "
+                             f"(at most {limit - 1 if name == 'max_disparity' else limit})")
 
 
 def status_port_name(reg: regmap.Register, field: regmap.Field) -> str:

@@ -23,7 +23,7 @@ from .camera_port import CameraPort
 from .iic import IICMaster
 from .pairing import FramePairing
 from .pipeline import StereoPipeline
-from .regs import IOBusSignature, RegisterBlock, status_port_name
+from .regs import IOBusSignature, RegisterBlock, check_result_limits, status_port_name
 from .types import RGBPixel
 from .uart import UART
 
@@ -60,6 +60,7 @@ class StereoSoC(wiring.Component):
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=512, clk_div=125):
+        check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
@@ -138,6 +139,7 @@ class SystemSoC(wiring.Component):
     def __init__(self, *, max_width=1024, max_height=256, lines=240,
                  camera_fifo_depth=512, skew=1024, fifo_depth=512, clk_div=125,
                  uart_divisor=434):
+        check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth

@@ -44,6 +44,7 @@ from golden.matcher import DISPARITIES
 from sim import bench_matcher
 from station import bench as station_bench
 from sim.bench_ground import bench_section as bench_ground_section
+from sim import bench_depth
 from sim.timing import bench_timing
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
@@ -765,6 +766,7 @@ def write_markdown(path, rep):
           f"Golden pipeline / StereoBM 7, same run: {sw['golden_over_stereobm_7']}x "
           f"(target <= {SOFTWARE_RATIO_TARGET}x; <= {1e3 * SOFTWARE_SECONDS_TARGET:.0f} ms a frame: "
           f"{'met' if sw['golden_pipeline_s'] <= SOFTWARE_SECONDS_TARGET else 'not met'}).", "",
+          *bench_depth.markdown(rep["depth"]),
           *bench_matcher.markdown(rep["matcher_v2"]),
           *station_bench.markdown(rep["station"]),
           "## Provenance", ""]
@@ -811,6 +813,7 @@ def main(argv=None):
     bench.progress("ground-mask agreement on the synthetic scenes")
     rep["ground_agreement"] = ground_agreement(bench, args.quick)
     rep["ground_masks"] = bench_ground_section(bench, out)     # ground v1/v2 (sim.bench_ground)
+    rep["depth"] = bench_depth.bench_section(bench)           # z_m per scene (sim.bench_depth)
 
     bench.progress("hardware resources" + (" (skipped: --quick)" if args.quick else
                                            " (sim.synth)"))
@@ -843,7 +846,7 @@ def main(argv=None):
                    "python": platform.python_version(), "quick": args.quick,
                    "load_average_1min_at_end": round(os.getloadavg()[0], 2),
                    "seconds": round(time.monotonic() - bench.t0, 1)}
-    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "ground_masks",
+    keys = ["meta", "check", "accuracy", *pipe, *bm, "sweep", "ground_agreement", "ground_masks", "depth",
             "resources", "timing", "throughput", "sim_speed", "software_speed", "matcher_v2",
             "station", "provenance"]
     ordered = {k: rep[k] for k in keys}

@@ -161,7 +161,7 @@ def default_pair(scene, crop_spec=None):
     :mod:`sim.scenes`, default 'mixed') or the Middlebury motorcycle pair (``motorcycle``).
     Returns (left, right, ground mode, camera, true depth map or None, obstacles)."""
     from .camera import MOTORCYCLE, scene_camera
-    from .scenes import SCENES, make_scene, scene_names
+    from .scenes import SCENES, NEAR_SCENES, make_scene, scene_names
     box = _crop_box(crop_spec) if crop_spec else None
     obstacles = ()
     if scene == "motorcycle":
@@ -169,13 +169,14 @@ def default_pair(scene, crop_spec=None):
         left, right, disparity = motorcycle()
         camera, ground = MOTORCYCLE, "off"
         truth = camera.depth(np.where(np.isfinite(disparity), disparity, np.nan))
-    elif scene in scene_names():
+    elif scene in scene_names() or scene in NEAR_SCENES:
         frame = make_scene(scene, *REFERENCE_SIZE)
         left, right, ground, truth = frame.left, frame.right, "hue", frame.depth
         camera = scene_camera(*REFERENCE_SIZE)
-        obstacles = SCENES[scene].obstacles
+        obstacles = {**SCENES, **NEAR_SCENES}[scene].obstacles
     else:
-        raise CliError(f"unknown scene {scene!r}: choose from motorcycle, {', '.join(scene_names())}")
+        raise CliError(f"unknown scene {scene!r}: choose from motorcycle, "
+                       f"{', '.join(scene_names() + list(NEAR_SCENES))}")
     if box:
         left, right = _crop(left, box), _crop(right, box)
         camera = camera.cropped(box[2], box[3])
@@ -214,8 +215,11 @@ def build_params(args, flags, width, height, grey, ground_default):
     ground = GroundMode(mode).name.lower() if mode is not None else ground_default
     if grey and ground == "hue":
         raise CliError("--ground hue needs colour images; these are grayscale (use luma or off)")
+    from .scenes import scene_window
+    window = None if getattr(args, "left", None) else scene_window(getattr(args, "scene", ""))
+    base = {} if window is None else dict(d_min=window[0], d_max=window[1])  # --scene near
     try:
-        params = apply_flags(default_params(width, height, ground=ground), args, flags)
+        params = apply_flags(default_params(width, height, ground=ground, **base), args, flags)
         params.validate(max_disparity=args.max_disparity)
     except ValueError as e:
         raise CliError(str(e)) from None
@@ -494,8 +498,10 @@ def _add_pair_options(p, *, run):
         p.add_argument("--left", help="left image (default: the embedded pair)")
         p.add_argument("--right", help="right image")
         p.add_argument("--scene", default=DEFAULT_SCENE,
-                       help="embedded pair when no images are given: a synthetic scene name or "
-                            "'motorcycle' (default %(default)s)")
+                       help="embedded pair when no images are given: a synthetic scene name, "
+                            "'near' (an obstacle at 0.5 m, matched with the near window "
+                            "--d-min 117 --d-max 180 unless given) or 'motorcycle' "
+                            "(default %(default)s)")
         p.add_argument("--out", default="build/sim", help="output folder (default %(default)s)")
         p.add_argument("--camera", metavar="FILE.json",
                        help="camera model: fx, fy, cx, cy, baseline_m, height_m, tilt_deg, valid "

@@ -46,6 +46,8 @@ def render_header() -> str:
         _define("STEREO_IIC_BASEADDR", _hex(regmap.IIC_BASEADDR), "IIC controller base address"),
         _define("STEREO_ID_MAGIC", _hex(regmap.ID_MAGIC), "ID.magic value"),
         _define("STEREO_MAP_VERSION", f"{regmap.MAP_VERSION}u", "ID.version value"),
+        _define("STEREO_MATCH_SPAN", f"{regmap.DISPARITY_SPAN}u",
+                "disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN"),
         "",
     ]
     for reg in regmap.REGISTERS:

@@ -47,7 +47,8 @@ import numpy as np
 
 __all__ = [
     "Rig", "Box", "Cylinder", "Pole", "World", "StereoFrame",
-    "render", "make_scene", "scene_names", "save_frame", "SCENES",
+    "render", "make_scene", "scene_names", "scene_window", "save_frame", "SCENES", "NEAR_SCENES",
+    "NEAR_WINDOW",
     "ground_disparity", "horizon_row", "backproject", "floor_scene", "FLOOR_KINDS",
     "LABEL_SKY", "LABEL_GROUND", "LABEL_BACK_WALL", "LABEL_SIDE_WALL", "LABEL_OBSTACLE0",
 ]
@@ -746,8 +747,30 @@ SCENES: dict[str, World] = {
 }
 
 
+#: Scenes of the near field, each with the disparity window it is matched with
+#: (``d_min``, ``d_max``; golden.matcher.DISPARITY_SPAN disparities at most). Kept apart from
+#: :data:`SCENES`, which are all matched with the default window 0..63 (1.14 m and beyond).
+NEAR_SCENES: dict[str, World] = {
+    # a red box 0.5 m ahead, right of the ground reference area of both cameras (front face
+    # disparity ~129..153 px with the pitch), and a blue box at 2.5 m (~29 px) behind it
+    "near": World(obstacles=(
+        Box(0.5, -0.26, 0.6, -0.16, 0.6, color=RED, stripe_m=0.012, contrast=0.5),
+        Box(2.5, 0.3, 2.9, 0.9, 0.5, color=BLUE),
+    )),
+}
+#: The near window: d 117..180 is 0.40 m .. 0.62 m on the default rig (f B = 72 px m).
+NEAR_WINDOW = (117, 180)
+SCENE_WINDOWS: dict[str, tuple[int, int]] = {"near": NEAR_WINDOW}
+
+
 def scene_names() -> list[str]:
+    """The scenes matched with the default disparity window (:data:`SCENES`)."""
     return list(SCENES)
+
+
+def scene_window(name: str):
+    """The disparity window (d_min, d_max) scene ``name`` is meant for; None: the default."""
+    return SCENE_WINDOWS.get(name)
 
 
 def make_scene(name: str, width: int = 752, height: int = 480, brightness: float = 1.0,
@@ -756,10 +779,11 @@ def make_scene(name: str, width: int = 752, height: int = 480, brightness: float
     """Render named scene ``name`` with the default rig at ``width`` x ``height`` (focal length
     scaled with the width: 600 px at 752).  For full-resolution disparities in a small image,
     render at 752x480 and use :meth:`StereoFrame.crop`."""
-    if name not in SCENES:
-        raise ValueError(f"unknown scene {name!r}; known scenes: {', '.join(scene_names())}")
+    worlds = {**SCENES, **NEAR_SCENES}
+    if name not in worlds:
+        raise ValueError(f"unknown scene {name!r}; known scenes: {', '.join(worlds)}")
     rig = Rig.scaled(width, height)
-    return render(SCENES[name], rig, pose=pose, brightness=brightness, seed=seed,
+    return render(worlds[name], rig, pose=pose, brightness=brightness, seed=seed,
                   supersample=supersample, noise_std=noise_std)
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from .camera import disparity, match_table
 
-__all__ = ["write_outputs", "MATCH_COLUMNS", "MATCH_COLUMNS_V2"]
+__all__ = ["write_outputs", "topview_points", "MATCH_COLUMNS", "MATCH_COLUMNS_V2"]
 
 MATCH_COLUMNS = ("x", "y", "d", "cost", "z_m", "x_m", "forward_m", "valid")
 #: With matcher version 2's records: d is the subpixel disparity (decimal), conf the confidence.
@@ -244,13 +244,20 @@ def _band(centre, half, n, wrap):
     return [(lo, hi)]
 
 
+def topview_points(table, camera, params):
+    """Which matches the top view draws (valid, at most its reach ahead), and its reach in
+    metres: the far end of the disparity window, at most TOP_VIEW_REACH_M."""
+    mp = params.matcher
+    reach = min(camera.depth_range(mp.d_min, mp.d_max)[1], TOP_VIEW_REACH_M)
+    return table["valid"] & (table["forward_m"] <= reach), reach
+
+
 def _topview(path, table, camera, params, width, obstacles=()):
     plt = _pyplot()
     from matplotlib.patches import Circle, Rectangle, Wedge
     mp = params.matcher
-    near, far = camera.depth_range(mp.d_min, mp.d_max)
-    reach = min(far, TOP_VIEW_REACH_M)
-    ok = table["valid"] & (table["forward_m"] <= reach)
+    near = camera.depth_range(mp.d_min, mp.d_max)[0]
+    ok, reach = topview_points(table, camera, params)
     beyond = int((table["valid"] & (table["forward_m"] > reach)).sum())
     fwd, lat = table["forward_m"][ok], table["x_m"][ok]
     fig = plt.figure(figsize=(640 / DPI, 720 / DPI), dpi=DPI)

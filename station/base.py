@@ -15,7 +15,7 @@ turns each good packet's pose and band disparities into a map update (``station.
 Integrity: only packets whose payload passed the decoder's checks (escaping, length, XBee
 checksum, CRC-16/CCITT-FALSE, field ranges, not a duplicate sequence number) arrive here.
 As a last line, a packet whose band disparities exceed the pipeline's maximum
-(``max_disparity``, ``golden.matcher.MAX_DISPARITY``) or whose pose jumps farther than
+(``max_disparity``, the matcher's configured ``d_max``, 63 by default) or whose pose jumps farther than
 ``max_speed_mps`` allows since the last packet is dropped and counted in ``implausible``.
 
 Planning uses the inflated occupancy grid; unknown cells count as free (the robot only
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from golden.matcher import MAX_DISPARITY
+from golden.matcher import MatcherParams
 from station.camera import CameraModel, observe_bands
 from station.grid import OccupancyGrid, disc as _disc
 from station.planner import PlanResult, SacoParams, astar, sacodm
@@ -81,7 +81,9 @@ class BaseStation:
     goal_tolerance_m: float = 0.3
     band_gap_fill: int = 3
     check_reference: bool = False              # also run A* on every request (for reports)
-    max_disparity: int = MAX_DISPARITY         # the matcher's largest disparity
+    # the largest disparity the matcher is configured to search: the default window's d_max
+    # (63); a robot whose firmware also searches a near window sets that window's d_max
+    max_disparity: int = MatcherParams().d_max
     max_speed_mps: float = 1.0                 # faster pose changes are implausible
     decoder: FrameDecoder = field(default_factory=FrameDecoder)
 

@@ -46,6 +46,9 @@ def test_quick_bench_json_has_the_keys(quick_run):
     assert rep["meta"]["quick"] and "skipped" in rep["resources"]
     assert {"amaranth", "verilator"} <= set(rep["sim_speed"]["backends"])
     assert rep["throughput"]["scenes"] and rep["software_speed"]["stereobm_7_s"] > 0
+    # issue 15's depth table: every scene, the near one with its window, within 5 %
+    assert rep["depth"]["near"]["window"] == [117, 180]
+    assert all(r["ok"] for r in rep["depth"].values()), rep["depth"]
     # every figure's origin is recorded
     assert any(k.startswith("accuracy.stereobm_") for k in rep["provenance"])
 

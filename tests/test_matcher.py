@@ -20,7 +20,7 @@ from amaranth.sim import Simulator, DomainReset
 
 from golden.matcher import MatcherParams, match, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
-from hdl.matcher import Matcher, STAT_NAMES
+from hdl.matcher import Matcher
 from hdl.types import EdgePixel
 from sim.streams import Packer, frames_words, Reset, Deadlock, run_simulation
 
@@ -41,12 +41,12 @@ def shifted_texture(h, w, seed, rects=((2, 8, 6, 12, 3), (3, 20, 8, 30, 7)), bg_
     """A random-texture stereo pair: background at disparity ``bg_d``, rectangles
     ``(y0, x0, y1, x1, d)`` at their own disparity (right pixel = left pixel shifted by -d)."""
     rng = np.random.default_rng(seed)
-    tex_bg = rng.integers(0, 256, (h, w + 64)).astype(np.int64)
+    tex_bg = rng.integers(0, 256, (h, w + 128)).astype(np.int64)
     left = tex_bg[:, :w].copy()
     right = tex_bg[:, bg_d:w + bg_d].copy()
     disp = np.full((h, w), bg_d, dtype=np.int64)
     for (y0, x0, y1, x1, d) in rects:
-        tex = rng.integers(0, 256, (h, w + 64)).astype(np.int64)
+        tex = rng.integers(0, 256, (h, w + 128)).astype(np.int64)
         left[y0:y1, x0:x1] = tex[y0:y1, x0:x1]
         disp[y0:y1, x0:x1] = d
         xr0, xr1 = max(x0 - d, 0), x1 - d
@@ -108,13 +108,14 @@ async def put_words(ctx, port, words, *, rng, idle=0.0, reset=None):
 
 
 def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(), drop_mode=False,
-                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None):
+                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None, retune=None):
     """Drive ``dut`` (a :class:`Matcher`) with two word lists (``Reset`` items allowed in
     ``left_words``: they reset the whole unit) and collect ``frames`` end-of-frame markers.
 
     Each input and the output has its own seeded random generator (``idle`` / ``stall``
     probabilities). Returns a :class:`MatchRun`; raises :class:`Deadlock` when nothing comes
-    out for ``timeout`` cycles."""
+    out for ``timeout`` cycles. ``retune = (cycles, params)`` writes the disparity window of
+    ``params`` that many cycles after the start."""
     m = Module()
     m.domains.sync = cd = ClockDomain("sync")
     m.submodules.dut = dut
@@ -122,7 +123,7 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
     sim.add_clock(CLOCK, domain="sync")
     run = MatchRun()
     state = {"cycle": 0, "start": 0}
-    stat_ports = [getattr(dut, f"frame_{n}") for n in STAT_NAMES]
+    stat_ports = [getattr(dut, f"frame_{n}") for n in STAT_KEYS]
 
     async def clock_counter(ctx):
         while True:
@@ -186,7 +187,14 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
         run.dropped = ctx.get(dut.dropped)
         run.frames = ctx.get(dut.frames)
 
+    async def write_window(ctx):
+        await ctx.tick().repeat(retune[0])
+        ctx.set(dut.d_min, retune[1].d_min)
+        ctx.set(dut.d_max, retune[1].d_max)
+
     sim.add_process(clock_counter)
+    if retune is not None:
+        sim.add_testbench(write_window, background=True)
     sim.add_testbench(put_left, background=True)
     sim.add_testbench(put_right, background=True)
     sim.add_testbench(get)
@@ -303,6 +311,33 @@ def test_synthetic_stalls(window, seed, kw):
                                    lambda: small_matcher(window=window),
                                    fl, fr, params, seeds=(1, 2), idle=0.3, stall=0.3)
     assert sum(st["matches"] for _, st in expected) > 20
+
+
+def test_near_field_window():
+    # A disparity window far from 0 (d_min 40 .. d_max 90, more than the 64 candidate bits
+    # from 0) in a matcher elaborated for max_disparity 100: the scanner reads the right flags
+    # and the walker the right columns at the d_min offset, and records carry d_min + index.
+    fl, fr = synthetic_frames(2, h=12, w=120, seed=90, bg_d=45,
+                              rects=((2, 60, 8, 80, 62), (3, 95, 10, 115, 84)))
+    params = MatcherParams(d_min=40, d_max=90, window=3, widen=True)
+    runs, expected = run_and_check(
+        "near", lambda: Matcher(max_width=128, max_height=32, max_disparity=100, window=3),
+        fl, fr, params, seeds=(1,), idle=0.3, stall=0.3)
+    ds = np.concatenate([recs[:, 2] for recs, _ in expected])
+    assert (ds > 63).sum() > 20 and (ds < 50).sum() > 20
+
+
+def test_window_change_mid_frame_applies_at_the_next_frame():
+    # The window is written while frame 0 is being matched: frame 0 keeps the old one, frame 1
+    # (and its records' d = d_min + index) has the new one.
+    fl, fr = synthetic_frames(2, seed=95)
+    first, second = MatcherParams(d_max=15, window=3), MatcherParams(d_min=2, d_max=9, window=3)
+    expected = [golden_records(fl[0], fr[0], first), golden_records(fl[1], fr[1], second)]
+    assert not np.array_equal(expected[1][0], golden_records(fl[1], fr[1], first)[0])
+    run = run_matcher(small_matcher(), frames_words(EDGE, fl), frames_words(EDGE, fr),
+                      frames=2, params=first, seed=3, idle=0.2, stall=0.2, retune=(150, second))
+    assert run.frames == 2 and len(run.records[0]) > 0
+    check_frames(run, expected, "retune")
 
 
 def test_window7_default_parameters():
@@ -434,7 +469,7 @@ def test_drop_mode_without_pressure_is_exact():
 
 
 @pytest.mark.parametrize("kw, message", [
-    ({"window": 4}, "odd"), ({"window": 1}, "odd"), ({"max_disparity": 64}, "max_disparity"),
+    ({"window": 4}, "odd"), ({"window": 1}, "odd"), ({"max_disparity": 256}, "max_disparity"),
     ({"out_depth": 1}, "out_depth"), ({"queue_depth": 1}, "queue_depth"),
     ({"extra_rows": 1}, "extra_rows"),
 ])

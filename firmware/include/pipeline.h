@@ -71,6 +71,14 @@ fw_status_t pipeline_check_id(uint32_t base);
 /** Validate and write every parameter; reads each register back (FW_ERR_PARAM on a range
  *  error, nothing written; FW_ERR_ID if a read-back differs). */
 fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *cfg);
+/** Set the matcher's disparity window only (MATCH.d_min / d_max; the other MATCH fields are
+ *  kept): d_min <= d_max, d_max - d_min < STEREO_MATCH_SPAN (64), else FW_ERR_PARAM and
+ *  nothing is written. The matcher latches the window at a frame's start, so a write at any
+ *  time applies from the next frame on: a robot alternates a far window (0..63: 1.14 m and
+ *  beyond on the default rig) and a near one (117..180: 0.40 m to 0.62 m) between frames,
+ *  tagging each frame's records with the window it was written for. Reads MATCH back
+ *  (FW_ERR_ID when it differs). */
+fw_status_t pipeline_set_window(uint32_t base, uint8_t d_min, uint8_t d_max);
 /** Read every parameter register back into cfg. */
 void pipeline_read_config(uint32_t base, pipeline_config_t *cfg);
 void pipeline_read_status(uint32_t base, pipeline_status_t *st);

@@ -10,14 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           5u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           6u           /**< ID.version value */
+#define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540005u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540006u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      5u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      6u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -115,10 +116,10 @@
 #define STEREO_MATCH_OFFSET                          0x1Cu        /**< Stereo matcher (golden/matcher.py, hdl/matcher.py). */
 #define STEREO_MATCH_RESET                           0x02303F00u  /**< MATCH value after reset */
 #define STEREO_MATCH_D_MIN_SHIFT                     0u           /**< d_min: smallest disparity tried */
-#define STEREO_MATCH_D_MIN_MASK                      0x3Fu        /**< d_min mask (6 bits) */
+#define STEREO_MATCH_D_MIN_MASK                      0xFFu        /**< d_min mask (8 bits) */
 #define STEREO_MATCH_D_MIN_RESET                     0u           /**< d_min reset value */
-#define STEREO_MATCH_D_MAX_SHIFT                     8u           /**< d_max: largest disparity tried (d_min <= d_max) */
-#define STEREO_MATCH_D_MAX_MASK                      0x3F00u      /**< d_max mask (6 bits) */
+#define STEREO_MATCH_D_MAX_SHIFT                     8u           /**< d_max: largest disparity tried (d_min <= d_max <= d_min + 63: a window of at most 64 disparities) */
+#define STEREO_MATCH_D_MAX_MASK                      0xFF00u      /**< d_max mask (8 bits) */
 #define STEREO_MATCH_D_MAX_RESET                     63u          /**< d_max reset value */
 #define STEREO_MATCH_UNIQUENESS_SHIFT                16u          /**< uniqueness: margin u in 1/256 units: reject the best d if a candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d) */
 #define STEREO_MATCH_UNIQUENESS_MASK                 0x00FF0000u  /**< uniqueness mask (8 bits) */
@@ -316,13 +317,13 @@
 #define STEREO_RESULT_Y_MASK                         0x000FFC00u  /**< y mask (10 bits) */
 #define STEREO_RESULT_Y_RESET                        0u           /**< y reset value */
 #define STEREO_RESULT_D_SHIFT                        20u          /**< d: disparity */
-#define STEREO_RESULT_D_MASK                         0x07F00000u  /**< d mask (7 bits) */
+#define STEREO_RESULT_D_MASK                         0x0FF00000u  /**< d mask (8 bits) */
 #define STEREO_RESULT_D_RESET                        0u           /**< d reset value */
-#define STEREO_RESULT_EOF_SHIFT                      27u          /**< eof: 1: an end-of-frame marker, no match (x, y, d = 0): the records since the previous marker are one frame's (SystemSoC) */
-#define STEREO_RESULT_EOF_MASK                       0x08000000u  /**< eof mask (1 bits) */
+#define STEREO_RESULT_EOF_SHIFT                      28u          /**< eof: 1: an end-of-frame marker, no match (x, y, d = 0): the records since the previous marker are one frame's (SystemSoC) */
+#define STEREO_RESULT_EOF_MASK                       0x10000000u  /**< eof mask (1 bits) */
 #define STEREO_RESULT_EOF_RESET                      0u           /**< eof reset value */
-#define STEREO_RESULT_ABORT_SHIFT                    28u          /**< abort: with eof: that frame was cut by CTRL.restart_video or VIDEO.video_enable = 0: discard its records */
-#define STEREO_RESULT_ABORT_MASK                     0x10000000u  /**< abort mask (1 bits) */
+#define STEREO_RESULT_ABORT_SHIFT                    29u          /**< abort: with eof: that frame was cut by CTRL.restart_video or VIDEO.video_enable = 0: discard its records */
+#define STEREO_RESULT_ABORT_MASK                     0x20000000u  /**< abort mask (1 bits) */
 #define STEREO_RESULT_ABORT_RESET                    0u           /**< abort reset value */
 #define STEREO_RESULT_VALID_SHIFT                    31u          /**< valid: 1: a record; 0: the FIFO was empty */
 #define STEREO_RESULT_VALID_MASK                     0x80000000u  /**< valid mask (1 bits) */

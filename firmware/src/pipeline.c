@@ -51,6 +51,13 @@ fw_status_t pipeline_check_id(uint32_t base)
     return FW_OK;
 }
 
+/* v <= max, through a function so that a field as wide as its uint8_t member (MATCH.d_min,
+ * d_max) needs no always-true comparison, and a narrower map still gets its check. */
+static int fits(uint32_t v, uint32_t max)
+{
+    return v <= max;
+}
+
 static int config_valid(const pipeline_config_t *c)
 {
     return c->mode <= 2u && c->k <= FIELD_MAX(GROUND, K) && c->jnd_hue <= FIELD_MAX(GROUND, JND_HUE) &&
@@ -63,8 +70,9 @@ static int config_valid(const pipeline_config_t *c)
            c->edge_threshold <= FIELD_MAX(SOBEL, EDGE_THRESHOLD) &&
            c->ratio <= FIELD_MAX(SOBEL, RATIO) && c->nms <= 1u &&
            c->right_threshold <= FIELD_MAX(SOBEL_RIGHT, RIGHT_THRESHOLD) &&
-           c->d_min <= FIELD_MAX(MATCH, D_MIN) && c->d_max <= FIELD_MAX(MATCH, D_MAX) &&
-           c->d_min <= c->d_max && c->candidate_mode <= 1u && c->widen <= 1u &&
+           fits(c->d_min, FIELD_MAX(MATCH, D_MIN)) && fits(c->d_max, FIELD_MAX(MATCH, D_MAX)) &&
+           c->d_min <= c->d_max && (uint32_t)(c->d_max - c->d_min) < STEREO_MATCH_SPAN &&
+           c->candidate_mode <= 1u && c->widen <= 1u &&
            c->camera_mode_drop <= 1u;
 }
 
@@ -119,6 +127,20 @@ fw_status_t pipeline_configure(uint32_t base, const pipeline_config_t *c)
         }
     }
     return FW_OK;
+}
+
+fw_status_t pipeline_set_window(uint32_t base, uint8_t d_min, uint8_t d_max)
+{
+    uint32_t keep = ~(STEREO_MATCH_D_MIN_MASK | STEREO_MATCH_D_MAX_MASK);
+    uint32_t v;
+    if (d_min > d_max || (uint32_t)(d_max - d_min) >= STEREO_MATCH_SPAN ||
+        !fits(d_min, FIELD_MAX(MATCH, D_MIN)) || !fits(d_max, FIELD_MAX(MATCH, D_MAX))) {
+        return FW_ERR_PARAM;
+    }
+    v = (STEREO_ReadReg(base, STEREO_MATCH_OFFSET) & keep) |
+        STEREO_SET(MATCH, D_MIN, d_min) | STEREO_SET(MATCH, D_MAX, d_max);
+    STEREO_WriteReg(base, STEREO_MATCH_OFFSET, v);
+    return STEREO_ReadReg(base, STEREO_MATCH_OFFSET) == v ? FW_OK : FW_ERR_ID;
 }
 
 void pipeline_read_config(uint32_t base, pipeline_config_t *c)

@@ -67,6 +67,12 @@ static void test_configure_rejects_bad_values(void)
     c.d_min = 40; c.d_max = 20;
     FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
     FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], 0u); /* nothing written */
+    c.d_min = 100; c.d_max = 100 + STEREO_MATCH_SPAN; /* a window of 65 disparities */
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
+    c.d_max = 100 + STEREO_MATCH_SPAN - 1;            /* 64: the widest window */
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);
+    FWT_CHECK_EQ(STEREO_GET(MATCH, D_MAX, sim.regfile[STEREO_MATCH_OFFSET / 4]), 163u);
+    setup();
     pipeline_default_config(&c);
     c.mode = 3;
     FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_ERR_PARAM);
@@ -82,6 +88,27 @@ static uint32_t record(uint32_t x, uint32_t y, uint32_t d)
 {
     return STEREO_SET(RESULT, X, x) | STEREO_SET(RESULT, Y, y) | STEREO_SET(RESULT, D, d) |
            STEREO_SET(RESULT, VALID, 1u);
+}
+
+static void test_set_window_keeps_the_other_match_fields(void)
+{
+    pipeline_config_t c;
+    setup();
+    pipeline_default_config(&c);
+    c.uniqueness = 77; c.widen = 1;
+    FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);
+    FWT_CHECK_EQ(pipeline_set_window(STEREO_BASEADDR, 117u, 180u), FW_OK);  /* near window */
+    pipeline_read_config(STEREO_BASEADDR, &c);
+    FWT_CHECK_EQ(c.d_min, 117u);
+    FWT_CHECK_EQ(c.d_max, 180u);
+    FWT_CHECK_EQ(c.uniqueness, 77u);
+    FWT_CHECK_EQ(c.widen, 1u);
+    FWT_CHECK_EQ(pipeline_set_window(STEREO_BASEADDR, 0u, 64u), FW_ERR_PARAM); /* 65 wide */
+    FWT_CHECK_EQ(pipeline_set_window(STEREO_BASEADDR, 9u, 8u), FW_ERR_PARAM);
+    pipeline_read_config(STEREO_BASEADDR, &c);
+    FWT_CHECK_EQ(c.d_min, 117u);                                             /* unchanged */
+    FWT_CHECK_EQ(pipeline_set_window(STEREO_BASEADDR, 0u, 63u), FW_OK);    /* far window */
+    FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4] & 0xFFFFu, 0x3F00u);
 }
 
 static void test_results_and_status(void)
@@ -213,6 +240,7 @@ void suite_pipeline(void)
     FWT_RUN(test_defaults_match_reset_values);
     FWT_RUN(test_configure_roundtrip);
     FWT_RUN(test_configure_rejects_bad_values);
+    FWT_RUN(test_set_window_keeps_the_other_match_fields);
     FWT_RUN(test_results_and_status);
     FWT_RUN(test_report_builds_frame);
     FWT_RUN(test_collect_across_frames);
