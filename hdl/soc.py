@@ -18,6 +18,8 @@ from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
+from golden.ground import GroundParams
+
 from . import regmap
 from .camera_port import CameraPort
 from .iic import IICMaster
@@ -35,9 +37,7 @@ UART_BASEADDR = 0xC002_0000
 #: Register field -> pipeline port, where the names differ.
 _PARAM_PORTS = {"edge_threshold": "threshold", "candidate_mode": "mode_full",
                 "camera_mode_drop": "drop_mode"}
-_GROUND_FIELDS = ("mode", "ref_x", "ref_y", "ref_w", "ref_h", "k", "jnd_hue", "jnd_luma",
-                  "s_min", "hue_centre0", "luma_centre0", "y_lo", "y_hi", "frac", "min_support",
-                  "blend_shift", "hue_and_luma")
+_GROUND_FIELDS = tuple(name for name, _ in GroundParams.FIELDS)
 
 
 class StereoSoC(wiring.Component):
