@@ -1,11 +1,12 @@
 """Per-camera front end: colour conversion -> ground model and classifier -> Sobel vertical
-edges. The chain of the unit models, frame after frame (the ground sets learned on frame n are
-used on frame n+1)."""
+edges, and the free space per column band of the ground mask. The chain of the unit models,
+frame after frame (the ground sets learned on frame n are used on frame n+1)."""
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .color import rgb_to_yhs
+from .freespace import FreeSpaceParams
 from .ground import GroundModel, GroundParams
 from .sobel import SobelParams, sobel_edges
 
@@ -16,10 +17,12 @@ __all__ = ["FrontEndParams", "FrontEndFrame", "FrontEndModel", "frontend_frames"
 class FrontEndParams:
     ground: GroundParams = field(default_factory=GroundParams)
     sobel: SobelParams = field(default_factory=SobelParams)
+    free: FreeSpaceParams = field(default_factory=FreeSpaceParams)
 
     def validate(self):
         self.ground.validate()
         self.sobel.validate()
+        self.free.validate()
         return self
 
 
@@ -33,6 +36,7 @@ class FrontEndFrame:
     neg: np.ndarray      # sign of Gx at edges (uint8 0/1)
     status: tuple        # (learned, hue_fallback) of the ground model for this frame
     sets: tuple = None   # (hue set, luma set) the frame was classified with; None: default bands
+    free: np.ndarray = None  # free-space row per column band (uint16, golden.freespace)
 
     def output(self):
         """The front end's output stream fields."""
@@ -67,7 +71,8 @@ class FrontEndModel:
         sets = self.ground.sets
         mask = self.ground.step(y, h, s)
         edge, neg = sobel_edges(y, mask, self.params.sobel)
-        return FrontEndFrame(y, h, s, mask, edge, neg, status, sets)
+        return FrontEndFrame(y, h, s, mask, edge, neg, status, sets,
+                             self.params.free.rows(mask))
 
 
 def frontend_frames(rgb_frames, params):

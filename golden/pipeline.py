@@ -4,6 +4,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .freespace import FreeSpaceParams
 from .frontend import FrontEndParams, FrontEndFrame, FrontEndModel
 from .ground import GroundMode, GroundParams
 from .matcher import MAX_DISPARITY, MatcherParams, match, v2_params
@@ -59,19 +60,21 @@ class PipelineFrame:
 def default_params(width, height, *, ground="hue", version=1, **matcher):
     """The default pipeline configuration for a width x height pair (what the command line,
     ``make sim`` and the register reset values use): the ground reference region at the bottom
-    centre, Sobel thresholds :data:`LEFT_THRESHOLD` / :data:`RIGHT_THRESHOLD`, and the matcher
+    centre, free-space bands covering the width (:meth:`FreeSpaceParams.for_width`), Sobel
+    thresholds :data:`LEFT_THRESHOLD` / :data:`RIGHT_THRESHOLD`, and the matcher
     defaults with ``widen`` on (overridable by keyword). ``version=2``: matcher version 2
     (:func:`golden.matcher.v2_params`) with both thresholds :data:`V2_THRESHOLD`; the RTL
     implements version 1."""
     mode = {"hue": GroundMode.HUE, "luma": GroundMode.LUMA, "off": GroundMode.OFF}[ground]
     gp = GroundParams.bottom_centre(width, height, mode=mode)
+    free = FreeSpaceParams.for_width(width)
     if version == 2:
-        return PipelineParams(FrontEndParams(gp, SobelParams(threshold=V2_THRESHOLD)),
+        return PipelineParams(FrontEndParams(gp, SobelParams(threshold=V2_THRESHOLD), free),
                               v2_params(**matcher), right_threshold=V2_THRESHOLD)
     if version != 1:
         raise ValueError(f"matcher version must be 1 or 2, not {version!r}")
     matcher = {"widen": True, **matcher}
-    return PipelineParams(FrontEndParams(gp, SobelParams(threshold=LEFT_THRESHOLD)),
+    return PipelineParams(FrontEndParams(gp, SobelParams(threshold=LEFT_THRESHOLD), free),
                           MatcherParams(**matcher), right_threshold=RIGHT_THRESHOLD)
 
 

@@ -1,16 +1,17 @@
-"""Per-camera front end: colour conversion -> ground classifier -> Sobel vertical edges
-(specification: ``golden/frontend.py``)."""
+"""Per-camera front end: colour conversion -> ground classifier -> Sobel vertical edges, and the
+free space per column band of the ground mask (specification: ``golden/frontend.py``)."""
 from amaranth.hdl import Module
 from amaranth.lib import wiring, stream
 from amaranth.lib.wiring import In, Out
 
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .color import ColorConvert
+from .freespace import FreeSpace, free_config_ports
 from .ground import GroundClassifier, GroundConfig
 from .sobel import SobelEdges
 from .framing import FramedUnit
 from .skid import SkidBuffer
-from .types import RGBPixel, YHSPixel, GroundPixel, EdgePixel
+from .types import RGBPixel, YHSPixel, GroundPixel, EdgePixel, FreeBand
 
 __all__ = ["FrontEnd"]
 
@@ -26,27 +27,39 @@ class FrontEnd(FramedUnit):
         Luminance, vertical obstacle edge bit and Gx sign, one per input pixel. Latency: the
         colour converter's 7 cycles + the classifier's 3 + the Sobel unit's one line and 8
         cycles + 3 for the registered-ready buffers between the units and at the output.
+    free : Out(stream of :data:`FreeBand`)
+        Free space per column band (:class:`hdl.freespace.FreeSpace`, observing the
+        classifier's output without holding it up): 16 beats after each frame's classified
+        ``eof``. Results not taken before the next frame's are ready are lost (``free_lost``).
     ground : In(:data:`GroundConfig`)
         Ground model parameters.
     threshold, ratio, nms : In
         Sobel parameters.
+    band_w, run_r : In
+        Free-space parameters.
     ground_learned, hue_fallback : Out(1)
         The ground model's status for the current frame (:class:`hdl.ground.GroundClassifier`).
     errors, dropped : Out(16), Out(32)
         Malformed-stream counters of the first stage, which sees the camera stream; the later
         stages only see frames the first stage already cut, and resynchronise with it.
+    free_lost : Out(16)
+        Free-space result frames lost (:attr:`hdl.freespace.FreeSpace.lost`).
     """
 
     i: In(stream.Signature(RGBPixel))
     o: Out(stream.Signature(EdgePixel))
+    free: Out(stream.Signature(FreeBand))
     ground: In(GroundConfig)
     threshold: In(THRESHOLD_BITS)
     ratio: In(RATIO_BITS)
     nms: In(1)
+    band_w: free_config_ports()["band_w"]
+    run_r: free_config_ports()["run_r"]
     ground_learned: Out(1)
     hue_fallback: Out(1)
     errors: Out(16)
     dropped: Out(32)
+    free_lost: Out(16)
 
     def elaborate(self, platform):
         m = Module()
@@ -66,6 +79,13 @@ class FrontEnd(FramedUnit):
         wiring.connect(m, skid_gs.o, sobel.i)
         wiring.connect(m, sobel.o, skid_out.i)
         wiring.connect(m, skid_out.o, wiring.flipped(self.o))
+        # free space observes the classifier's transfers (it never applies backpressure)
+        m.submodules.free = free = FreeSpace(**size)
+        m.d.comb += [free.i.valid.eq(ground.o.valid & ground.o.ready),
+                     free.i.payload.eq(ground.o.payload),
+                     free.band_w.eq(self.band_w), free.run_r.eq(self.run_r),
+                     self.free_lost.eq(free.lost)]
+        wiring.connect(m, free.o, wiring.flipped(self.free))
         m.d.comb += [
             ground.config.eq(self.ground),
             sobel.threshold.eq(self.threshold), sobel.ratio.eq(self.ratio), sobel.nms.eq(self.nms),

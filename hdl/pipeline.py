@@ -8,10 +8,11 @@ from amaranth.utils import bits_for
 
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
+from .freespace import free_config_ports
 from .frontend import FrontEnd
 from .ground import GroundConfig
 from .matcher import Matcher, match_record_layout
-from .types import RGBPixel
+from .types import RGBPixel, FreeBand
 
 __all__ = ["StereoPipeline"]
 
@@ -28,7 +29,10 @@ class StereoPipeline(wiring.Component):
     o : Out(stream of :func:`~hdl.matcher.match_record_layout`)
         ``(x, y, d, cost)`` records of matched left obstacle-edge pixels in raster order, then one
         record with ``eof`` set per frame, when the ``frame_*`` statistics take that frame's values.
-    ground, threshold, ratio, nms : In
+    free_left, free_right : Out(stream of :data:`FreeBand`)
+        Each camera's free space per column band, 16 beats per frame
+        (:class:`hdl.freespace.FreeSpace`); never holds up the pixels.
+    ground, threshold, ratio, nms, band_w, run_r : In
         Front-end parameters, shared by both cameras (each learns its own ground band), except:
     right_threshold : In
         The right camera's Sobel threshold (its edges only select candidates; see
@@ -43,6 +47,8 @@ class StereoPipeline(wiring.Component):
         The matcher's counters (frames of unequal size included).
     left_ground_learned, left_hue_fallback, right_ground_learned, right_hue_fallback : Out(1)
         Ground model status of each camera's current frame.
+    left_free_lost, right_free_lost : Out(16)
+        Free-space result frames lost because ``free_*`` was not drained in time.
 
     Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
     ``window``, ``queue_depth`` (edge jobs buffered).
@@ -67,6 +73,7 @@ class StereoPipeline(wiring.Component):
             "d_max": In(bits_for(max_disparity), init=min(max_disparity, DISPARITY_SPAN - 1)),
             "uniqueness": In(8),
             "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
+            **free_config_ports(),
             "frames": Out(32),
             "match_errors": Out(16), "match_dropped": Out(32),
         }
@@ -75,6 +82,8 @@ class StereoPipeline(wiring.Component):
             ports[f"{side}_dropped"] = Out(32)
             ports[f"{side}_ground_learned"] = Out(1)
             ports[f"{side}_hue_fallback"] = Out(1)
+            ports[f"free_{side}"] = Out(stream.Signature(FreeBand))
+            ports[f"{side}_free_lost"] = Out(16)
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
         super().__init__(ports)
@@ -95,7 +104,10 @@ class StereoPipeline(wiring.Component):
                 getattr(self, f"{side}_dropped").eq(fe.dropped),
                 getattr(self, f"{side}_ground_learned").eq(fe.ground_learned),
                 getattr(self, f"{side}_hue_fallback").eq(fe.hue_fallback),
+                fe.band_w.eq(self.band_w), fe.run_r.eq(self.run_r),
+                getattr(self, f"{side}_free_lost").eq(fe.free_lost),
             ]
+            wiring.connect(m, fe.free, wiring.flipped(getattr(self, f"free_{side}")))
         wiring.connect(m, matcher.o, wiring.flipped(self.o))
         for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "drop_mode"):
             m.d.comb += getattr(matcher, name).eq(getattr(self, name))

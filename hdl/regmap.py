@@ -44,7 +44,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 6
+MAP_VERSION = 7
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -64,6 +64,7 @@ _P = default_params(REF_WIDTH, REF_HEIGHT)      # reset values: the default pipe
 _G = _P.frontend.ground
 _S = _P.frontend.sobel
 _M = _P.matcher
+_F = _P.frontend.free
 
 
 @dataclass(frozen=True)
@@ -168,6 +169,23 @@ REGISTERS: tuple[Register, ...] = (
         F("fallback_shift", 29, 3, _G.fallback_shift, "in hue fallback the luma set's threshold "
                                                       "is the luma threshold >> fallback_shift"),
     )),
+    # Free space (golden/freespace.py, hdl/freespace.py): configuration and each camera's
+    # last frame, 16 bands of 16 bits, two bands per word.
+    Register("FREE_CFG", 0x30, "rw", "Free space per column band (golden/freespace.py), both "
+             f"cameras. Reset: 16 bands across a {REF_WIDTH}-column frame.", (
+        F("band_w", 0, 11, _F.band_w, "columns per band, bands from x = 0 (16 bands)"),
+        F("run_r", 16, 8, _F.run_r, "rows an obstacle run needs (a row of a band is obstacle "
+                                    "when more than half its pixels are), at least 1"),
+    )),
+    *(Register(f"FREE_{side.upper()}_{k}", base + 4 * k, "ro",
+               f"{side.capitalize()} camera, last frame: free-space rows of bands {2 * k} and "
+               f"{2 * k + 1} (the image row of the lowest obstacle run, scanning up from the "
+               "bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF "
+               "after reset (the SoC's latch).", (
+                   F("even", 0, 16, 0, f"band {2 * k}: row, or 0xFFFF"),
+                   F("odd", 16, 16, 0, f"band {2 * k + 1}: row, or 0xFFFF"),
+               ))
+      for side, base in (("left", 0x90), ("right", 0xB0)) for k in range(8)),
     Register("FRAME_COUNT", 0x40, "ro", "Frames completed by the matcher since reset.", (
         F("frames", 0, 32, 0, "frame counter (wraps)"),
     )),
@@ -294,17 +312,18 @@ _check()
 
 
 def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None,
-                  camera_mode_drop=0) -> dict:
-    """Register values (name -> 32-bit value) for golden parameter dataclasses; None = the
-    register's reset value (``right_threshold`` None: the left's threshold when ``sobel`` is
-    given). What the firmware writes for the same settings."""
+                  camera_mode_drop=0, free=None) -> dict:
+    """Register values (name -> 32-bit value) for golden parameter dataclasses (``free``: a
+    :class:`golden.freespace.FreeSpaceParams`); None = the register's reset value
+    (``right_threshold`` None: the left's threshold when ``sobel`` is given). What the
+    firmware writes for the same settings."""
     values = {}
     if right_threshold is None and sobel is not None:
         right_threshold = sobel.threshold
     right = None if right_threshold is None else SimpleNamespace(right_threshold=right_threshold)
     src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
            "GROUND_INIT": ground, "GROUND_CLIP": ground, "GROUND_SET": ground, "SOBEL": sobel,
-           "SOBEL_RIGHT": right, "MATCH": matcher, "VIDEO": None}
+           "SOBEL_RIGHT": right, "MATCH": matcher, "VIDEO": None, "FREE_CFG": free}
     rename = {"edge_threshold": "threshold"}
     for reg in REGISTERS:
         if reg.kind != "rw":

@@ -22,6 +22,7 @@ from golden.ground import GroundParams
 
 from . import regmap
 from .camera_port import CameraPort
+from .freespace import free_space_status
 from .iic import IICMaster
 from .pairing import FramePairing
 from .pipeline import StereoPipeline
@@ -263,8 +264,8 @@ def _connect_parameters(m, regs, pipe):
 
 
 def _pipeline_status(m, regs, pipe, *, clear):
-    """The pipeline's status inputs of the register block: statistics as they are, sticky
-    counters relative to their value at the last ``clear``."""
+    """The pipeline's status inputs of the register block: statistics and free space as they
+    are, sticky counters relative to their value at the last ``clear``."""
     status = {
         "frame_count_frames": pipe.frames,
         "stat_edges_count": pipe.frame_edge_pixels,
@@ -273,6 +274,7 @@ def _pipeline_status(m, regs, pipe, *, clear):
         "stat_rejects_count": pipe.frame_rejected,
         "stat_drops_count": pipe.frame_drops,
     }
+    status.update(free_space_status(m, pipe))      # FREE_LEFT_k, FREE_RIGHT_k (latched)
     for side in ("left", "right"):
         status[f"ground_status_{side}_learned"] = getattr(pipe, f"{side}_ground_learned")
         status[f"ground_status_{side}_hue_fallback"] = getattr(pipe, f"{side}_hue_fallback")

@@ -23,7 +23,8 @@ the low bits in declaration order.
 """
 from amaranth.lib import data
 
-__all__ = ["FRAMING", "frame_layout", "RGBPixel", "YHSPixel", "GroundPixel", "EdgePixel"]
+__all__ = ["FRAMING", "frame_layout", "RGBPixel", "YHSPixel", "GroundPixel", "EdgePixel",
+           "FreeBand"]
 
 #: The framing flags every payload ends with, in this order.
 FRAMING = ("sof", "eol", "eof")
@@ -46,3 +47,6 @@ YHSPixel = frame_layout(y=8, h=8, s=8)
 GroundPixel = frame_layout(y=8, ground=1)
 #: Sobel vertical-edge unit output: luminance, edge bit and the sign of Gx (1 = negative).
 EdgePixel = frame_layout(y=8, edge=1, neg=1)
+#: Free-space unit output (hdl/freespace.py): one beat per column band, 16 per frame (band 0
+#: with ``sof``, band 15 with ``eol`` and ``eof``); ``row`` is 0xFFFF where the band has none.
+FreeBand = frame_layout(band=4, row=16)

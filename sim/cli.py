@@ -1,8 +1,8 @@
 """Command line: ``python -m sim compare|run ...`` (see shared/DESIGN.md section 5).
 
-Exit status (:mod:`sim.errors`): 0 bit-exact, 1 not bit-exact (records, pixels or statistics
-differ, or the RTL hung), 2 user error, 3 internal failure (a simulator missing or failing, or a
-bug of ours). Every error the user can cause (missing, unreadable or 16-bit image, wrong size,
+Exit status (:mod:`sim.errors`): 0 bit-exact, 1 not bit-exact (records, pixels, free space or
+statistics differ, or the RTL hung), 2 user error, 3 internal failure (a simulator missing or
+failing, or a bug of ours). Every error the user can cause (missing, unreadable or 16-bit image, wrong size,
 mismatched pair, crop outside the image, out-of-range parameter or limit, unknown unit, backend
 or scene, bad camera file, unusable ``--out``) is one line on stderr starting with ``error:``,
 found before any simulation starts.
@@ -366,7 +366,7 @@ def _run_inputs(args):
 
 def cmd_run(args, flags):
     from .camera import load_camera, depth_error
-    from .units import UNITS, Job, records_from_words
+    from .units import UNITS, Job, records_from_words, stream_mismatches
     from .raw_outputs import write_raw_outputs
     from .views import write_outputs
     progress = Progress(5)
@@ -403,11 +403,12 @@ def cmd_run(args, flags):
     last = golden[-1]
     if result is not None:
         stats_exact, stats_rtl = stats_verdict(result["status"], last.stats)
-        mismatches = result["mismatches"]
+        free_mismatches = stream_mismatches(unit.streams, job, result["words"])
+        mismatches = result["mismatches"] - free_mismatches
         cycles = result["cycles"]
     else:
-        stats_exact, stats_rtl, mismatches, cycles = False, {}, None, 0
-    bit_exact = failure is None and mismatches == 0 and stats_exact
+        stats_exact, stats_rtl, mismatches, free_mismatches, cycles = False, {}, None, None, 0
+    bit_exact = failure is None and mismatches == 0 and free_mismatches == 0 and stats_exact
     pixels = w * h
     cycles_per_frame = cycles / args.frames
     ppc = pixels / cycles_per_frame if cycles else 0.0
@@ -417,7 +418,7 @@ def cmd_run(args, flags):
         "source": source, "width": w, "height": h, "frames": args.frames,
         "ground": GroundMode(ground.mode).name.lower(), "backend": args.backend,
         "stalls": args.stalls, "bit_exact": bit_exact, "record_mismatches": mismatches,
-        "stats_match": stats_exact, "failure": failure,
+        "free_space_mismatches": free_mismatches, "stats_match": stats_exact, "failure": failure,
         "cycles": cycles, "cycles_per_frame": round(cycles_per_frame),
         "cycles_per_pixel": round(cycles_per_frame / pixels, 4) if cycles else None,
         "pixels_per_clock": round(ppc, 4),
@@ -445,10 +446,28 @@ def cmd_run(args, flags):
                           params=params, summary=summary, obstacles=obstacles)
     # Further outputs of a run hook in here: they get ``run`` (the last frame's golden data in
     # run.golden[-1], the RTL's in run.result) and write into args.out.
-    paths.update(write_raw_outputs(args.out, run.golden[-1]))   # masks, edges, free space (raw)
+    paths.update(write_raw_outputs(args.out, run.golden[-1], free=_rtl_free_space(result),
+                                   band_w=params.frontend.free.band_w))   # masks, edges, free space
     progress("done")
     _print_run(summary, last, failure, paths, args)
     return EXIT_BIT_EXACT if bit_exact else EXIT_MISMATCH
+
+
+def _rtl_free_space(result):
+    """The last frame's free-space rows of each camera from the RTL's ``free_*`` outputs
+    (``{"left": rows, "right": rows}``; a camera whose output has no whole frame is left out)."""
+    from hdl.types import FreeBand
+    from .streams import Packer, words_to_frames
+    rows = {}
+    for side in ("left", "right"):
+        try:
+            frames = words_to_frames(Packer(FreeBand), (result or {}).get("words", {})
+                                     .get(f"free_{side}", []))
+        except ValueError:
+            continue
+        if frames:
+            rows[side] = frames[-1]["row"][0]
+    return rows
 
 
 def _plain(v):
@@ -464,9 +483,11 @@ def _print_run(summary, last, failure, paths, args):
     if failure:
         verdict = f"MISMATCH (the RTL failed: {failure})"
     elif summary["bit_exact"]:
-        verdict = "BIT-EXACT (records and statistics)"
+        verdict = "BIT-EXACT (records, free space and statistics)"
     else:
         verdict = f"MISMATCH ({summary['record_mismatches']} records differ" + \
+            (f", {summary['free_space_mismatches']} free-space bands differ"
+             if summary["free_space_mismatches"] else "") + \
             ("" if summary["stats_match"] else ", statistics differ") + ")"
     print(f"pipeline RTL vs golden: {verdict}")
     print(f"  {summary['width']}x{summary['height']}, {args.frames} frame(s), backend "

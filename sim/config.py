@@ -8,9 +8,11 @@ __all__ = ["apply_config", "config_values"]
 
 
 def _scalar_values(params):
-    """(port, value) of the Sobel and matcher parameters present in ``params``."""
-    sp = getattr(params, "frontend", params).sobel
-    values = [("threshold", sp.threshold), ("ratio", sp.ratio), ("nms", int(sp.nms))]
+    """(port, value) of the Sobel, free-space and matcher parameters present in ``params``."""
+    fp = getattr(params, "frontend", params)
+    sp = fp.sobel
+    values = [("threshold", sp.threshold), ("ratio", sp.ratio), ("nms", int(sp.nms)),
+              ("band_w", fp.free.band_w), ("run_r", fp.free.run_r)]
     if hasattr(params, "right_threshold"):
         right = sp.threshold if params.right_threshold is None else params.right_threshold
         values.append(("right_threshold", right))

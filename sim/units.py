@@ -1,6 +1,6 @@
 """The units the command line and the backends know: how to build each one, feed it from a
 stereo job, and what the golden model expects. Adding a unit is one entry in :data:`UNITS`."""
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from types import SimpleNamespace
 from typing import Callable
@@ -10,10 +10,12 @@ import numpy as np
 from golden.matcher import MAX_DISPARITY
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.frontend import frontend_frames
+from golden.freespace import free_frame
 from hdl import types
 from .streams import Packer, frames_words, words_to_frames
 
-__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pixel_mismatches", "records_from_words"]
+__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pixel_mismatches", "records_from_words",
+           "stream_mismatches", "free_streams"]
 
 
 @dataclass
@@ -48,15 +50,18 @@ class Unit:
     inputs: Callable          # (job) -> list of frame dicts for port i
     expected: Callable        # (job) -> list of frame dicts expected on port o
     doc: str = ""
+    #: further output streams, one frame per input frame: port -> (payload layout, expected)
+    streams: dict = field(default_factory=dict)
 
     def words(self, job):
         return {"i": frames_words(Packer(self.in_layout), self.inputs(job))}
 
     def outputs(self, job):
-        return {"o": len(job.left)}
+        return {"o": len(job.left), **{name: len(job.left) for name in self.streams}}
 
     def mismatches(self, job, words, dut):
-        return pixel_mismatches(Packer(self.out_layout), words["o"], self.expected(job))
+        return (pixel_mismatches(Packer(self.out_layout), words["o"], self.expected(job))
+                + stream_mismatches(self.streams, job, words))
 
 
 def pixel_mismatches(packer, words, expected):
@@ -77,6 +82,20 @@ def pixel_mismatches(packer, words, expected):
             differ |= got[k][name] != arr
         bad += int(differ.sum())
     return bad
+
+
+def stream_mismatches(streams, job, words):
+    """Mismatches of the further output streams of a unit (``Unit.streams``)."""
+    return sum(pixel_mismatches(Packer(layout), words[name], expected(job))
+               for name, (layout, expected) in streams.items())
+
+
+def free_streams(**ports):
+    """``Unit.streams`` entries of free-space outputs: port -> camera (``left``, ``right``) of
+    the golden frames whose free space it carries."""
+    return {port: (types.FreeBand,
+                   lambda job, side=side: [free_frame(getattr(g, side).free) for g in job.golden])
+            for port, side in ports.items()}
 
 
 def _size(job):
@@ -141,20 +160,22 @@ class StereoUnit:
     inputs: Callable            # (job, side) -> list of frame dicts
     doc: str = ""
     stereo: bool = True
+    streams: dict = field(default_factory=dict)     # as Unit.streams
 
     def words(self, job):
         return {side: frames_words(Packer(self.in_layout), self.inputs(job, side))
                 for side in ("left", "right")}
 
     def outputs(self, job):
-        return {"o": len(job.left)}
+        return {"o": len(job.left), **{name: len(job.left) for name in self.streams}}
 
     def expected(self, job):
         return [g.records for g in job.golden]
 
     def mismatches(self, job, words, dut):
         layout = dut.o.payload.shape()
-        return record_mismatches(records_from_words(layout, words["o"]), self.expected(job))
+        return (record_mismatches(records_from_words(layout, words["o"]), self.expected(job))
+                + stream_mismatches(self.streams, job, words))
 
 
 def _matcher(job):
@@ -174,6 +195,15 @@ def _frontend(job):
     return FrontEnd(**_size(job))
 
 
+def _freespace(job):
+    from hdl.freespace import FreeSpace
+    return FreeSpace(**_size(job))
+
+
+def _ground_out(job):
+    return [dict(y=g.left.y, ground=g.left.ground) for g in job.golden]
+
+
 UNITS = {
     "color": Unit("color", False, _color, types.RGBPixel, types.YHSPixel,
                   lambda job: [rgb(f) for f in job.left],
@@ -183,18 +213,21 @@ UNITS = {
                    lambda job: [dict(y=g.left.y, h=g.left.h, s=g.left.s) for g in job.golden],
                    lambda job: [dict(y=g.left.y, ground=g.left.ground) for g in job.golden],
                    "ground model and classifier"),
-    "sobel": Unit("sobel", False, _sobel, types.GroundPixel, types.EdgePixel,
-                  lambda job: [dict(y=g.left.y, ground=g.left.ground) for g in job.golden],
+    "sobel": Unit("sobel", False, _sobel, types.GroundPixel, types.EdgePixel, _ground_out,
                   lambda job: [g.left.output() for g in job.golden],
                   "Sobel vertical-edge unit"),
+    "freespace": Unit("freespace", False, _freespace, types.GroundPixel, types.FreeBand,
+                      _ground_out, lambda job: [free_frame(g.left.free) for g in job.golden],
+                      "free space per column band of the ground mask"),
     "frontend": Unit("frontend", False, _frontend, types.RGBPixel, types.EdgePixel,
                      lambda job: [rgb(f) for f in job.left],
                      lambda job: [g.left.output() for g in job.golden],
-                     "colour -> ground -> Sobel, one camera"),
+                     "colour -> ground -> Sobel, one camera; free space", free_streams(free="left")),
     "sad": StereoUnit("sad", _matcher, types.EdgePixel,
                       lambda job, side: [getattr(g, side).output() for g in job.golden],
                       "SAD block matcher on the golden front ends' outputs"),
     "pipeline": StereoUnit("pipeline", _pipeline, types.RGBPixel,
                            lambda job, side: [rgb(f) for f in getattr(job, side)],
-                           "the whole stereo pipeline"),
+                           "the whole stereo pipeline",
+                           streams=free_streams(free_left="left", free_right="right")),
 }

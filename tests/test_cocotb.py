@@ -1,6 +1,6 @@
 """cocotb on the exported Verilog (Verilator, Icarus) and the generated VHDL (GHDL, VHDL-2008
-and VHDL-93): every registered design against its golden model, small crops, idle cycles and
-backpressure crossed. A missing simulator fails with one line naming what to install."""
+and VHDL-93): every registered design against its golden model, small crops over three frames
+(the ground model learns and blends), idle cycles and backpressure crossed. A missing simulator fails with one line naming what to install."""
 import pytest
 
 from sim.cocotb_tb import SimulatorMissing, check_simulator, run_cocotb
@@ -13,7 +13,7 @@ BACKENDS = [("verilator", "08"), ("icarus", "08"), ("ghdl", "08"), ("ghdl", "93"
 @pytest.mark.parametrize("name", sorted(DESIGNS))
 def test_design_matches_golden(name, simulator, std):
     try:
-        results = run_cocotb(name, simulator, width=16, height=8, frames=2, seed=1,
+        results = run_cocotb(name, simulator, width=16, height=8, frames=3, seed=1,
                              idle=(0.0, 0.3), stall=(0.0, 0.4), vhdl_std=std)
     except SimulatorMissing as e:
         pytest.fail(str(e), pytrace=False)

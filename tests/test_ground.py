@@ -328,8 +328,8 @@ def test_raw_outputs(tmp_path):
     assert np.array_equal(ground == 255, frame.left.ground == 1)
     assert np.array_equal(np.array(Image.open(paths["raw_left_edges"])) == 255, frame.left.edge == 1)
     rows = list(csv.DictReader(open(paths["raw_free_space"])))
-    assert [r["camera"] for r in rows].count("left") == 3       # 96 columns, bands of 47
-    want = free_space(frame.left.ground)
+    assert [r["camera"] for r in rows].count("left") == 16      # 96 columns, bands of 6
+    want = free_space(frame.left.ground, band_w=6)
     assert [r["obstacle_row"] for r in rows[:3]] == ["" if v == FREE_NONE else str(v)
                                                      for v in want[:3]]
 

@@ -8,6 +8,8 @@ from golden.pipeline import default_params
 from sim.backends import run_unit
 from sim.data import motorcycle, crop
 from sim.units import UNITS, Job, records_from_words
+from sim.streams import Packer, words_to_frames
+from hdl.types import FreeBand
 
 STATS = {"edge_pixels": "frame_edge_pixels", "sad_evaluations": "frame_sad_evaluations",
          "matches": "frame_matches", "rejected": "frame_rejected", "drops": "frame_drops",
@@ -21,6 +23,11 @@ def check(job, backend, stall_seed=None):
     assert len(got) == len(job.left)
     for k, (g, frame) in enumerate(zip(got, job.golden)):
         assert np.array_equal(g, frame.records), f"frame {k}: records differ"
+    for side in ("left", "right"):          # free space per column band, every frame
+        free = words_to_frames(Packer(FreeBand), result["words"][f"free_{side}"])
+        assert [f["row"][0].tolist() for f in free] == \
+            [getattr(g, side).free.tolist() for g in job.golden], side
+    assert result["mismatches"] == 0
     if result["status"]:
         last = job.golden[-1].stats
         assert {k: result["status"][v] for k, v in STATS.items()} == \

@@ -3,6 +3,7 @@ read the results out of the FIFO over the MCS I/O bus; compare with the golden p
 from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
+from golden.freespace import FreeSpaceParams
 from golden.frontend import FrontEndParams
 from golden.ground import GroundParams, GroundMode
 from golden.matcher import MatcherParams
@@ -33,7 +34,7 @@ def test_configure_stream_and_read_results_over_the_bus():
     lf, rf = crop(left, *box), crop(right, *box)
     params = PipelineParams(
         FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64)),
+                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
         MatcherParams(d_max=15, window=7))
     golden = pipeline_frames([lf, lf], [rf, rf], params)
     assert sum(len(g.records) for g in golden) > 0
@@ -48,7 +49,8 @@ def test_configure_stream_and_read_results_over_the_bus():
     state = {"configured": False, "results": [], "stats": {}, "errors": {}}
 
     async def cpu(ctx):
-        regs = regmap.encode_params(params.frontend.ground, params.frontend.sobel, params.matcher)
+        regs = regmap.encode_params(params.frontend.ground, params.frontend.sobel, params.matcher,
+                                    free=params.frontend.free)
         for name, value in regs.items():
             await io_write(ctx, soc.bus, addr(name), value)
         assert await io_read(ctx, soc.bus, addr("MATCH")) == regs["MATCH"]
@@ -70,6 +72,10 @@ def test_configure_stream_and_read_results_over_the_bus():
             state["stats"][reg] = await io_read(ctx, soc.bus, addr(reg))
         for reg in ("ERR_LEFT", "ERR_RIGHT", "ERR_MATCH"):
             state["errors"][reg] = await io_read(ctx, soc.bus, addr(reg))
+        for side in ("left", "right"):      # FREE_<side>_k: bands 2k (even), 2k + 1 (odd)
+            words = [fields(f"FREE_{side.upper()}_{k}", await io_read(
+                ctx, soc.bus, addr(f"FREE_{side.upper()}_{k}"))) for k in range(8)]
+            state[f"free_{side}"] = [w[h] for w in words for h in ("even", "odd")]
         level = fields("RESULT_LEVEL", await io_read(ctx, soc.bus, addr("RESULT_LEVEL")))
         state["overflow"] = level["overflow"]
 
@@ -94,3 +100,7 @@ def test_configure_stream_and_read_results_over_the_bus():
                               "STAT_DROPS": st["drops"]}
     assert state["errors"] == {"ERR_LEFT": 0, "ERR_RIGHT": 0, "ERR_MATCH": 0}
     assert state["overflow"] == 0
+    # 40 columns in bands of 6: bands 0-6, the rest none (0xFFFF)
+    for side in ("left", "right"):
+        assert state[f"free_{side}"] == getattr(golden[-1], side).free.tolist(), side
+    assert state["free_left"][6] != 0xFFFF and state["free_left"][7:] == [0xFFFF] * 9

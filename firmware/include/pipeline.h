@@ -64,6 +64,16 @@ typedef struct {
     uint8_t right_ground_learned, right_hue_fallback;
 } pipeline_status_t;
 
+/** Free space per column band (FREE_CFG, FREE_LEFT_k, FREE_RIGHT_k; golden/freespace.py):
+ *  per band, the image row of the lowest obstacle run, scanning up from the bottom row. */
+#define PIPELINE_FREE_BANDS 16u
+#define PIPELINE_FREE_NONE  0xFFFFu /**< the band has no obstacle run, or lies past the image */
+
+typedef struct {
+    uint16_t left[PIPELINE_FREE_BANDS];  /**< left camera, band 0 (x from 0) first */
+    uint16_t right[PIPELINE_FREE_BANDS]; /**< right camera */
+} pipeline_free_space_t;
+
 /** The register block's reset values (from the generated header). */
 void pipeline_default_config(pipeline_config_t *cfg);
 /** Check the ID register (magic and map version). */
@@ -84,6 +94,14 @@ void pipeline_read_config(uint32_t base, pipeline_config_t *cfg);
 void pipeline_read_status(uint32_t base, pipeline_status_t *st);
 /** Pop up to `max` results; returns how many were stored. Stops at an empty FIFO. */
 uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t max);
+/** Write FREE_CFG: band_w columns per band (1..2047), obstacle runs of run_r rows (1..255).
+ *  FW_ERR_PARAM (nothing written) out of range; FW_ERR_ID if the read-back differs. */
+fw_status_t pipeline_configure_free_space(uint32_t base, uint16_t band_w, uint8_t run_r);
+/** Read both cameras' free space of the last frame (16 + 16 rows, PIPELINE_FREE_NONE where a
+ *  band has none). Call it once a frame's end-of-frame marker has been read: the registers
+ *  change only in the 16 cycles after each frame of the front ends, which come before the
+ *  matcher's marker of that frame. FW_ERR_PARAM on NULL. */
+fw_status_t pipeline_read_free_space(uint32_t base, pipeline_free_space_t *fs);
 void pipeline_clear_errors(uint32_t base);
 /** Enable (1) or disable (0, held in reset) the video path: cameras, pairing, pipeline. */
 void pipeline_video_enable(uint32_t base, uint32_t on);

@@ -237,6 +237,43 @@ uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t ma
     return n;
 }
 
+fw_status_t pipeline_configure_free_space(uint32_t base, uint16_t band_w, uint8_t run_r)
+{
+    uint32_t v;
+    if (band_w < 1u || band_w > FIELD_MAX(FREE_CFG, BAND_W) || run_r < 1u) {
+        return FW_ERR_PARAM;
+    }
+    v = STEREO_SET(FREE_CFG, BAND_W, band_w) | STEREO_SET(FREE_CFG, RUN_R, run_r);
+    STEREO_WriteReg(base, STEREO_FREE_CFG_OFFSET, v);
+    return STEREO_ReadReg(base, STEREO_FREE_CFG_OFFSET) == v ? FW_OK : FW_ERR_ID;
+}
+
+fw_status_t pipeline_read_free_space(uint32_t base, pipeline_free_space_t *fs)
+{
+    /* two bands per word: band 2k in EVEN, 2k + 1 in ODD (the same field layout in every word) */
+    static const uint32_t left[PIPELINE_FREE_BANDS / 2u] = {
+        STEREO_FREE_LEFT_0_OFFSET, STEREO_FREE_LEFT_1_OFFSET, STEREO_FREE_LEFT_2_OFFSET,
+        STEREO_FREE_LEFT_3_OFFSET, STEREO_FREE_LEFT_4_OFFSET, STEREO_FREE_LEFT_5_OFFSET,
+        STEREO_FREE_LEFT_6_OFFSET, STEREO_FREE_LEFT_7_OFFSET};
+    static const uint32_t right[PIPELINE_FREE_BANDS / 2u] = {
+        STEREO_FREE_RIGHT_0_OFFSET, STEREO_FREE_RIGHT_1_OFFSET, STEREO_FREE_RIGHT_2_OFFSET,
+        STEREO_FREE_RIGHT_3_OFFSET, STEREO_FREE_RIGHT_4_OFFSET, STEREO_FREE_RIGHT_5_OFFSET,
+        STEREO_FREE_RIGHT_6_OFFSET, STEREO_FREE_RIGHT_7_OFFSET};
+    uint32_t k;
+    if (fs == NULL) {
+        return FW_ERR_PARAM;
+    }
+    for (k = 0u; k < ARRAY_SIZE(left); k++) {
+        uint32_t v = STEREO_ReadReg(base, left[k]);
+        fs->left[2u * k] = (uint16_t)STEREO_GET(FREE_LEFT_0, EVEN, v);
+        fs->left[2u * k + 1u] = (uint16_t)STEREO_GET(FREE_LEFT_0, ODD, v);
+        v = STEREO_ReadReg(base, right[k]);
+        fs->right[2u * k] = (uint16_t)STEREO_GET(FREE_RIGHT_0, EVEN, v);
+        fs->right[2u * k + 1u] = (uint16_t)STEREO_GET(FREE_RIGHT_0, ODD, v);
+    }
+    return FW_OK;
+}
+
 void pipeline_clear_errors(uint32_t base)
 {
     STEREO_WriteReg(base, STEREO_CTRL_OFFSET, STEREO_SET(CTRL, CLEAR_ERRORS, 1u));

@@ -232,6 +232,34 @@ static void test_collect_across_frames(void)
     FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 0);
 }
 
+static void test_free_space(void)
+{
+    pipeline_free_space_t fs;
+    uint32_t k;
+    setup();
+    FWT_CHECK_EQ(pipeline_configure_free_space(STEREO_BASEADDR, 0u, 4u), FW_ERR_PARAM);
+    FWT_CHECK_EQ(pipeline_configure_free_space(STEREO_BASEADDR, 2048u, 4u), FW_ERR_PARAM);
+    FWT_CHECK_EQ(pipeline_configure_free_space(STEREO_BASEADDR, 45u, 0u), FW_ERR_PARAM);
+    FWT_CHECK_EQ(sim.regfile[STEREO_FREE_CFG_OFFSET / 4], 0u);     /* nothing written */
+    FWT_CHECK_EQ(pipeline_configure_free_space(STEREO_BASEADDR, 2047u, 255u), FW_OK);
+    FWT_CHECK_EQ(sim.regfile[STEREO_FREE_CFG_OFFSET / 4], 0x00FF07FFu);
+    FWT_CHECK_EQ(pipeline_configure_free_space(STEREO_BASEADDR, STEREO_FREE_CFG_BAND_W_RESET,
+                                               STEREO_FREE_CFG_RUN_R_RESET), FW_OK);
+    FWT_CHECK_EQ(sim.regfile[STEREO_FREE_CFG_OFFSET / 4], STEREO_FREE_CFG_RESET);
+    /* left band b at row 100 + b, right band b at 200 + b; bands 14, 15 of the right: none */
+    for (k = 0u; k < 8u; k++) {
+        sim.regfile[STEREO_FREE_LEFT_0_OFFSET / 4 + k] = (100u + 2u * k) | (101u + 2u * k) << 16;
+        sim.regfile[STEREO_FREE_RIGHT_0_OFFSET / 4 + k] = (200u + 2u * k) | (201u + 2u * k) << 16;
+    }
+    sim.regfile[STEREO_FREE_RIGHT_7_OFFSET / 4] = 0xFFFFFFFFu;
+    FWT_CHECK_EQ(pipeline_read_free_space(STEREO_BASEADDR, NULL), FW_ERR_PARAM);
+    FWT_CHECK_EQ(pipeline_read_free_space(STEREO_BASEADDR, &fs), FW_OK);
+    for (k = 0u; k < PIPELINE_FREE_BANDS; k++) {
+        FWT_CHECK_EQ(fs.left[k], 100u + k);
+        FWT_CHECK_EQ(fs.right[k], k < 14u ? 200u + k : PIPELINE_FREE_NONE);
+    }
+}
+
 void suite_pipeline(void)
 {
     FWT_RUN(test_id);
@@ -244,4 +272,5 @@ void suite_pipeline(void)
     FWT_RUN(test_results_and_status);
     FWT_RUN(test_report_builds_frame);
     FWT_RUN(test_collect_across_frames);
+    FWT_RUN(test_free_space);
 }

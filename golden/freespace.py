@@ -1,0 +1,59 @@
+"""Free space per column band: the parameters of the free-space unit (``hdl/freespace.py``) and
+the frames it emits. The rule itself is :func:`golden.ground.free_space`.
+
+For each of :data:`FREE_BANDS` column bands (``band_w`` columns each, from x = 0; bands that
+start past the image have none), the image row of the lowest obstacle run of at least ``run_r``
+rows, scanning up from the bottom row, as the run's bottom row: how far the robot can drive in
+that direction before something blocks it. A row of a band is an obstacle row when more than
+half of that band's pixels in the row are obstacle (ground mask 0). :data:`FREE_NONE` (0xFFFF):
+the band has no such run (free up to the top of the image) or lies past the image.
+
+Output stream of the unit, one frame per input frame: :data:`FREE_BANDS` beats ``(band, row)``,
+band 0 first with ``sof``, band 15 last with ``eol`` and ``eof`` (a 1 x 16 frame), emitted after
+the input frame's ``eof``.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .ground import FREE_BANDS, FREE_NONE, FREE_BAND_W, FREE_RUN_R, free_space
+
+__all__ = ["FreeSpaceParams", "FREE_BANDS", "FREE_NONE", "free_space", "free_frame"]
+
+
+@dataclass(frozen=True)
+class FreeSpaceParams:
+    band_w: int = field(default=FREE_BAND_W, metadata=dict(
+        range=(1, 2047), unit="px",
+        help="free space: columns per band (16 bands from x = 0)"))
+    run_r: int = field(default=FREE_RUN_R, metadata=dict(
+        range=(1, 255), unit="rows",
+        help="free space: rows of obstacle (more than half of a band's pixels) a run needs"))
+
+    #: (field, bits) of every run-time parameter: the register widths of the RTL.
+    FIELDS = (("band_w", 11), ("run_r", 8))
+
+    def validate(self):
+        for name, bits in self.FIELDS:
+            value = getattr(self, name)
+            lo, hi = dict(self.__dataclass_fields__[name].metadata)["range"]
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
+                    or not lo <= value <= hi:
+                raise ValueError(f"free-space parameter {name}={value!r} outside {lo}..{hi}")
+        return self
+
+    @classmethod
+    def for_width(cls, width, **kwargs):
+        """Parameters whose 16 bands cover a ``width``-column image: ``band_w`` =
+        ceil(width / 16) (47 at 752, 45 at 720), at least 1."""
+        return cls(band_w=max(1, -(-width // FREE_BANDS)), **kwargs).validate()
+
+    def rows(self, mask):
+        """The :data:`FREE_BANDS` free-space rows (uint16) of one ground mask."""
+        return free_space(mask, self.band_w, self.run_r)
+
+
+def free_frame(rows):
+    """The unit's output frame for one frame's rows: fields ``band`` and ``row``, 1 x 16."""
+    rows = np.asarray(rows, dtype=np.int64).reshape(1, FREE_BANDS)
+    return dict(band=np.arange(FREE_BANDS, dtype=np.int64)[None, :], row=rows)
