@@ -307,7 +307,7 @@ class GroundModel:
     mono scenes (speckled grey floor, grey input, so hue fallback) agreement with the truth
     goes from 0.94 to 0.969. The neighbour rule is not used where one attribute is reliable
     per pixel: in luminance mode (mono cameras, the strict set) it spreads every floor speckle
-    outside the set three wide (mono scenes: 0.985 to 0.969 agreement), and with a reliable hue
+    outside the set three wide (mono scenes: 0.982 to 0.969 agreement), and with a reliable hue
     it would do the same with every misclassified pixel (the rug scene: 0.969 to 0.914 recall).
 
     Why ``min_support`` = 256 by default: the model's hue histogram needs enough reliable samples
