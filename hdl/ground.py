@@ -24,10 +24,10 @@ CLEAR_CYCLES = 520
 
 def search_cycles(jnd_hue, jnd_luma):
     """Cycles of the search after the beat that ends the reference region: three for the last
-    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 11 to compute
-    the thresholds (an 8-cycle shift-and-add product), the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
+    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 12 to compute
+    the thresholds (an 8-cycle shift-and-add product and the join of its halves), the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
     256 x (2 jnd_luma + 1)), its 6-stage pipeline and the hand-over."""
-    return 3 + 512 + 5 + 11 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
+    return 3 + 512 + 5 + 12 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
 class GroundClassifier(FramedUnit):
@@ -41,7 +41,7 @@ class GroundClassifier(FramedUnit):
         Converted pixels. Backpressure from ``o`` goes straight through. ``ready`` is also low
         while the search runs *and* the next pixels could belong to a reference region: after
         the frame's last region row when the region reaches the frame's bottom
-        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,289 at
+        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,290 at
         the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
         is abandoned before its search (its counts are cleared first).
     o : Out(stream of :data:`GroundPixel`)
@@ -222,15 +222,23 @@ class GroundClassifier(FramedUnit):
         a_run = Signal(); a_idx = Signal(range(HIST_WORDS + 1))
         a_v1 = Signal(); a_addr1 = Signal(9)                       # read issued
         a_v2 = Signal(); a_addr2 = Signal(9); a_word2 = Signal(W)  # data registered
-        a_v3 = Signal(); a_addr3 = Signal(9); a_t3 = Signal(24); a_n3 = Signal(HIST_BITS)
-        a_m3 = Signal(HIST_BITS)
-        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(25); a_n4 = Signal(HIST_BITS)
+        # the blend ((m << s) - m + n) >> s as m + ((n - m) >> s) (equal: m << s is a multiple
+        # of 2^s), in 16-bit arithmetic: the result lies between m and n
+        a_v3 = Signal(); a_addr3 = Signal(9); a_n3 = Signal(HIST_BITS); a_m3 = Signal(HIST_BITS)
+        a_diff3 = Signal(HIST_BITS); a_neg3 = Signal()             # n - m mod 2^16, n < m
+        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(HIST_BITS); a_n4 = Signal(HIST_BITS)
         a_m4 = Signal(HIST_BITS)
         a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
-        sup_h = Signal(24); sup_y = Signal(24)
+        # Wide sums as a 16-bit low half and a count of its carries (sum = low + 2^16 carries):
+        # no carry chain longer than 16 bits. Supports: 8-bit carry counts (<= 256 words).
+        sup_h_lo = Signal(16); sup_h_hi = Signal(8); sup_y_lo = Signal(16); sup_y_hi = Signal(8)
+        sup_h = Cat(sup_h_lo, sup_h_hi); sup_y = Cat(sup_y_lo, sup_y_hi)
         t_step = Signal(3)                                         # threshold computation
         thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24); f_left = Signal(3)
-        prod_h = Signal(32); prod_y = Signal(32)
+        # products support x frac: low 16 bits with a carry count, high 16 bits summed apart
+        # and joined with the carries in one more step
+        prod_h_lo = Signal(16); prod_h_hi = Signal(16); prod_h_c = Signal(4)
+        prod_y_lo = Signal(16); prod_y_hi = Signal(16); prod_y_c = Signal(4)
         b_run = Signal(); b_luma = Signal()
         b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
         b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
@@ -238,8 +246,9 @@ class GroundClassifier(FramedUnit):
         b_bin1 = Signal(8); b_luma1 = Signal()
         b_v2 = Signal(); b_first2 = Signal(); b_last2 = Signal(); b_bin2 = Signal(8)
         b_luma2 = Signal(); b_data2 = Signal(HIST_BITS)
-        acc = Signal(24)
-        b_v3 = Signal(); b_sum3 = Signal(24); b_bin3 = Signal(8); b_luma3 = Signal()
+        # window sum (<= 31 bins of 16 bits): low 16 bits and a 5-bit carry count
+        acc_lo = Signal(16); acc_c = Signal(5)
+        b_v3 = Signal(); b_sum3 = Signal(21); b_bin3 = Signal(8); b_luma3 = Signal()
         b_v4 = Signal(); b_set4 = Signal(); b_bin4 = Signal(8); b_luma4 = Signal()
         drain = Signal(4)
         final = Signal()
@@ -272,7 +281,8 @@ class GroundClassifier(FramedUnit):
         with m.Elif(wait != 0):
             m.d.sync += wait.eq(wait - 1)
             with m.If(wait == 1):
-                m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h.eq(0), sup_y.eq(0)]
+                m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h_lo.eq(0), sup_h_hi.eq(0),
+                             sup_y_lo.eq(0), sup_y_hi.eq(0)]
         # pass A pipeline
         with m.If(a_run):
             m.d.sync += a_idx.eq(a_idx + 1)
@@ -284,50 +294,61 @@ class GroundClassifier(FramedUnit):
             a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(rd.data),
             a_v3.eq(a_v2), a_addr3.eq(a_addr2), a_n3.eq(a_word2[:HIST_BITS]),
             a_m3.eq(a_word2[HIST_BITS:]),
-            a_t3.eq((a_word2[HIST_BITS:] << sh) - a_word2[HIST_BITS:]),
-            a_v4.eq(a_v3), a_addr4.eq(a_addr3), a_u4.eq(a_t3 + a_n3), a_n4.eq(a_n3),
-            a_m4.eq(a_m3),
+            a_diff3.eq(a_word2[:HIST_BITS] - a_word2[HIST_BITS:]),
+            a_neg3.eq(a_word2[:HIST_BITS] < a_word2[HIST_BITS:]),
+            a_v4.eq(a_v3), a_addr4.eq(a_addr3),
+            a_u4.eq(a_m3 + (Cat(a_diff3, a_neg3).as_signed() >> sh)[:HIST_BITS]),
+            a_n4.eq(a_n3), a_m4.eq(a_m3),
             a_v5.eq(a_v4), a_addr5.eq(a_addr4),
-            a_out5.eq(Mux(commit, Mux(model_valid, (a_u4 >> sh)[:HIST_BITS], a_n4),
-                          Mux(model_valid, a_m4, 0))),
+            a_out5.eq(Mux(commit, Mux(model_valid, a_u4, a_n4), Mux(model_valid, a_m4, 0))),
         ]
         with m.If(a_v5 & commit):
             with m.If(a_addr5 < HUE_STEPS):
-                m.d.sync += sup_h.eq(sup_h + a_out5)
+                s_h = sup_h_lo + a_out5
+                m.d.sync += [sup_h_lo.eq(s_h[:16]), sup_h_hi.eq(sup_h_hi + s_h[16])]
             with m.If(a_addr5[8]):
-                m.d.sync += sup_y.eq(sup_y + a_out5)
+                s_y = sup_y_lo + a_out5
+                m.d.sync += [sup_y_lo.eq(s_y[:16]), sup_y_hi.eq(sup_y_hi + s_y[16])]
         a_done = Signal()
         m.d.comb += a_done.eq(a_v5 & ~a_v4 & busy)
         m_sup_h = Signal(32); m_sup_y = Signal(32); m_frac = Signal(8); m_left = Signal(4)
         with m.If(a_done):
             with m.If(commit):
-                m.d.sync += [t_step.eq(1), model_valid.eq(1), prod_h.eq(0), prod_y.eq(0),
-                             m_left.eq(8), m_frac.eq(cfg.frac)]
+                m.d.sync += [t_step.eq(1), model_valid.eq(1), m_left.eq(8), m_frac.eq(cfg.frac),
+                             prod_h_lo.eq(0), prod_h_hi.eq(0), prod_h_c.eq(0),
+                             prod_y_lo.eq(0), prod_y_hi.eq(0), prod_y_c.eq(0)]
             with m.Else():
                 m.d.sync += busy.eq(0)
         # thresholds: max(1, support * frac >> 10), the product by shift and add over 8 cycles
-        # (once per frame: no multiplier), and the hue fallback
+        # (once per frame: no multiplier), the high halves joined with the low halves' carries
+        # in one more step, and the hue fallback
         with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
-            m.d.sync += t_step.eq(Mux(t_step == 4, 0, t_step + 1))
+            m.d.sync += t_step.eq(Mux(t_step == 5, 0, t_step + 1))
         with m.If(t_step == 1):
             m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1),
                          m_sup_h.eq(m_sup_h << 1), m_sup_y.eq(m_sup_y << 1),
-                         fallback_next.eq(sup_h < cfg.min_support)]
+                         fallback_next.eq((sup_h_hi == 0) & (sup_h_lo < cfg.min_support))]
             with m.If(m_left == 8):
                 m.d.sync += [m_sup_h.eq(sup_h << 1), m_sup_y.eq(sup_y << 1)]
             with m.If(m_frac[0]):
-                m.d.sync += [prod_h.eq(prod_h + Mux(m_left == 8, sup_h, m_sup_h)),
-                             prod_y.eq(prod_y + Mux(m_left == 8, sup_y, m_sup_y))]
+                for lo, hi, c, term in ((prod_h_lo, prod_h_hi, prod_h_c, Mux(m_left == 8, sup_h, m_sup_h)),
+                                        (prod_y_lo, prod_y_hi, prod_y_c, Mux(m_left == 8, sup_y, m_sup_y))):
+                    s_lo = lo + term[:16]
+                    m.d.sync += [lo.eq(s_lo[:16]), c.eq(c + s_lo[16]),
+                                 hi.eq(hi + term[16:32])]
         with m.If(t_step == 2):
-            m.d.sync += [thr_h.eq(prod_h >> FRAC_SHIFT), thr_y.eq(prod_y >> FRAC_SHIFT)]
+            m.d.sync += [prod_h_hi.eq(prod_h_hi + prod_h_c), prod_y_hi.eq(prod_y_hi + prod_y_c)]
         with m.If(t_step == 3):
+            m.d.sync += [thr_h.eq(Cat(prod_h_lo, prod_h_hi) >> FRAC_SHIFT),
+                         thr_y.eq(Cat(prod_y_lo, prod_y_hi) >> FRAC_SHIFT)]
+        with m.If(t_step == 4):
             m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y)),
                          thr_f.eq(thr_y), f_left.eq(cfg.fallback_shift)]
         # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
         # 192 cycles), taken as the luma threshold when the luma bins start
         with m.Elif(f_left != 0):
             m.d.sync += [thr_f.eq(thr_f >> 1), f_left.eq(f_left - 1)]
-        with m.If(t_step == 4):
+        with m.If(t_step == 5):
             hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
             m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
                          b_addr.eq(hue_start), b_start.eq(hue_start)]
@@ -358,14 +379,18 @@ class GroundClassifier(FramedUnit):
             b_v2.eq(b_v1), b_first2.eq(b_first1), b_last2.eq(b_last1), b_bin2.eq(b_bin1),
             b_luma2.eq(b_luma1), b_data2.eq(Mux(b_zero1, 0, rd.data[HIST_BITS:])),
         ]
-        acc_next = Signal(24)
-        m.d.comb += acc_next.eq(Mux(b_first2, b_data2, acc + b_data2))
+        acc_next = Signal(21)
+        s_acc = Mux(b_first2, 0, acc_lo) + b_data2
+        m.d.comb += acc_next.eq(Cat(s_acc[:16], Mux(b_first2, 0, acc_c) + s_acc[16]))
         with m.If(b_v2):
-            m.d.sync += acc.eq(acc_next)
+            m.d.sync += [acc_lo.eq(acc_next[:16]), acc_c.eq(acc_next[16:])]
+        # sum >= threshold from the two halves' compares (16 and 8 bits, side by side)
+        thr = Mux(b_luma3, thr_y, thr_h)
         m.d.sync += [b_v3.eq(b_v2 & b_last2), b_sum3.eq(acc_next), b_bin3.eq(b_bin2),
                      b_luma3.eq(b_luma2),
                      b_v4.eq(b_v3), b_bin4.eq(b_bin3), b_luma4.eq(b_luma3),
-                     b_set4.eq(b_sum3 >= Mux(b_luma3, thr_y, thr_h))]
+                     b_set4.eq((b_sum3[16:] > thr[16:]) |
+                               ((b_sum3[16:] == thr[16:]) & (b_sum3[:16] >= thr[:16])))]
         m.d.comb += [hset_wr.addr.eq(Cat(b_bin4, ~bank)), hset_wr.data.eq(b_set4),
                      hset_wr.en.eq(b_v4 & ~b_luma4),
                      lset_wr.addr.eq(Cat(b_bin4, ~bank)), lset_wr.data.eq(b_set4),
