@@ -23,12 +23,9 @@ __all__ = ["FreeSpaceParams", "FREE_BANDS", "FREE_NONE", "free_space", "free_fra
 
 @dataclass(frozen=True)
 class FreeSpaceParams:
-    band_w: int = field(default=FREE_BAND_W, metadata=dict(
-        range=(1, 2047), unit="px",
-        help="free space: columns per band (16 bands from x = 0)"))
-    run_r: int = field(default=FREE_RUN_R, metadata=dict(
-        range=(1, 255), unit="rows",
-        help="free space: rows of obstacle (more than half of a band's pixels) a run needs"))
+    # what each means: the FREE_CFG fields of hdl/regmap.py (the command line's help)
+    band_w: int = field(default=FREE_BAND_W, metadata=dict(range=(1, 2047), unit="px"))
+    run_r: int = field(default=FREE_RUN_R, metadata=dict(range=(1, 255), unit="rows"))
 
     #: (field, bits) of every run-time parameter: the register widths of the RTL.
     FIELDS = (("band_w", 11), ("run_r", 8))

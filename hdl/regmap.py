@@ -173,9 +173,9 @@ REGISTERS: tuple[Register, ...] = (
     # last frame, 16 bands of 16 bits, two bands per word.
     Register("FREE_CFG", 0x30, "rw", "Free space per column band (golden/freespace.py), both "
              f"cameras. Reset: 16 bands across a {REF_WIDTH}-column frame.", (
-        F("band_w", 0, 11, _F.band_w, "columns per band, bands from x = 0 (16 bands)"),
-        F("run_r", 16, 8, _F.run_r, "rows an obstacle run needs (a row of a band is obstacle "
-                                    "when more than half its pixels are), at least 1"),
+        F("band_w", 0, 11, _F.band_w, "free space: columns per band, 16 bands from x = 0"),
+        F("run_r", 16, 8, _F.run_r, "free space: rows an obstacle run needs (a row of a band is "
+                                    "obstacle when more than half its pixels are), at least 1"),
     )),
     *(Register(f"FREE_{side.upper()}_{k}", base + 4 * k, "ro",
                f"{side.capitalize()} camera, last frame: free-space rows of bands {2 * k} and "

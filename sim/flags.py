@@ -1,8 +1,9 @@
 """Command-line flags of the run-time parameters, generated from the golden parameter dataclasses.
 
 Every leaf field of :func:`golden.pipeline.default_params`'s ``PipelineParams`` (walking into nested dataclasses:
-``frontend.ground``, ``frontend.sobel``, ``matcher``) becomes one option; a field added to a
-dataclass becomes an option with no edit here. What an option says comes from, in order:
+``frontend.ground``, ``frontend.sobel``, ``frontend.free``, ``matcher``) becomes one option; a
+field added to a dataclass becomes an option with no edit here. What an option says comes from,
+in order:
 
 1. the field's ``metadata``: ``help``, ``unit``, ``range`` (``(lo, hi)``, inclusive),
    ``choices`` (for text fields), ``flag`` (the option name without ``--``);
@@ -30,7 +31,7 @@ __all__ = ["Flag", "pipeline_flags", "add_param_flags", "apply_flags", "flag_val
 
 REFERENCE_SIZE = (752, 480)
 #: Registers of each parameter group (prefix of the register names in hdl/regmap.py).
-GROUP_REGISTERS = {"ground": "GROUND", "sobel": "SOBEL", "matcher": "MATCH"}
+GROUP_REGISTERS = {"ground": "GROUND", "sobel": "SOBEL", "matcher": "MATCH", "free": "FREE"}
 #: What the command line adds to a field's metadata. The window is an elaboration parameter
 #: of the RTL (no register); its limit: window 15 needs 8 pair memories per read port of the
 #: matcher (``ROWS / 2``), already beyond the XC3S1000's block RAM, and larger windows make an

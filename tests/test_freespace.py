@@ -190,3 +190,41 @@ def test_frontend_free_space_amaranth_three_frames_with_stalls():
     assert result["status"]["free_lost"] == 0
     rows = np.concatenate([f.left.free for f in job.golden])
     assert (rows != FREE_NONE).any() and (rows != 15).any()        # not all trivially bottom
+
+
+def test_sim_run_writes_the_rtl_free_space(tmp_path):
+    """`python -m sim run` writes free_space.csv from the RTL's free-space outputs (source
+    `rtl`), equal to golden, and calls the run bit-exact only with them."""
+    import csv
+    import json
+    import subprocess
+    import sys
+    from dataclasses import replace
+    from PIL import Image
+    from golden.pipeline import pipeline_frames
+    from sim.export import ROOT
+    from sim.scenes import make_scene
+    scene = make_scene("mixed", 128, 64)        # floor, wall, boxes: varied free space
+    for name, img in (("l", scene.left), ("r", scene.right)):
+        Image.fromarray(img).save(tmp_path / f"{name}.png")
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "sim", "run", "--left", str(tmp_path / "l.png"),
+                        "--right", str(tmp_path / "r.png"), "--out", str(out), "--frames", "3",
+                        "--band-w", "9", "--run-r", "3", "--stalls", "1"],
+                       cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "BIT-EXACT (records, free space and statistics)" in r.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["free_space_mismatches"] == 0 and summary["parameters"]["band-w"] == 9
+    with open(out / "free_space.csv") as f:
+        rows = list(csv.DictReader(f))
+    params = default_params(128, 64)
+    params = replace(params, frontend=replace(params.frontend, free=FreeSpaceParams(9, 3)))
+    last = pipeline_frames([scene.left] * 3, [scene.right] * 3, params)[-1]
+    for side in ("left", "right"):
+        mine = [row for row in rows if row["camera"] == side]
+        assert [row["source"] for row in mine] == ["rtl"] * 15      # 128 columns, bands of 9
+        assert [row["obstacle_row"] for row in mine] == \
+            ["" if v == FREE_NONE else str(v) for v in getattr(last, side).free[:15]]
+        assert (mine[0]["x0"], mine[-1]["x0"], mine[-1]["x1"]) == ("0", "126", "127")
+        assert len({row["obstacle_row"] for row in mine}) > 3              # not uniform

@@ -166,10 +166,10 @@
 /* FREE_CFG (read/write): Free space per column band (golden/freespace.py), both cameras. Reset: 16 bands across a 720-column frame. */
 #define STEREO_FREE_CFG_OFFSET                       0x30u        /**< Free space per column band (golden/freespace.py), both cameras. Reset: 16 bands across a 720-column frame. */
 #define STEREO_FREE_CFG_RESET                        0x0004002Du  /**< FREE_CFG value after reset */
-#define STEREO_FREE_CFG_BAND_W_SHIFT                 0u           /**< band_w: columns per band, bands from x = 0 (16 bands) */
+#define STEREO_FREE_CFG_BAND_W_SHIFT                 0u           /**< band_w: free space: columns per band, 16 bands from x = 0 */
 #define STEREO_FREE_CFG_BAND_W_MASK                  0x7FFu       /**< band_w mask (11 bits) */
 #define STEREO_FREE_CFG_BAND_W_RESET                 45u          /**< band_w reset value */
-#define STEREO_FREE_CFG_RUN_R_SHIFT                  16u          /**< run_r: rows an obstacle run needs (a row of a band is obstacle when more than half its pixels are), at least 1 */
+#define STEREO_FREE_CFG_RUN_R_SHIFT                  16u          /**< run_r: free space: rows an obstacle run needs (a row of a band is obstacle when more than half its pixels are), at least 1 */
 #define STEREO_FREE_CFG_RUN_R_MASK                   0x00FF0000u  /**< run_r mask (8 bits) */
 #define STEREO_FREE_CFG_RUN_R_RESET                  4u           /**< run_r reset value */
 
