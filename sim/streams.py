@@ -141,7 +141,8 @@ class Deadlock(AssertionError):
 async def stream_put(ctx, port, words, *, rng=None, idle=0.0, reset=None):
     """Offer ``words`` on a stream sink ``port`` (drives valid/payload, waits for ready), with a
     random idle cycle before a word with probability ``idle``. :class:`Reset` items pulse
-    ``reset`` (a reset signal) instead."""
+    ``reset`` (a reset signal) instead; a word taken while ``reset`` is high (pulsed by another
+    producer) was lost in the reset and is offered again."""
     payload = port.payload.as_value() if hasattr(port.payload, "as_value") else port.payload
     for word in words:
         if isinstance(word, Reset):
@@ -155,27 +156,45 @@ async def stream_put(ctx, port, words, *, rng=None, idle=0.0, reset=None):
             await ctx.tick()
         ctx.set(payload, word)
         ctx.set(port.valid, 1)
-        await ctx.tick().until(port.ready)
+        if reset is None:
+            await ctx.tick().until(port.ready)
+            continue
+        while True:
+            _, _, ready, in_reset = await ctx.tick().sample(port.ready, reset)
+            if ready and not in_reset:
+                break
     ctx.set(port.valid, 0)
 
 
 async def stream_get(ctx, port, *, count=None, until_eof=None, eof_bit=None, rng=None,
-                     stall=0.0, timeout=10000, on_eof=None):
+                     stall=0.0, timeout=10000, at_eof=(), eof_values=None, reset=None,
+                     on_eof=None):
     """Take words from a stream source ``port`` until ``count`` words or ``until_eof`` frames
     (words with the ``eof`` bit, whose position is ``eof_bit``) have arrived. ``ready`` is held low
-    with probability ``stall`` each cycle; ``on_eof()`` (optional) is called at every ``eof``.
-    Raises :class:`Deadlock` after ``timeout`` cycles without a transfer."""
+    with probability ``stall`` each cycle. Raises :class:`Deadlock` after ``timeout`` cycles
+    without a transfer. With ``eof_values`` (a list), the signals ``at_eof`` are sampled with
+    every eof word and their values appended as a tuple (per-frame status such as statistics).
+    With ``reset`` (the unit's reset signal), a cycle with it high discards the words of the
+    frame being output (those after the last eof word). ``on_eof()`` (optional) is called at
+    every eof word."""
     payload = port.payload.as_value() if hasattr(port.payload, "as_value") else port.payload
-    words, frames, quiet = [], 0, 0
+    words, frames, quiet, frame_start = [], 0, 0, 0
+    watch = [reset] if reset is not None else []
     while (count is None or len(words) < count) and (until_eof is None or frames < until_eof):
         ready = not (stall and rng.random() < stall)
         ctx.set(port.ready, ready)
-        _, _, valid, word = await ctx.tick().sample(port.valid, payload)
+        _, _, valid, word, *rest = await ctx.tick().sample(port.valid, payload, *at_eof, *watch)
+        if watch and rest[-1]:
+            del words[frame_start:]
+            continue
         if valid and ready:
             words.append(word)
             quiet = 0
             if eof_bit is not None and (word >> eof_bit) & 1:
                 frames += 1
+                frame_start = len(words)
+                if eof_values is not None:
+                    eof_values.append(tuple(int(v) for v in rest[:len(at_eof)]))
                 if on_eof is not None:
                     on_eof()
         else:
@@ -193,6 +212,7 @@ class StreamRun:
     first_in: int = 0        # cycle of the first offer
     last_out: int = 0        # cycle of the last output transfer
     probes: dict = field(default_factory=dict)   # values of the probed ports at the end
+    eof_values: dict = field(default_factory=dict)  # per output: ``eof_probes`` at each eof
 
 
 def run_simulation(sim, vcd=None, *, name="unit"):
@@ -216,7 +236,8 @@ def _eof_bit(port):
 
 
 def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None, vcd=None,
-                timeout=10000, settle=20, probes=("errors", "dropped")):
+                timeout=10000, settle=20, probes=("errors", "dropped"), eof_probes=None,
+                reset_aborts_frames=False, processes=()):
     """Simulate ``dut`` under Amaranth's simulator with several stream ports.
 
     ``inputs`` maps input port names to word lists (which may hold :class:`Reset` and
@@ -225,8 +246,10 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
     or to ``("count", n)`` for a fixed number of words. Every port has its own seeded random
     generator, so a failure is reproducible from ``seed``. ``setup(ctx)`` (optional, async) sets
     configuration inputs before the first word; the ports named in ``probes`` are read ``settle``
-    cycles after the last output. Returns a :class:`StreamRun` whose ``words`` maps output names
-    to word lists."""
+    cycles after the last output. ``eof_probes`` maps output names to signals sampled with each
+    of their eof words (``eof_values``); with ``reset_aborts_frames`` a :class:`Reset` discards
+    the partly output frame; ``processes`` are more async testbenches, run in the background.
+    Returns a :class:`StreamRun` whose ``words`` maps output names to word lists."""
     m = Module()
     m.domains.sync = ClockDomain("sync")
     # The unit's reset is a separate signal: asserting the domain's own reset would stop the
@@ -278,9 +301,13 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
             await ctx.tick()
             port = getattr(dut, name)
             count, frames = (want[1], None) if isinstance(want, tuple) else (None, want)
+            at_eof = (eof_probes or {}).get(name, ())
+            result.eof_values[name] = []
             result.words[name] = await stream_get(
                 ctx, port, count=count, until_eof=frames, eof_bit=_eof_bit(port),
                 rng=random.Random(seed * 16 + 9 + k), stall=stall, timeout=timeout,
+                at_eof=at_eof, eof_values=result.eof_values[name],
+                reset=unit_reset if reset_aborts_frames else None,
                 on_eof=(lambda: delivered.__setitem__(name, delivered[name] + 1))
                 if name in delivered else None)
             state["last"] = max(state["last"], state["cycle"])
@@ -297,6 +324,8 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
         sim.add_testbench(producer(k, name, words), background=True)
     for k, (name, want) in enumerate(outputs.items()):
         sim.add_testbench(consumer(k, name, want))
+    for process in processes:
+        sim.add_testbench(process, background=True)
     run_simulation(sim, vcd, name=type(dut).__name__)
     result.first_in = state["start"] or 0
     result.last_out = state["last"]

@@ -2,30 +2,25 @@
 
 Small frames under Amaranth's simulator: the matcher is elaborated small (max_width 64,
 max_height 32, max_disparity 15, window 3, 5 or 7) so a frame costs a few thousand cycles.
-:func:`run_matcher` is a two-input testbench (seeded idle cycles on each input, seeded
-backpressure on the output, resets of the domain survived) that any left/right/record unit can
-use. Failing runs are repeated with a VCD written to build/waves/ (always with WAVES=1).
+:func:`run_matcher` drives the two inputs through ``sim.streams.run_streams`` (seeded idle
+cycles on each input, seeded backpressure on the output, unit resets) and samples the
+statistics at each end-of-frame record. Failing runs are repeated with a VCD written to build/waves/ (always with WAVES=1).
 
 Covered: synthetic shifted-texture pairs (2 frames, odd and even heights, windows 3/5/7,
 1-3 lanes, adaptive / widen / full, d_min > 0), a motorcycle crop, a short line, missing sof,
 one input cut short, frames of different heights and widths, reset mid-frame, drop mode with
 and without pressure, elaboration errors. Full frames run under Verilator elsewhere.
 """
-import random
-
 import numpy as np
 import pytest
-from amaranth.hdl import ClockDomain, Module
-from amaranth.sim import Simulator, DomainReset
 
 from golden.matcher import MatcherParams, match, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher
 from hdl.types import EdgePixel
-from sim.streams import Packer, frames_words, Reset, Deadlock, run_simulation
+from sim.streams import Packer, frames_words, Reset, Deadlock, run_streams
 
 EDGE = Packer(EdgePixel)
-CLOCK = 1e-8
 
 
 # ------------------------------------------------------------------ scenes
@@ -80,58 +75,16 @@ class MatchRun:
         self.frames = 0
 
 
-async def put_words(ctx, port, words, *, rng, idle=0.0, reset=None):
-    """Like :func:`sim.streams.stream_put`, but survives resets of the domain: a :class:`Reset`
-    item holds ``reset`` for its cycles (waiting with ``ctx.delay``, since ticks raise
-    :class:`DomainReset` while the domain is reset), and a word whose wait was interrupted by a
-    reset (from another testbench) is offered again."""
-    payload = port.payload.as_value()
-    for word in words:
-        if isinstance(word, Reset):
-            ctx.set(port.valid, 0)
-            ctx.set(reset, 1)
-            await ctx.delay(CLOCK * word.cycles)
-            ctx.set(reset, 0)
-            continue
-        while True:
-            try:
-                while idle and rng.random() < idle:
-                    ctx.set(port.valid, 0)
-                    await ctx.tick()
-                ctx.set(payload, word)
-                ctx.set(port.valid, 1)
-                await ctx.tick().until(port.ready)
-                break
-            except DomainReset:
-                continue
-    ctx.set(port.valid, 0)
-
-
 def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(), drop_mode=False,
                 seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None, retune=None):
-    """Drive ``dut`` (a :class:`Matcher`) with two word lists (``Reset`` items allowed in
-    ``left_words``: they reset the whole unit) and collect ``frames`` end-of-frame markers.
-
-    Each input and the output has its own seeded random generator (``idle`` / ``stall``
-    probabilities). Returns a :class:`MatchRun`; raises :class:`Deadlock` when nothing comes
-    out for ``timeout`` cycles. ``retune = (cycles, params)`` writes the disparity window of
-    ``params`` that many cycles after the start."""
-    m = Module()
-    m.domains.sync = cd = ClockDomain("sync")
-    m.submodules.dut = dut
-    sim = Simulator(m)
-    sim.add_clock(CLOCK, domain="sync")
-    run = MatchRun()
-    state = {"cycle": 0, "start": 0}
+    """Drive ``dut`` (a :class:`Matcher`) with two word lists (``Reset`` items allowed: they
+    reset the whole unit and discard the frame being output) and collect ``frames``
+    end-of-frame markers, with the statistics ports sampled at each (``sim.streams.run_streams``:
+    every input and the output has its own seeded random generator, ``idle`` / ``stall``
+    probabilities). ``retune = (cycles, params)`` writes the disparity window of ``params``
+    that many cycles after the start. Returns a :class:`MatchRun`; raises :class:`Deadlock`
+    when nothing comes out for ``timeout`` cycles."""
     stat_ports = [getattr(dut, f"frame_{n}") for n in STAT_KEYS]
-
-    async def clock_counter(ctx):
-        while True:
-            try:
-                async for _ in ctx.tick():
-                    state["cycle"] += 1
-            except DomainReset:
-                state["cycle"] += 1
 
     async def setup(ctx):
         ctx.set(dut.d_min, params.d_min)
@@ -141,64 +94,25 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
         ctx.set(dut.widen, params.widen)
         ctx.set(dut.drop_mode, drop_mode)
 
-    async def put_left(ctx):
-        await setup(ctx)
-        await ctx.tick()
-        state["start"] = state["cycle"]
-        await put_words(ctx, dut.left, left_words, rng=random.Random(seed * 3 + 1), idle=idle,
-                        reset=cd.rst)
-
-    async def put_right(ctx):
-        await ctx.tick()
-        await put_words(ctx, dut.right, right_words, rng=random.Random(seed * 3 + 2), idle=idle)
-
-    async def get(ctx):
-        rng = random.Random(seed * 3 + 3)
-        await ctx.tick()
-        cur, quiet = [], 0
-        while len(run.stats) < frames:
-            ready = not (stall and rng.random() < stall)
-            ctx.set(dut.o.ready, ready)
-            try:
-                _, rst, valid, word, *stats = await ctx.tick().sample(
-                    dut.o.valid, dut.o.payload, *stat_ports)
-            except DomainReset:
-                rst = True
-            if rst:
-                cur = []                 # a reset aborts the frame being output
-                continue
-            if valid and ready:
-                quiet = 0
-                if word.eof:
-                    run.records.append(np.array(cur, dtype=np.int64).reshape(-1, 4))
-                    run.stats.append(dict(zip(STAT_KEYS, (int(s) for s in stats))))
-                    cur = []
-                else:
-                    cur.append((word.x, word.y, word.d, word.cost))
-            else:
-                quiet += 1
-                if quiet > timeout:
-                    raise Deadlock(f"no output for {timeout} cycles after {len(run.stats)} "
-                                   f"frames")
-        ctx.set(dut.o.ready, 0)
-        run.cycles = state["cycle"] - state["start"]
-        await ctx.tick().repeat(5)
-        run.errors = ctx.get(dut.errors)
-        run.dropped = ctx.get(dut.dropped)
-        run.frames = ctx.get(dut.frames)
-
     async def write_window(ctx):
         await ctx.tick().repeat(retune[0])
         ctx.set(dut.d_min, retune[1].d_min)
         ctx.set(dut.d_max, retune[1].d_max)
 
-    sim.add_process(clock_counter)
-    if retune is not None:
-        sim.add_testbench(write_window, background=True)
-    sim.add_testbench(put_left, background=True)
-    sim.add_testbench(put_right, background=True)
-    sim.add_testbench(get)
-    run_simulation(sim, vcd, name="Matcher")
+    res = run_streams(dut, {"left": left_words, "right": right_words}, {"o": frames}, seed=seed,
+                      idle=idle, stall=stall, setup=setup, vcd=vcd, timeout=timeout,
+                      probes=("errors", "dropped", "frames"), eof_probes={"o": stat_ports},
+                      reset_aborts_frames=True,
+                      processes=[write_window] if retune is not None else [])
+    run = MatchRun()
+    rec = Packer(dut.record).unpack(res.words["o"])
+    ends = np.flatnonzero(rec["eof"])
+    fields = np.stack([rec[k] for k in ("x", "y", "d", "cost")], axis=1).astype(np.int64)
+    run.records = [fields[a + 1 if i else 0:b] for i, (a, b) in
+                   enumerate(zip(np.concatenate([[0], ends[:-1]]), ends))]
+    run.stats = [dict(zip(STAT_KEYS, v)) for v in res.eof_values["o"]]
+    run.cycles = res.cycles
+    run.errors, run.dropped, run.frames = (res.probes[k] for k in ("errors", "dropped", "frames"))
     return run
 
 

@@ -59,6 +59,22 @@ def test_the_obstacle_at_half_a_metre_is_matched(near):
     assert (drawn & on_box).sum() == on_box.sum()
 
 
+def test_the_far_window_vetoes_most_far_texture_seen_through_the_near_one(near):
+    # texture whose true disparity is below d_min is matched at a wrong one inside the near
+    # window; the default window matches it right at the same pixel, the box it cannot see
+    from sim.bench_depth import far_veto
+    frame, _, last = near
+    far = pipeline_frames([frame.left] * 2, [frame.right] * 2, default_params(752, 480))[-1]
+    rec, cam = last.records, scene_camera(752, 480)
+    truth = contour_depth(frame.depth, rec)
+    off = np.abs(cam.depth(rec["d"]) - truth) > 0.1 * truth
+    keep = far_veto(rec, far.records)
+    on_box = frame.labels[rec["y"], rec["x"]] == LABEL_OBSTACLE0
+    assert off.sum() > 100                                  # the problem is real
+    assert (keep & on_box).sum() == on_box.sum() and (keep & ~off).sum() == (~off).sum()
+    assert (keep & off).sum() < 0.3 * off.sum()
+
+
 def test_sim_run_near_scene_is_bit_exact_with_the_box_in_matches_csv(tmp_path, near):
     frame, _, last = near
     out = tmp_path / "near"

@@ -215,3 +215,20 @@ def test_firmware_field_size_is_the_register_reference():
     text = (Path(__file__).resolve().parent.parent / "firmware/include/app.h").read_text()
     size = {k: int(v) for k, v in re.findall(r"#define APP_FIELD_(WIDTH|HEIGHT)\s+(\d+)u", text)}
     assert size == {"WIDTH": regmap.REF_WIDTH, "HEIGHT": regmap.REF_HEIGHT}
+
+
+def test_result_record_widths_come_from_the_elaboration_limits():
+    from golden.matcher import MAX_DISPARITY
+    from hdl.matcher import match_record_layout
+    from amaranth.hdl import Shape
+    from hdl.regs import ResultLayout
+    from hdl.soc import StereoSoC, SystemSoC
+    rec = match_record_layout(regmap.MAX_WIDTH, regmap.MAX_HEIGHT, MAX_DISPARITY)
+    for name in ("x", "y", "d"):
+        assert Shape.cast(ResultLayout[name].shape).width == Shape.cast(rec[name].shape).width == \
+            regmap.field("RESULT", name).width, name
+    # a frame wider or taller than the records address is refused, not truncated
+    with pytest.raises(ValueError, match="max_width 2048 does not fit the RESULT register's x"):
+        SystemSoC(max_width=2048)
+    with pytest.raises(ValueError, match="max_height 1025 does not fit the RESULT register's y"):
+        StereoSoC(max_height=1025)
