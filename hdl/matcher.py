@@ -139,6 +139,7 @@ from amaranth.utils import bits_for, ceil_log2
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
 
 from .types import EdgePixel
+from .counter import saturating_sum, wide_accumulator, wide_counter
 from .framing import FrameTracker
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_sad import SadTree
@@ -191,7 +192,7 @@ class Matcher(wiring.Component):
         Frames finished.
     errors : Out(16), dropped : Out(32)
         Malformed-stream events of both inputs plus frames of unequal sizes; beats dropped by
-        both trackers (saturating, cleared by reset).
+        both trackers (saturating, cleared by reset; both two cycles after the events).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
@@ -422,14 +423,14 @@ class Matcher(wiring.Component):
             with m.If((L.rows != R.rows) | (L.width != R.width) | (L.open != R.open)):
                 m.d.sync += _sat_inc(size_errors)
 
-        err_sum = Signal(18)
-        drop_sum = Signal(33)
-        m.d.comb += [
-            err_sum.eq(L.track.errors + R.track.errors + size_errors),
-            self.errors.eq(Mux(err_sum > 0xFFFF, 0xFFFF, err_sum)),
-            drop_sum.eq(L.track.dropped + R.track.dropped),
-            self.dropped.eq(Mux(drop_sum[32], 0xFFFFFFFF, drop_sum)),
-        ]
+        # the three error counts summed in two registered 16-bit steps, saturating (2 cycles
+        # later, as dropped)
+        err_lr = Signal(17); err_lr_sat = Signal(16); err_all = Signal(17)
+        m.d.sync += [err_lr.eq(L.track.errors + R.track.errors),
+                     err_all.eq(err_lr_sat + size_errors)]
+        m.d.comb += [err_lr_sat.eq(Mux(err_lr[16], 0xFFFF, err_lr[:16])),
+                     self.errors.eq(Mux(err_all[16], 0xFFFF, err_all[:16]))]
+        saturating_sum(m, self.dropped, L.track.dropped, R.track.dropped)   # 2 cycles later
 
         # ---------------------------------------------------------------- queue
         KIND_JOB, KIND_ROW, KIND_FRAME = 0, 1, 2
@@ -523,14 +524,13 @@ class Matcher(wiring.Component):
                      sc_go.eq(active & (ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r),
                      sc_inside.eq(ok_l & ok_r & (s_row >= r))]
         # The scanner's counts go through one-cycle event registers: the decision (adv, the
-        # doom test) and the 32-bit saturating adders are not one path. The frame's counts are
-        # read at its frame-end record, many cycles after the scanner's last event.
+        # doom test) and the 32-bit counters are not one path. The frame's counts are read at
+        # its frame-end record, many cycles after the scanner's last event. (The counters are
+        # hdl.counter accumulators, 16-bit carry chains; they wrap, which no frame reaches:
+        # at most max_width x max_height x 64 evaluations.)
         ev = {name: Signal(name=f"ev_{name}") for name in
               ("edge_pixels", "border", "no_candidate", "drops")}
         m.d.sync += [e.eq(0) for e in ev.values()]
-        for name, e in ev.items():
-            with m.If(e):
-                m.d.sync += _sat_inc(stat[name])
         with m.FSM(name="scanner"):
             with m.State("WAIT"):
                 # The decision is taken on registered conditions (computed below from this
@@ -815,30 +815,31 @@ class Matcher(wiring.Component):
         o_pop = Signal()
         m.d.comb += [self.o.valid.eq(ofifo.r_rdy), self.o.payload.eq(ofifo.r_data),
                      ofifo.r_en.eq(self.o.ready), o_pop.eq(ofifo.r_rdy & self.o.ready)]
-        edrops = Signal(32)               # jobs dropped by the engine (drop mode)
         give_back = Signal()              # a job finished without a record
+        e_drop = Signal(); e_reject = Signal(); e_match = Signal()
         with m.If(e_v):
-            m.d.sync += _sat_inc(stat["sad_evaluations"], e_evals)
             with m.If(e_doomed):
-                m.d.sync += _sat_inc(edrops)
-                m.d.comb += give_back.eq(1)
+                m.d.comb += [e_drop.eq(1), give_back.eq(1)]
             with m.Elif(reject):
-                m.d.sync += _sat_inc(stat["rejected"])
-                m.d.comb += give_back.eq(1)
+                m.d.comb += [e_reject.eq(1), give_back.eq(1)]
             with m.Else():
-                m.d.sync += _sat_inc(stat["matches"])
-                m.d.comb += [ofifo.w_en.eq(1), orec.x.eq(e_x), orec.y.eq(e_y), orec.d.eq(e_bd),
-                             orec.cost.eq(e_bc)]
+                m.d.comb += [e_match.eq(1), ofifo.w_en.eq(1), orec.x.eq(e_x), orec.y.eq(e_y),
+                             orec.d.eq(e_bd), orec.cost.eq(e_bc)]
+        # drops: the scanner's (queue full) and the engine's (window overwritten), one count
+        adds = {"edge_pixels": ev["edge_pixels"], "border": ev["border"],
+                "no_candidate": ev["no_candidate"], "drops": ev["drops"] + e_drop,
+                "sad_evaluations": Mux(e_v, e_evals, 0), "rejected": e_reject,
+                "matches": e_match}
+        for name in STAT_KEYS:
+            wide_accumulator(m, stat[name], adds[name], clear=e_frame)
         with m.If(e_frame):
             m.d.comb += [ofifo.w_en.eq(1), orec.eof.eq(1)]
             # The statistics change here, before the eof record leaves the FIFO; the next
             # frame's end waits until it has left (eof_pending), so they hold until then.
-            m.d.sync += [eng_done.eq(1), eof_pending.eq(1), edrops.eq(0),
-                         self.frames.eq(self.frames + 1)]
+            m.d.sync += [eng_done.eq(1), eof_pending.eq(1)]
             for name in STAT_KEYS:
-                m.d.sync += [getattr(self, f"frame_{name}").eq(stat[name]), stat[name].eq(0)]
-            total = stat["drops"] + edrops
-            m.d.sync += self.frame_drops.eq(Mux(total[32], 0xFFFFFFFF, total))
+                m.d.sync += getattr(self, f"frame_{name}").eq(stat[name])
+        wide_counter(m, self.frames, e_frame, saturate=False)
         with m.If(o_pop & self.o.payload.eof):
             m.d.sync += eof_pending.eq(0)
         taken = Signal()
