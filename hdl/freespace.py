@@ -14,7 +14,6 @@ __all__ = ["FreeSpace", "FreeSpaceLatch", "free_space_status", "free_config_port
 
 #: Register width of each run-time parameter (``band_w``, ``run_r``).
 FREE_BITS = dict(FreeSpaceParams.FIELDS)
-_BITS = FREE_BITS
 _DEFAULT = FreeSpaceParams()
 
 
@@ -22,7 +21,9 @@ def free_config_ports():
     """The ``band_w`` and ``run_r`` input ports (with the golden defaults as reset values) of
     the free-space unit and of the components that pass them on."""
     return {name: In(bits, init=getattr(_DEFAULT, name)) for name, bits in FREE_BITS.items()}
-#: Cycles from the input beat with ``eof`` to the first result beat offered (output ready).
+
+
+#: Cycles from the transfer of the input beat with ``eof`` to the first result beat offered.
 LATENCY = 4
 
 
@@ -85,8 +86,8 @@ class FreeSpace(FramedUnit):
                      self.errors.eq(track.errors), self.dropped.eq(track.dropped)]
 
         # configuration, registered (no path from the ports into the pixel logic)
-        band_w = Signal(_BITS["band_w"]); one_wide = Signal()
-        run_r = Signal(_BITS["run_r"]); run_m1 = Signal(_BITS["run_r"])
+        band_w = Signal(FREE_BITS["band_w"]); one_wide = Signal()
+        run_r = Signal(FREE_BITS["run_r"]); run_m1 = Signal(FREE_BITS["run_r"])
         m.d.sync += [band_w.eq(self.band_w), one_wide.eq(self.band_w == 1),
                      run_r.eq(self.run_r), run_m1.eq(self.run_r - 1)]
 
@@ -98,7 +99,7 @@ class FreeSpace(FramedUnit):
 
         # rem: pixels of the band left, this beat included; last: rem == 1 (registered);
         # band: FREE_BANDS once past the last band; balance: obstacle minus ground pixels
-        rem = Signal(_BITS["band_w"]); last = Signal()
+        rem = Signal(FREE_BITS["band_w"]); last = Signal()
         band = Signal(range(FREE_BANDS + 1))
         balance = Signal(signed(bits_for(self._max_width) + 1))
         cur_rem = Signal.like(rem); cur_last = Signal(); cur_band = Signal.like(band)
@@ -127,7 +128,7 @@ class FreeSpace(FramedUnit):
             m.d.sync += [band2.eq(cur_band), balance2.eq(new_balance), first2.eq(first1),
                          y2.eq(y1)]
 
-        runs = memory.Memory(shape=_BITS["run_r"], depth=FREE_BANDS, init=[],
+        runs = memory.Memory(shape=FREE_BITS["run_r"], depth=FREE_BANDS, init=[],
                              attrs={"ram_style": "distributed"})
         entry = data.StructLayout({"row": row_bits, "found": 1})
         results = memory.Memory(shape=entry, depth=2 * FREE_BANDS, init=[],
