@@ -9,7 +9,7 @@ from golden.freespace import FREE_BANDS, FREE_NONE, FreeSpaceParams, free_frame
 from golden.pipeline import default_params
 from hdl.freespace import LATENCY, FreeSpace, FreeSpaceLatch
 from hdl.types import FreeBand, GroundPixel
-from sim.streams import (Packer, check_unit, frames_words, malformed_cases, run_streams,
+from sim.streams import (Packer, check_unit, frames_words, malformed_cases,
                          words_to_frames)
 
 PIN, POUT = Packer(GroundPixel), Packer(FreeBand)

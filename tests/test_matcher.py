@@ -18,7 +18,7 @@ from golden.matcher import MatcherParams, match, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher
 from hdl.types import EdgePixel
-from sim.streams import Packer, frames_words, Reset, Deadlock, run_streams
+from sim.streams import Packer, frames_words, Reset, run_streams
 
 EDGE = Packer(EdgePixel)
 
