@@ -53,7 +53,8 @@ class CameraPort(wiring.Component):
     lines : int
         Active lines per field (240 for NTSC).
     fifo_depth : int
-        Pixels of the clock-domain FIFO (a power of two; 512 x 27 bits fits one RAMB16).
+        Pixels of the clock-domain FIFO (a power of two). The SoC uses 16 (distributed RAM)
+        and buffers frames in the core domain (:class:`hdl.camera_buffer.PairBuffer`).
 
     Ports
     -----
@@ -80,7 +81,8 @@ class CameraPort(wiring.Component):
         self._domain = domain
         self._lines = lines
         self._fifo_depth = fifo_depth
-        self.decoder = DomainRenamer(domain)(Bt656ToRGB(lines=lines))
+        # no output buffer: the overflow guard below is always ready
+        self.decoder = DomainRenamer(domain)(Bt656ToRGB(lines=lines, buffer=False))
         super().__init__({
             "i": In(stream.Signature(8)),
             "o": Out(stream.Signature(RGBPixel)),
