@@ -232,7 +232,8 @@ class SystemSoC(wiring.Component):
             regs.results.payload.eof.eq(rec.eof | abort),
             regs.results.payload.abort.eq(abort),
         ]
-        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst)
+        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
+                                  reset=video_rst)
         match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
         m.d.sync += match_errors.eq(pipe.match_errors)
         status.update({
@@ -264,9 +265,10 @@ def _connect_parameters(m, regs, pipe):
         m.d.comb += port.eq(getattr(regs, f.name))
 
 
-def _pipeline_status(m, regs, pipe, *, clear):
+def _pipeline_status(m, regs, pipe, *, clear, reset=0):
     """The pipeline's status inputs of the register block: statistics as they are, sticky
-    counters relative to their value at the last ``clear``."""
+    counters relative to their value at the last ``clear`` (``reset``: the pipeline is being
+    reset, which also clears them)."""
     status = {
         "frame_count_frames": pipe.frames,
         "stat_edges_count": pipe.frame_edge_pixels,
@@ -278,22 +280,30 @@ def _pipeline_status(m, regs, pipe, *, clear):
     for side in ("left", "right"):
         status[f"ground_status_{side}_learned"] = getattr(pipe, f"{side}_ground_learned")
         status[f"ground_status_{side}_hue_fallback"] = getattr(pipe, f"{side}_hue_fallback")
-    # The value shown is registered: the counters' own adders (the matcher sums its inputs'
-    # counts), this subtraction and the register block's read multiplexer are not one path.
-    # The counters are saturating, so ``count - base`` never wraps; a 16-bit counter needs no
-    # clamp.
+    # Each sticky counter is shown as the count since the last ``clear``, saturating at 16 bits,
+    # kept by the SoC: every cycle it adds the source's increment, the difference of its two
+    # low bits (the sources count at most three a cycle: the matcher's errors sum three
+    # counters, each of one a cycle at most), so no wide base register or subtraction is
+    # needed, and the register block's read multiplexer starts from a register. ``reset`` (the
+    # source counters are reset with the video path) holds the value at 0 one cycle more, while
+    # the sources return to 0.
     width = 16
+    settle = Signal()
+    m.d.sync += settle.eq(reset)
     for reg_name, prefix in (("err_left", "left"), ("err_right", "right"),
                              ("err_match", "match")):
         for kind in ("errors", "dropped"):
             count = getattr(pipe, f"{prefix}_{kind}")
-            base = Signal(len(count), name=f"{reg_name}_{kind}_base")
-            with m.If(clear):
-                m.d.sync += base.eq(count)
-            since = Signal(len(count), name=f"{reg_name}_{kind}_since")
-            m.d.comb += since.eq(count - base)
+            last = Signal(2, name=f"{reg_name}_{kind}_last")
+            m.d.sync += last.eq(count[:2])
+            step = Signal(2, name=f"{reg_name}_{kind}_step")
+            m.d.comb += step.eq(count[:2] - last)
             shown = Signal(width, name=f"{reg_name}_{kind}_shown")
-            clamped = Mux(since[width:] != 0, (1 << width) - 1, since) if len(count) > width else since
-            m.d.sync += shown.eq(Mux(clear, 0, clamped))
+            total = Signal(width + 1, name=f"{reg_name}_{kind}_total")
+            m.d.comb += total.eq(shown + step)
+            with m.If(clear | settle):
+                m.d.sync += shown.eq(0)
+            with m.Else():
+                m.d.sync += shown.eq(Mux(total[width], (1 << width) - 1, total))
             status[f"{reg_name}_{kind}"] = shown
     return status
