@@ -147,8 +147,9 @@ def clocks_of(name):
 
 
 def clock_name(net):
-    """The top-level clock pin a nextpnr clock net belongs to (``clk$TRELLIS_IO_IN`` -> ``clk``)."""
-    return net.split("$")[0]
+    """The top-level clock pin a nextpnr clock net belongs to
+    (``$glbnet$cam0_clk$TRELLIS_IO_IN`` or ``clk$TRELLIS_IO_IN`` -> ``cam0_clk``, ``clk``)."""
+    return net.removeprefix("$glbnet$").split("$")[0]
 
 
 def place_and_route(netlist, seed):
