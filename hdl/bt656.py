@@ -91,6 +91,11 @@ class Bt656ToRGB(wiring.Component):
     -------------------------
     lines : int
         Active lines per field (240 for NTSC): the ``lines``-th line carries ``eof``.
+    buffer : bool
+        Put the 4-entry output buffer in (default). Without it (a consumer that is always
+        ready, as :class:`hdl.camera_port.CameraPort`'s overflow guard), ``o`` is the
+        conversion pipeline's registered output and a pixel offered while ``ready`` is low is
+        dropped and counted.
 
     Ports
     -----
@@ -117,26 +122,32 @@ class Bt656ToRGB(wiring.Component):
     dropped: Out(16)
     locked: Out(1)
 
-    def __init__(self, *, lines=240):
+    def __init__(self, *, lines=240, buffer=True):
         if not isinstance(lines, int) or not 1 <= lines <= 2047:
             self._MustUse__silence = True
             raise ValueError(f"lines must be an integer in 1..2047, not {lines!r}")
         self._lines = lines
+        self._buffer = bool(buffer)
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.convert = conv = YCbCrToRGB()
-        fifo = m.submodules.fifo = SyncFIFOBuffered(width=RGBPixel.size, depth=4)
-        m.d.comb += [
-            self.i.ready.eq(1),
-            self.o.valid.eq(fifo.r_rdy),
-            self.o.payload.eq(fifo.r_data),
-            fifo.r_en.eq(self.o.ready),
-            fifo.w_en.eq(conv.o_valid & fifo.w_rdy),
-            fifo.w_data.eq(conv.o.as_value()),
-        ]
-        with m.If(conv.o_valid & ~fifo.w_rdy & (self.dropped != 0xFFFF)):
+        m.d.comb += self.i.ready.eq(1)
+        if self._buffer:
+            fifo = m.submodules.fifo = SyncFIFOBuffered(width=RGBPixel.size, depth=4)
+            m.d.comb += [
+                self.o.valid.eq(fifo.r_rdy),
+                self.o.payload.eq(fifo.r_data),
+                fifo.r_en.eq(self.o.ready),
+                fifo.w_en.eq(conv.o_valid & fifo.w_rdy),
+                fifo.w_data.eq(conv.o.as_value()),
+            ]
+            room = fifo.w_rdy
+        else:
+            m.d.comb += [self.o.valid.eq(conv.o_valid), self.o.payload.eq(conv.o)]
+            room = self.o.ready
+        with m.If(conv.o_valid & ~room & (self.dropped != 0xFFFF)):
             m.d.sync += self.dropped.eq(self.dropped + 1)
 
         byte = self.i.payload

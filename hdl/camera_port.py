@@ -25,6 +25,16 @@ from .types import RGBPixel
 __all__ = ["CameraPort", "sync_counter"]
 
 
+class _DistributedAsyncFIFO(AsyncFIFO):
+    """An ``AsyncFIFO`` whose storage is distributed RAM (Yosys otherwise takes a block RAM
+    even for 16 words, for the two clocks)."""
+
+    def elaborate(self, platform):
+        m = super().elaborate(platform)
+        m.submodules["storage"].attrs["ram_style"] = "distributed"
+        return m
+
+
 def sync_counter(m, value, *, i_domain, o_domain, name):
     """A counter of domain ``i_domain`` (changing by at most 1 per cycle) as seen in
     ``o_domain``: Gray-encoded in a register, two-flop synchronised, decoded into a register.
@@ -53,7 +63,8 @@ class CameraPort(wiring.Component):
     lines : int
         Active lines per field (240 for NTSC).
     fifo_depth : int
-        Pixels of the clock-domain FIFO (a power of two; 512 x 27 bits fits one RAMB16).
+        Pixels of the clock-domain FIFO (a power of two). The SoC uses 64 (distributed RAM)
+        and buffers frames in the core domain (:class:`hdl.camera_buffer.PairBuffer`).
 
     Ports
     -----
@@ -80,7 +91,8 @@ class CameraPort(wiring.Component):
         self._domain = domain
         self._lines = lines
         self._fifo_depth = fifo_depth
-        self.decoder = DomainRenamer(domain)(Bt656ToRGB(lines=lines))
+        # no output buffer: the overflow guard below is always ready
+        self.decoder = DomainRenamer(domain)(Bt656ToRGB(lines=lines, buffer=False))
         super().__init__({
             "i": In(stream.Signature(8)),
             "o": Out(stream.Signature(RGBPixel)),
@@ -91,8 +103,9 @@ class CameraPort(wiring.Component):
         m = Module()
         cam = m.d[self._domain]
         m.submodules.decoder = dec = self.decoder
-        m.submodules.fifo = q = AsyncFIFO(width=RGBPixel.size, depth=self._fifo_depth,
-                                          w_domain=self._domain, r_domain="sync")
+        fifo = _DistributedAsyncFIFO if self._fifo_depth <= 64 else AsyncFIFO
+        m.submodules.fifo = q = fifo(width=RGBPixel.size, depth=self._fifo_depth,
+                                     w_domain=self._domain, r_domain="sync")
         wiring.connect(m, wiring.flipped(self.i), dec.i)
 
         # overflow guard: a pixel that finds the FIFO full, and the rest of its frame, dropped

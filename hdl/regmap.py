@@ -35,7 +35,8 @@ from golden.pipeline import default_params
 
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
            "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "MAX_WIDTH", "MAX_HEIGHT", "DISPARITY_SPAN",
-           "register", "field", "parameter_fields", "status_fields"]
+           "register", "field", "parameter_fields", "config_fields", "param_value",
+           "status_fields", "encode_params"]
 
 #: MCS I/O bus addresses: the I/O bus occupies 0xC0000000..0xFFFFFFFF on the MCS.
 REGS_BASEADDR = 0xC000_0000
@@ -69,11 +70,21 @@ _F = _P.frontend.free
 
 @dataclass(frozen=True)
 class Field:
+    """One register field. A run-time parameter (``rw``) also names, once for every user, what
+    it binds together: ``param``, the golden parameter it holds (a path into
+    :class:`golden.pipeline.PipelineParams`; ``a|b``: ``a``, or ``b`` where ``a`` is None;
+    ``path=choice0,choice1``: the index of the value in the choices) and ``port``, the
+    :class:`hdl.pipeline.StereoPipeline` input it drives (a path; None: the SoC's own control).
+    The SoC's connections (``hdl/soc.py``), the simulators' port values (``sim/config.py``), the
+    firmware's ``pipeline_config_t`` and its accessors (``STEREO_CONFIG_FIELDS`` in the
+    generated ``stereo_regs.h``) and the co-simulation's ctypes mirror all follow this table."""
     name: str
     lsb: int
     width: int
     reset: int = 0
     doc: str = ""
+    param: str | None = None
+    port: str | None = None
 
     @property
     def mask(self) -> int:
@@ -108,74 +119,103 @@ REGISTERS: tuple[Register, ...] = (
                                     "it resumes at the next field start of both cameras"),
     )),
     Register("GROUND", 0x08, "rw", "Ground classifier (golden/ground.py): mode and band width.", (
-        F("mode", 0, 2, int(_G.mode), "0 off (every pixel is an obstacle), 1 luminance, 2 hue"),
-        F("k", 4, 4, _G.k, "half-width of the ground band, in JND units"),
-        F("jnd_hue", 8, 4, _G.jnd_hue, "just-noticeable hue difference, hue units (0..191 circle)"),
-        F("jnd_luma", 12, 4, _G.jnd_luma, "just-noticeable luminance difference, luma codes"),
-        F("s_min", 16, 8, _G.s_min, "minimum saturation for a reliable hue; greyer pixels use the luminance band"),
+        F("mode", 0, 2, int(_G.mode), "0 off (every pixel is an obstacle), 1 luminance, 2 hue",
+          param="frontend.ground.mode", port="ground.mode"),
+        F("k", 4, 4, _G.k, "half-width of the ground band, in JND units",
+          param="frontend.ground.k", port="ground.k"),
+        F("jnd_hue", 8, 4, _G.jnd_hue, "just-noticeable hue difference, hue units (0..191 circle)",
+          param="frontend.ground.jnd_hue", port="ground.jnd_hue"),
+        F("jnd_luma", 12, 4, _G.jnd_luma, "just-noticeable luminance difference, luma codes",
+          param="frontend.ground.jnd_luma", port="ground.jnd_luma"),
+        F("s_min", 16, 8, _G.s_min, "minimum saturation for a reliable hue; greyer pixels use the luminance band",
+          param="frontend.ground.s_min", port="ground.s_min"),
     )),
     Register("GROUND_REF_POS", 0x0C, "rw", "Reference area (learned as ground): top-left corner. "
              f"Reset: bottom centre of a {REF_WIDTH}x{REF_HEIGHT} frame.", (
-        F("ref_x", 0, 11, _G.ref_x, "first column of the reference area"),
-        F("ref_y", 16, 11, _G.ref_y, "first row of the reference area"),
+        F("ref_x", 0, 11, _G.ref_x, "first column of the reference area",
+          param="frontend.ground.ref_x", port="ground.ref_x"),
+        F("ref_y", 16, 11, _G.ref_y, "first row of the reference area",
+          param="frontend.ground.ref_y", port="ground.ref_y"),
     )),
     Register("GROUND_REF_SIZE", 0x10, "rw", "Reference area: size.", (
-        F("ref_w", 0, 11, _G.ref_w, "width in pixels"),
-        F("ref_h", 16, 11, _G.ref_h, "height in rows"),
+        F("ref_w", 0, 11, _G.ref_w, "width in pixels",
+          param="frontend.ground.ref_w", port="ground.ref_w"),
+        F("ref_h", 16, 11, _G.ref_h, "height in rows",
+          param="frontend.ground.ref_h", port="ground.ref_h"),
     )),
     Register("GROUND_INIT", 0x14, "rw", "Ground band centres used before the first frame is learned.", (
-        F("hue_centre0", 0, 8, _G.hue_centre0, "initial hue centre, 0..191"),
-        F("luma_centre0", 8, 8, _G.luma_centre0, "initial luminance centre"),
+        F("hue_centre0", 0, 8, _G.hue_centre0, "initial hue centre, 0..191",
+          param="frontend.ground.hue_centre0", port="ground.hue_centre0"),
+        F("luma_centre0", 8, 8, _G.luma_centre0, "initial luminance centre",
+          param="frontend.ground.luma_centre0", port="ground.luma_centre0"),
     )),
     Register("SOBEL", 0x18, "rw", "Vertical-edge detector (golden/sobel.py).", (
-        F("edge_threshold", 0, 11, _S.threshold, "minimum |Gx| of an edge pixel"),
-        F("ratio", 16, 4, _S.ratio, "dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy|"),
-        F("nms", 24, 1, int(_S.nms), "1: keep only horizontal local maxima of |Gx| (non-maximum suppression)"),
+        F("edge_threshold", 0, 11, _S.threshold, "minimum |Gx| of an edge pixel",
+          param="frontend.sobel.threshold", port="threshold"),
+        F("ratio", 16, 4, _S.ratio, "dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy|",
+          param="frontend.sobel.ratio", port="ratio"),
+        F("nms", 24, 1, int(_S.nms), "1: keep only horizontal local maxima of |Gx| (non-maximum suppression)",
+          param="frontend.sobel.nms", port="nms"),
     )),
     Register("SOBEL_RIGHT", 0x20, "rw", "Right camera's edge threshold: its edges only select "
              "the candidates of the matcher, so it is lower than the left's (golden/pipeline.py).", (
-        F("right_threshold", 0, 11, _P.right_threshold, "minimum |Gx| of a right-image edge pixel"),
+        F("right_threshold", 0, 11, _P.right_threshold, "minimum |Gx| of a right-image edge pixel",
+          param="right_threshold|frontend.sobel.threshold", port="right_threshold"),
     )),
     Register("VIDEO", 0x2C, "rw", "Video path (hdl/soc.py): cameras, pairing, pipeline.", (
         F("video_enable", 0, 1, 0, "1: the video path runs; 0: it is held in reset (set it once "
                                    "both decoders report lock)"),
     )),
     Register("MATCH", 0x1C, "rw", "Stereo matcher (golden/matcher.py, hdl/matcher.py).", (
-        F("d_min", 0, _DB, _M.d_min, "smallest disparity tried"),
+        F("d_min", 0, _DB, _M.d_min, "smallest disparity tried",
+          param="matcher.d_min", port="d_min"),
         F("d_max", 8, _DB, _M.d_max, f"largest disparity tried (d_min <= d_max <= d_min + "
                                      f"{DISPARITY_SPAN - 1}: a window of at most "
-                                     f"{DISPARITY_SPAN} disparities)"),
+                                     f"{DISPARITY_SPAN} disparities)",
+          param="matcher.d_max", port="d_max"),
         F("uniqueness", 16, 8, _M.uniqueness, "margin u in 1/256 units: reject the best d if a "
-                                               "candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d)"),
+                                               "candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d)",
+          param="matcher.uniqueness", port="uniqueness"),
         F("candidate_mode", 24, 1, 0 if _M.mode == "adaptive" else 1,
-          "0 adaptive (only right-image edge columns), 1 full range"),
-        F("widen", 25, 1, int(_M.widen), "1: also try the neighbours (d-1, d+1) of each adaptive candidate"),
+          "0 adaptive (only right-image edge columns), 1 full range",
+          param="matcher.mode=adaptive,full", port="mode_full"),
+        F("widen", 25, 1, int(_M.widen), "1: also try the neighbours (d-1, d+1) of each adaptive candidate",
+          param="matcher.widen", port="widen"),
         F("camera_mode_drop", 26, 1, 0, "1: camera inputs that cannot stall: the matcher drops "
-                                        "(and counts) edges it has no time for (hdl/matcher.py drop_mode)"),
+                                        "(and counts) edges it has no time for (hdl/matcher.py drop_mode)", port="drop_mode"),
     )),
     Register("GROUND_CLIP", 0x24, "rw", "Ground model v2: luminance clip levels (golden/ground.py).", (
-        F("y_lo", 0, 8, _G.y_lo, "lowest luma code with a reliable hue; darker luma bins are never ground"),
-        F("y_hi", 8, 8, _G.y_hi, "highest luma code with a reliable hue; brighter luma bins are never ground"),
+        F("y_lo", 0, 8, _G.y_lo, "lowest luma code with a reliable hue; darker luma bins are never ground",
+          param="frontend.ground.y_lo", port="ground.y_lo"),
+        F("y_hi", 8, 8, _G.y_hi, "highest luma code with a reliable hue; brighter luma bins are never ground",
+          param="frontend.ground.y_hi", port="ground.y_hi"),
     )),
     Register("GROUND_SET", 0x28, "rw", "Ground model v2: histogram sets and learning.", (
         F("frac", 0, 8, _G.frac, "a bin is ground when its count smoothed over +-1 JND reaches "
-                                 "support x frac / 1024 (support: the histogram's total)"),
+                                 "support x frac / 1024 (support: the histogram's total)",
+          param="frontend.ground.frac", port="ground.frac"),
         F("min_support", 8, 16, _G.min_support, "fewest reliable hue samples (pixels) in the model "
-                                                "for hue classification; fewer: luminance fallback"),
+                                                "for hue classification; fewer: luminance fallback",
+          param="frontend.ground.min_support", port="ground.min_support"),
         F("blend_shift", 24, 3, _G.blend_shift, "model' = model + (new - model) / 2^blend_shift "
-                                                "(0: the last frame only)"),
+                                                "(0: the last frame only)",
+          param="frontend.ground.blend_shift", port="ground.blend_shift"),
         F("hue_and_luma", 28, 1, _G.hue_and_luma, "1: a pixel with a reliable hue also needs its "
-                                                  "luminance in the luma set"),
+                                                  "luminance in the luma set",
+          param="frontend.ground.hue_and_luma", port="ground.hue_and_luma"),
         F("fallback_shift", 29, 3, _G.fallback_shift, "in hue fallback the luma set's threshold "
-                                                      "is the luma threshold >> fallback_shift"),
+                                                      "is the luma threshold >> fallback_shift",
+          param="frontend.ground.fallback_shift", port="ground.fallback_shift"),
     )),
     # Free space (golden/freespace.py, hdl/freespace.py): configuration and each camera's
     # last frame, 16 bands of 16 bits, two bands per word.
     Register("FREE_CFG", 0x30, "rw", "Free space per column band (golden/freespace.py), both "
              f"cameras. Reset: 16 bands across a {REF_WIDTH}-column frame.", (
-        F("band_w", 0, 11, _F.band_w, "free space: columns per band, 16 bands from x = 0"),
+        F("band_w", 0, 11, _F.band_w, "free space: columns per band, 16 bands from x = 0",
+          param="frontend.free.band_w", port="band_w"),
         F("run_r", 16, 8, _F.run_r, "free space: rows an obstacle run needs (a row of a band is "
-                                    "obstacle when more than half its pixels are), at least 1"),
+                                    "obstacle when more than half its pixels are), at least 1",
+          param="frontend.free.run_r", port="run_r"),
     )),
     *(Register(f"FREE_{side.upper()}_{k}", base + 4 * k, "ro",
                f"{side.capitalize()} camera, last frame: free-space rows of bands {2 * k} and "
@@ -287,6 +327,29 @@ def parameter_fields():
     return [(r, f) for r in REGISTERS if r.kind == "rw" for f in r.fields]
 
 
+def config_fields():
+    """(register, field) of every pipeline parameter (a field with a ``port``), in map order:
+    the members of the firmware's ``pipeline_config_t``."""
+    return [(r, f) for r, f in parameter_fields() if f.port is not None]
+
+
+def param_value(params, f):
+    """The value field ``f`` holds for golden ``params`` (a
+    :class:`golden.pipeline.PipelineParams`, or any object with the attributes its ``param``
+    path names), as an integer; its reset value for a field of no golden parameter, and None
+    when ``params`` lacks the path (e.g. a front end's parameters have no matcher)."""
+    if f.param is None:
+        return f.reset
+    path, _, choices = f.param.partition("=")
+    for alternative in path.split("|"):
+        obj = params
+        for name in alternative.split("."):
+            obj = getattr(obj, name, None)
+        if obj is not None:
+            return choices.split(",").index(obj) if choices else int(obj)
+    return None
+
+
 def status_fields():
     """(register, field) of every status input (the block's own RESULT_LEVEL and ID excluded)."""
     return [(r, f) for r in REGISTERS if r.kind == "ro" and r.name not in ("ID", "RESULT_LEVEL")
@@ -317,28 +380,16 @@ def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None
     :class:`golden.freespace.FreeSpaceParams`); None = the register's reset value
     (``right_threshold`` None: the left's threshold when ``sobel`` is given). What the
     firmware writes for the same settings."""
+    params = SimpleNamespace(frontend=SimpleNamespace(ground=ground, sobel=sobel, free=free),
+                             matcher=matcher, right_threshold=right_threshold)
     values = {}
-    if right_threshold is None and sobel is not None:
-        right_threshold = sobel.threshold
-    right = None if right_threshold is None else SimpleNamespace(right_threshold=right_threshold)
-    src = {"GROUND": ground, "GROUND_REF_POS": ground, "GROUND_REF_SIZE": ground,
-           "GROUND_INIT": ground, "GROUND_CLIP": ground, "GROUND_SET": ground, "SOBEL": sobel,
-           "SOBEL_RIGHT": right, "MATCH": matcher, "VIDEO": None, "FREE_CFG": free}
-    rename = {"edge_threshold": "threshold"}
     for reg in REGISTERS:
         if reg.kind != "rw":
             continue
-        obj = src[reg.name]
         v = 0
         for f in reg.fields:
-            if obj is None:
-                x = f.reset
-            elif f.name == "candidate_mode":
-                x = 0 if obj.mode == "adaptive" else 1
-            elif f.name == "camera_mode_drop":
-                x = camera_mode_drop
-            else:
-                x = int(getattr(obj, rename.get(f.name, f.name)))
+            x = camera_mode_drop if f.name == "camera_mode_drop" else param_value(params, f)
+            x = f.reset if x is None else x
             if not 0 <= x < (1 << f.width):
                 raise ValueError(f"{reg.name}.{f.name} = {x} does not fit {f.width} bits")
             v |= x << f.lsb

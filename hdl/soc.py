@@ -18,9 +18,8 @@ from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
-from golden.ground import GroundParams
-
 from . import regmap
+from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
 from .freespace import free_space_status
 from .iic import IICMaster
@@ -34,12 +33,6 @@ __all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR"]
 
 #: Bus address of the radio UART (hdl/uart.py).
 UART_BASEADDR = 0xC002_0000
-
-#: Register field -> pipeline port, where the names differ.
-_PARAM_PORTS = {"edge_threshold": "threshold", "candidate_mode": "mode_full",
-                "camera_mode_drop": "drop_mode"}
-_GROUND_FIELDS = tuple(name for name, _ in GroundParams.FIELDS)
-
 
 class StereoSoC(wiring.Component):
     """Pipeline + registers + IIC master.
@@ -132,18 +125,29 @@ class SystemSoC(wiring.Component):
     uart_tx, uart_rx
         The radio UART.
 
-    Elaboration parameters: ``max_width``, ``max_height`` (pipeline), ``lines``
-    (active lines per field), ``camera_fifo_depth``, ``skew`` (pairing), ``fifo_depth``
-    (results), ``clk_div`` (IIC), ``uart_divisor``.
+    Elaboration parameters: ``max_width``, ``max_height`` (pipeline; default one NTSC field of
+    the ADV7180, 720 x 240: every counter and comparator of the pipeline is sized by them),
+    ``lines`` (active lines per field), ``camera_fifo_depth`` (each camera port's clock-domain
+    FIFO, distributed RAM), ``buffer_depth`` (each camera's queue in the shared block RAM of
+    :class:`hdl.camera_buffer.PairBuffer`), ``skew`` (pairing), ``fifo_depth`` (results),
+    ``clk_div`` (IIC), ``uart_divisor``.
+
+    Camera buffering: a pixel waits in its port's FIFO (64), its queue (256) and a few
+    registers, about 330 pixels or 24 us of one camera, for its partner's field start (the
+    cameras' phase difference, up to ``skew`` = 1,024 core cycles = 276 pixel times) and for
+    the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
+    once; its per-frame work, the ground search and the Sobel flush, falls in the 22 lines of
+    vertical blanking).
     """
 
-    def __init__(self, *, max_width=1024, max_height=256, lines=240,
-                 camera_fifo_depth=512, skew=1024, fifo_depth=512, clk_div=125,
-                 uart_divisor=434):
+    def __init__(self, *, max_width=720, max_height=240, lines=240,
+                 camera_fifo_depth=64, buffer_depth=256, skew=1024, fifo_depth=512,
+                 clk_div=125, uart_divisor=434):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
+        self._buffer_depth = buffer_depth
         self._skew = skew
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
@@ -197,8 +201,12 @@ class SystemSoC(wiring.Component):
         pipe = StereoPipeline(**self._pipeline)
         m.submodules.pairing = ResetInserter(video_rst)(pairing)
         m.submodules.pipeline = ResetInserter(video_rst)(pipe)
-        wiring.connect(m, ports[0].o, pairing.left_i)
-        wiring.connect(m, ports[1].o, pairing.right_i)
+        buffer = PairBuffer(shape=RGBPixel, depth=self._buffer_depth)
+        m.submodules.camera_buffer = ResetInserter(video_rst)(buffer)
+        wiring.connect(m, ports[0].o, buffer.i0)
+        wiring.connect(m, ports[1].o, buffer.i1)
+        wiring.connect(m, buffer.o0, pairing.left_i)
+        wiring.connect(m, buffer.o1, pairing.right_i)
         for side in ("left", "right"):      # registered buffers: pairing and pipeline logic
             buf = SyncFIFOBuffered(width=RGBPixel.size, depth=2)     # do not chain
             m.submodules[f"{side}_buffer"] = ResetInserter(video_rst)(buf)
@@ -227,7 +235,10 @@ class SystemSoC(wiring.Component):
             regs.results.payload.eof.eq(rec.eof | abort),
             regs.results.payload.abort.eq(abort),
         ]
-        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst)
+        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
+                                  reset=video_rst)
+        match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
+        m.d.sync += match_errors.eq(pipe.match_errors)
         status.update({
             "health_camera_left_errors": ports[0].errors,
             "health_camera_right_errors": ports[1].errors,
@@ -236,7 +247,7 @@ class SystemSoC(wiring.Component):
             "health_pairs_pairs_ok": pairing.pairs_ok,
             "health_pairs_mispaired": pairing.mispaired,
             "health_drops_frames": pairing.dropped,
-            "health_drops_match_errors": pipe.match_errors,
+            "health_drops_match_errors": match_errors,
             "health_status_left_locked": ports[0].locked,
             "health_status_right_locked": ports[1].locked,
             "health_status_enabled": regs.video_enable,
@@ -248,24 +259,19 @@ class SystemSoC(wiring.Component):
         return m
 
 
-#: Register field -> pipeline port, where the names differ; fields of no pipeline port (the
-#: video control) are the SoC's own.
-_NOT_PIPELINE = ("video_enable",)
-
-
 def _connect_parameters(m, regs, pipe):
-    for _reg, f in regmap.parameter_fields():
-        if f.name in _NOT_PIPELINE:
-            continue
-        if f.name in _GROUND_FIELDS:
-            m.d.comb += getattr(pipe.ground, f.name).eq(getattr(regs, f.name))
-        else:
-            m.d.comb += getattr(pipe, _PARAM_PORTS.get(f.name, f.name)).eq(getattr(regs, f.name))
+    """Every pipeline parameter from its register field (``hdl.regmap`` ``Field.port``)."""
+    for _reg, f in regmap.config_fields():
+        port = pipe
+        for name in f.port.split("."):
+            port = getattr(port, name)
+        m.d.comb += port.eq(getattr(regs, f.name))
 
 
-def _pipeline_status(m, regs, pipe, *, clear):
+def _pipeline_status(m, regs, pipe, *, clear, reset=0):
     """The pipeline's status inputs of the register block: statistics and free space as they
-    are, sticky counters relative to their value at the last ``clear``."""
+    are, sticky counters relative to their value at the last ``clear`` (``reset``: the pipeline
+    is being reset, which also clears them)."""
     status = {
         "frame_count_frames": pipe.frames,
         "stat_edges_count": pipe.frame_edge_pixels,
@@ -278,15 +284,30 @@ def _pipeline_status(m, regs, pipe, *, clear):
     for side in ("left", "right"):
         status[f"ground_status_{side}_learned"] = getattr(pipe, f"{side}_ground_learned")
         status[f"ground_status_{side}_hue_fallback"] = getattr(pipe, f"{side}_hue_fallback")
+    # Each sticky counter is shown as the count since the last ``clear``, saturating at 16 bits,
+    # kept by the SoC: every cycle it adds the source's increment, the difference of its two
+    # low bits (the sources count at most three a cycle: the matcher's errors sum three
+    # counters, each of one a cycle at most), so no wide base register or subtraction is
+    # needed, and the register block's read multiplexer starts from a register. ``reset`` (the
+    # source counters are reset with the video path) holds the value at 0 one cycle more, while
+    # the sources return to 0.
+    width = 16
+    settle = Signal()
+    m.d.sync += settle.eq(reset)
     for reg_name, prefix in (("err_left", "left"), ("err_right", "right"),
                              ("err_match", "match")):
         for kind in ("errors", "dropped"):
             count = getattr(pipe, f"{prefix}_{kind}")
-            base = Signal(len(count), name=f"{reg_name}_{kind}_base")
-            with m.If(clear):
-                m.d.sync += base.eq(count)
-            since = Signal(len(count), name=f"{reg_name}_{kind}_since")
-            m.d.comb += since.eq(count - base)
-            width = 16
-            status[f"{reg_name}_{kind}"] = Mux(since >> width != 0, (1 << width) - 1, since)
+            last = Signal(2, name=f"{reg_name}_{kind}_last")
+            m.d.sync += last.eq(count[:2])
+            step = Signal(2, name=f"{reg_name}_{kind}_step")
+            m.d.comb += step.eq(count[:2] - last)
+            shown = Signal(width, name=f"{reg_name}_{kind}_shown")
+            total = Signal(width + 1, name=f"{reg_name}_{kind}_total")
+            m.d.comb += total.eq(shown + step)
+            with m.If(clear | settle):
+                m.d.sync += shown.eq(0)
+            with m.Else():
+                m.d.sync += shown.eq(Mux(total[width], (1 << width) - 1, total))
+            status[f"{reg_name}_{kind}"] = shown
     return status

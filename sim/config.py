@@ -1,26 +1,27 @@
 """Run-time parameters onto a unit's ports: from a :class:`golden.frontend.FrontEndParams` or a
 :class:`golden.pipeline.PipelineParams` to the input ports of whatever unit takes them."""
+from types import SimpleNamespace
+
 from golden.ground import GroundParams
 from hdl.ground import GroundConfig
+from hdl.regmap import config_fields, param_value
 from .streams import Packer
 
 __all__ = ["apply_config", "config_values"]
 
 
 def _scalar_values(params):
-    """(port, value) of the Sobel, free-space and matcher parameters present in ``params``."""
-    fp = getattr(params, "frontend", params)
-    sp = fp.sobel
-    values = [("threshold", sp.threshold), ("ratio", sp.ratio), ("nms", int(sp.nms)),
-              ("band_w", fp.free.band_w), ("run_r", fp.free.run_r)]
-    if hasattr(params, "right_threshold"):
-        right = sp.threshold if params.right_threshold is None else params.right_threshold
-        values.append(("right_threshold", right))
-    mp = getattr(params, "matcher", None)
-    if mp is not None:
-        values += [("d_min", mp.d_min), ("d_max", mp.d_max), ("uniqueness", mp.uniqueness),
-                   ("mode_full", int(mp.mode == "full")), ("widen", int(mp.widen)),
-                   ("drop_mode", 0)]
+    """(port, value) of the parameters outside the ground model present in ``params``: every
+    register field of ``hdl.regmap.config_fields`` whose ``port`` is a plain pipeline input
+    (the ground model's travel together as :data:`hdl.ground.GroundConfig`)."""
+    if not hasattr(params, "frontend"):             # a front end's parameters
+        params = SimpleNamespace(frontend=params)
+    values = []
+    for _reg, f in config_fields():
+        if "." not in f.port:
+            value = param_value(params, f)
+            if value is not None:
+                values.append((f.port, value))
     return values
 
 

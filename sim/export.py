@@ -251,6 +251,10 @@ class SystemDesign:
     make: Callable
     params: dict = field(default_factory=dict)
     doc: str = ""
+    #: Clock domains beside ``clk``: clock input -> ``(reset input or None, port names in
+    #: that domain)``; a clock or reset that is not a port of the signature (a domain Amaranth
+    #: adds, e.g. ``cam_clk``) is still an input of the exported module (``sim/timing.py``).
+    clocks: dict = field(default_factory=dict)
 
     def build(self, **overrides):
         return self.make(**{**self.params, **overrides})

@@ -69,10 +69,37 @@ def render_header() -> str:
         "#define STEREO_SET(R, F, x) "
         "(((uint32_t)(x) << STEREO_##R##_##F##_SHIFT) & STEREO_##R##_##F##_MASK)",
         "",
+    ]
+    out += _config_table()
+    out += [
         "#endif /* STEREO_REGS_H */",
         "",
     ]
     return "\n".join(out)
+
+
+def c_type(width: int) -> str:
+    """The C type of a ``pipeline_config_t`` member holding a field of ``width`` bits."""
+    return "uint8_t" if width <= 8 else "uint16_t" if width <= 16 else "uint32_t"
+
+
+def _config_table() -> list[str]:
+    """X-macros over the pipeline parameters (``hdl.regmap.config_fields``): the firmware's
+    ``pipeline_config_t``, its defaults, range checks, register writes and read-back are all
+    written over them, so a field added to the map needs no edit of the firmware."""
+    fields = regmap.config_fields()
+    regs = list(dict.fromkeys(reg.name for reg, _ in fields))
+    lines = ["/** Every pipeline parameter: X(REGISTER, FIELD, member, C type) in map order (the "
+             "members of pipeline_config_t). */",
+             "#define STEREO_CONFIG_FIELDS(X) \\"]
+    lines += [f"    X({reg.name}, {f.name.upper()}, {f.name}, {c_type(f.width)}) \\"
+              for reg, f in fields]
+    lines += ["", "/** The registers that hold them: X(REGISTER). */",
+              "#define STEREO_CONFIG_REGS(X) \\"]
+    lines += [f"    X({name}) \\" for name in regs]
+    lines += ["", f"#define STEREO_CONFIG_NREGS {len(regs)}u /**< registers in STEREO_CONFIG_REGS */",
+              ""]
+    return lines
 
 
 def render_markdown() -> str:

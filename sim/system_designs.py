@@ -32,14 +32,16 @@ def _soc(**params):
 
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
-    "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=512),
-                           "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO (hdl/camera_port.py)"),
+    "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=64),
+                           "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO as in the SoC (hdl/camera_port.py)",
+                           clocks={"cam_clk": ("cam_rst", ("i",))}),
     "pairing": SystemDesign(_pairing, dict(skew=1024, max_width=1024, max_height=1024),
                             "stereo frame pairing (hdl/pairing.py)"),
     "uart": SystemDesign(_uart, dict(divisor=434), "radio UART on the I/O bus (hdl/uart.py)"),
     "bridge": SystemDesign(_bridge, dict(divisor=434),
                            "UART register bridge, the CPU's stand-in on boards (hdl/bridge.py)"),
-    "soc": SystemDesign(_soc, dict(max_width=1024, max_height=256, lines=240),
+    "soc": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240),
                         "the SoC: two BT.656 camera ports, pairing, pipeline, registers and "
-                        "result FIFO, IIC master, radio UART on the I/O bus (hdl/soc.py)"),
+                        "result FIFO, IIC master, radio UART on the I/O bus (hdl/soc.py)",
+                        clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
 }

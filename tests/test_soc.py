@@ -104,3 +104,36 @@ def test_configure_stream_and_read_results_over_the_bus():
     for side in ("left", "right"):
         assert state[f"free_{side}"] == getattr(golden[-1], side).free.tolist(), side
     assert state["free_left"][6] != 0xFFFF and state["free_left"][7:] == [0xFFFF] * 9
+
+
+def test_sticky_counters_count_since_the_last_clear():
+    # beats before any sof are dropped by the left front end: one error per run, one drop per
+    # beat; CTRL.clear_errors restarts the counts the CPU sees, the pipeline's own go on
+    soc = StereoSoC(max_width=16, max_height=8, fifo_depth=8, clk_div=4)
+    m = Module()
+    m.domains.sync = ClockDomain("sync")
+    m.submodules.soc = soc
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    packer = Packer(RGBPixel)
+    seen = []
+
+    async def left_errors(ctx):
+        return fields("ERR_LEFT", await io_read(ctx, soc.bus, addr("ERR_LEFT")))
+
+    async def cpu(ctx):
+        stray = [packer.pack_int(r=1, g=2, b=3, sof=0, eol=0, eof=0)]
+        await stream_put(ctx, soc.left, stray * 5)
+        await ctx.tick().repeat(8)
+        seen.append(await left_errors(ctx))
+        await io_write(ctx, soc.bus, addr("CTRL"), 1 << regmap.field("CTRL", "clear_errors").lsb)
+        await ctx.tick().repeat(4)
+        seen.append(await left_errors(ctx))
+        await stream_put(ctx, soc.left, stray * 3)
+        await ctx.tick().repeat(8)
+        seen.append(await left_errors(ctx))
+
+    sim.add_testbench(cpu)
+    sim.run()
+    assert seen == [{"errors": 1, "dropped": 5}, {"errors": 0, "dropped": 0},
+                    {"errors": 0, "dropped": 3}]

@@ -9,10 +9,10 @@ import pytest
 from golden.frontend import FrontEndParams
 from golden.ground import GroundMode, GroundParams
 from golden.matcher import MatcherParams
-from golden.pipeline import PipelineParams
+from golden.pipeline import PipelineParams, pipeline_frames
 from golden.sobel import SobelParams
 from sim.data import crop, motorcycle
-from sim.system import FAULTS, inject, run_system, camera_streams
+from sim.system import FAULTS, camera_fields, camera_streams, inject, run_system
 
 W, H, FRAMES = 64, 16, 5
 PARAMS = PipelineParams(
@@ -70,3 +70,16 @@ def test_command_line_errors_are_one_line():
     r = subprocess.run([sys.executable, "-m", "sim", "system", "--left", "x.png"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.startswith("error:")
+
+
+def test_hue_fallback_reaches_the_radio_flags():
+    # hue mode with a reference region far below min_support reliable hues: every frame after
+    # the first is classified in luminance fallback, and the firmware's health flags say so
+    ground = GroundParams(mode=GroundMode.HUE, ref_x=24, ref_y=8, ref_w=16, ref_h=8)
+    params = PipelineParams(FrontEndParams(ground, SobelParams(threshold=64)), PARAMS.matcher)
+    left, right = pair()
+    golden = pipeline_frames([camera_fields(left)[1]] * 3, [camera_fields(right)[1]] * 3, params)
+    assert golden[-1].left.status[1] or golden[-1].right.status[1]
+    res = run_system(left, right, frames=3, timing="short", params=params)
+    assert res["bit_exact"], res
+    assert res["firmware"]["flags"] == 7 | 8, res        # locked, enabled, hue fallback

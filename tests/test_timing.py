@@ -6,7 +6,7 @@ import re
 import pytest
 
 from sim.export import registered
-from sim.timing import SPARTAN3_SCALE, main, wrapper_verilog
+from sim.timing import SPARTAN3_SCALE, clock_name, clocks_of, main, wrapper_verilog
 
 
 def test_wrapper_covers_every_port():
@@ -20,6 +20,20 @@ def test_wrapper_covers_every_port():
     n_out = int(re.search(r"wire \[(\d+):0\] q", text).group(1)) + 1
     assert n_in == 1 + 1 + 27 + 1          # rst, i valid + payload, o ready
     assert n_out == 1 + 1 + 27 + 16 + 32   # i ready, o valid + payload, errors, dropped
+
+
+def test_every_clock_domain_gets_its_pin_shift_register_and_fold():
+    component, _ = registered("soc")
+    text = wrapper_verilog("soc", component, clocks_of("soc"))
+    assert "module timing_top(input wire clk, input wire cam0_clk, input wire cam1_clk," in text
+    for k in (0, 1):
+        # the camera's stream is fed and folded in its own clock domain, its clock is a pin
+        assert f"always @(posedge cam{k}_clk)" in text
+        assert re.search(rf"\.cam{k}__valid\(sh_cam{k}_clk\[", text)
+        assert re.search(rf"\.cam{k}__ready\(q_cam{k}_clk\[", text)
+        assert f".cam{k}_clk(cam{k}_clk)" in text
+    assert clock_name("$glbnet$cam0_clk$TRELLIS_IO_IN") == "cam0_clk"
+    assert clock_name("clk$TRELLIS_IO_IN") == "clk"
 
 
 def test_bad_arguments(capsys):

@@ -7,37 +7,14 @@
 
 #include <stdint.h>
 #include "fw_status.h"
+#include "stereo_regs.h"
 
-/** Every run-time parameter of the pipeline (field meanings: docs/registers.md). */
+/** Every run-time parameter of the pipeline: one member per register field of
+ *  STEREO_CONFIG_FIELDS (generated from hdl/regmap.py), named as the field (meanings:
+ *  docs/registers.md). */
+#define PIPELINE_CONFIG_MEMBER(R, F, m, T) T m;
 typedef struct {
-    uint8_t mode;            /**< GROUND.mode: 0 off, 1 luma, 2 hue */
-    uint8_t k;               /**< GROUND.k */
-    uint8_t jnd_hue;         /**< GROUND.jnd_hue */
-    uint8_t jnd_luma;        /**< GROUND.jnd_luma */
-    uint8_t s_min;           /**< GROUND.s_min */
-    uint16_t ref_x;          /**< GROUND_REF_POS.ref_x */
-    uint16_t ref_y;          /**< GROUND_REF_POS.ref_y */
-    uint16_t ref_w;          /**< GROUND_REF_SIZE.ref_w */
-    uint16_t ref_h;          /**< GROUND_REF_SIZE.ref_h */
-    uint8_t hue_centre0;     /**< GROUND_INIT.hue_centre0 (0..191) */
-    uint8_t luma_centre0;    /**< GROUND_INIT.luma_centre0 */
-    uint8_t y_lo;            /**< GROUND_CLIP.y_lo (luma code) */
-    uint8_t y_hi;            /**< GROUND_CLIP.y_hi (luma code) */
-    uint8_t frac;            /**< GROUND_SET.frac (1/1024 of the support) */
-    uint16_t min_support;    /**< GROUND_SET.min_support (reliable hue samples) */
-    uint8_t blend_shift;     /**< GROUND_SET.blend_shift */
-    uint8_t hue_and_luma;    /**< GROUND_SET.hue_and_luma */
-    uint8_t fallback_shift;  /**< GROUND_SET.fallback_shift (hue fallback luma threshold shift) */
-    uint16_t edge_threshold; /**< SOBEL.edge_threshold */
-    uint8_t ratio; /**< SOBEL.ratio */
-    uint8_t nms;             /**< SOBEL.nms */
-    uint16_t right_threshold; /**< SOBEL_RIGHT.right_threshold */
-    uint8_t d_min;           /**< MATCH.d_min */
-    uint8_t d_max;           /**< MATCH.d_max */
-    uint8_t uniqueness;      /**< MATCH.uniqueness (u = value/256) */
-    uint8_t candidate_mode;  /**< MATCH.candidate_mode: 0 adaptive, 1 full */
-    uint8_t widen;           /**< MATCH.widen */
-    uint8_t camera_mode_drop;/**< MATCH.camera_mode_drop */
+    STEREO_CONFIG_FIELDS(PIPELINE_CONFIG_MEMBER)
 } pipeline_config_t;
 
 /** One record of the result FIFO: a matched obstacle-edge pixel, or (mark != 0) an

@@ -514,4 +514,52 @@
 /** Field F of register R holding x, positioned for an OR into the register value. */
 #define STEREO_SET(R, F, x) (((uint32_t)(x) << STEREO_##R##_##F##_SHIFT) & STEREO_##R##_##F##_MASK)
 
+/** Every pipeline parameter: X(REGISTER, FIELD, member, C type) in map order (the members of pipeline_config_t). */
+#define STEREO_CONFIG_FIELDS(X) \
+    X(GROUND, MODE, mode, uint8_t) \
+    X(GROUND, K, k, uint8_t) \
+    X(GROUND, JND_HUE, jnd_hue, uint8_t) \
+    X(GROUND, JND_LUMA, jnd_luma, uint8_t) \
+    X(GROUND, S_MIN, s_min, uint8_t) \
+    X(GROUND_REF_POS, REF_X, ref_x, uint16_t) \
+    X(GROUND_REF_POS, REF_Y, ref_y, uint16_t) \
+    X(GROUND_REF_SIZE, REF_W, ref_w, uint16_t) \
+    X(GROUND_REF_SIZE, REF_H, ref_h, uint16_t) \
+    X(GROUND_INIT, HUE_CENTRE0, hue_centre0, uint8_t) \
+    X(GROUND_INIT, LUMA_CENTRE0, luma_centre0, uint8_t) \
+    X(SOBEL, EDGE_THRESHOLD, edge_threshold, uint16_t) \
+    X(SOBEL, RATIO, ratio, uint8_t) \
+    X(SOBEL, NMS, nms, uint8_t) \
+    X(SOBEL_RIGHT, RIGHT_THRESHOLD, right_threshold, uint16_t) \
+    X(MATCH, D_MIN, d_min, uint8_t) \
+    X(MATCH, D_MAX, d_max, uint8_t) \
+    X(MATCH, UNIQUENESS, uniqueness, uint8_t) \
+    X(MATCH, CANDIDATE_MODE, candidate_mode, uint8_t) \
+    X(MATCH, WIDEN, widen, uint8_t) \
+    X(MATCH, CAMERA_MODE_DROP, camera_mode_drop, uint8_t) \
+    X(GROUND_CLIP, Y_LO, y_lo, uint8_t) \
+    X(GROUND_CLIP, Y_HI, y_hi, uint8_t) \
+    X(GROUND_SET, FRAC, frac, uint8_t) \
+    X(GROUND_SET, MIN_SUPPORT, min_support, uint16_t) \
+    X(GROUND_SET, BLEND_SHIFT, blend_shift, uint8_t) \
+    X(GROUND_SET, HUE_AND_LUMA, hue_and_luma, uint8_t) \
+    X(GROUND_SET, FALLBACK_SHIFT, fallback_shift, uint8_t) \
+    X(FREE_CFG, BAND_W, band_w, uint16_t) \
+    X(FREE_CFG, RUN_R, run_r, uint8_t) \
+
+/** The registers that hold them: X(REGISTER). */
+#define STEREO_CONFIG_REGS(X) \
+    X(GROUND) \
+    X(GROUND_REF_POS) \
+    X(GROUND_REF_SIZE) \
+    X(GROUND_INIT) \
+    X(SOBEL) \
+    X(SOBEL_RIGHT) \
+    X(MATCH) \
+    X(GROUND_CLIP) \
+    X(GROUND_SET) \
+    X(FREE_CFG) \
+
+#define STEREO_CONFIG_NREGS 10u /**< registers in STEREO_CONFIG_REGS */
+
 #endif /* STEREO_REGS_H */

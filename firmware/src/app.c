@@ -6,6 +6,9 @@
 #include "hal.h"
 #include "stereo_regs.h"
 
+/** GROUND.mode of hue classification (docs/registers.md). */
+#define APP_GROUND_MODE_HUE 2u
+
 #include <string.h>
 
 fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls)
@@ -198,7 +201,7 @@ static uint16_t since(uint16_t now, uint16_t *last)
 
 fw_status_t app_read_health(app_t *app, radio_health_t *h)
 {
-    uint32_t cam, ovf, pairs, drops, status, level, errm, frames;
+    uint32_t cam, ovf, pairs, drops, status, level, errm, frames, ground;
     uint32_t overflow;
     health_snapshot_t *l;
     if (app == NULL || h == NULL) {
@@ -216,6 +219,11 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
     status = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_STATUS_OFFSET);
     level = STEREO_ReadReg(app->regs_base, STEREO_RESULT_LEVEL_OFFSET);
     errm = STEREO_ReadReg(app->regs_base, STEREO_ERR_MATCH_OFFSET);
+    ground = STEREO_ReadReg(app->regs_base, STEREO_GROUND_STATUS_OFFSET);
+    /* the ground model reports hue fallback in every mode; it means something only in hue mode */
+    if (STEREO_GET(GROUND, MODE, STEREO_ReadReg(app->regs_base, STEREO_GROUND_OFFSET)) != APP_GROUND_MODE_HUE) {
+        ground = 0u;
+    }
     (void)errm;
     h->frames = since(field16(frames, 0u), &l->frames);
     h->pairs_ok = since(field16(pairs, STEREO_HEALTH_PAIRS_PAIRS_OK_SHIFT), &l->pairs_ok);
@@ -233,7 +241,9 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
     h->fifo_overflow = (uint16_t)(overflow > 0xFFFFu ? 0xFFFFu : overflow);
     h->flags = (uint8_t)(((status & STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK) ? RADIO_HEALTH_LEFT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK) ? RADIO_HEALTH_RIGHT_LOCKED : 0u)
-             | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_PIPELINE_ENABLED : 0u));
+             | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_PIPELINE_ENABLED : 0u)
+             | ((ground & (STEREO_GROUND_STATUS_LEFT_HUE_FALLBACK_MASK
+                           | STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK)) ? RADIO_HEALTH_HUE_FALLBACK : 0u));
     return FW_OK;
 }
 
@@ -251,21 +261,9 @@ typedef struct {
 #define FW_FIELD(T, F) { #T "." #F, (uint32_t)offsetof(T, F), (uint32_t)sizeof(((T *)0)->F) }
 
 static const fw_field_t fw_fields[] = {
-    FW_FIELD(pipeline_config_t, mode), FW_FIELD(pipeline_config_t, k),
-    FW_FIELD(pipeline_config_t, jnd_hue), FW_FIELD(pipeline_config_t, jnd_luma),
-    FW_FIELD(pipeline_config_t, s_min), FW_FIELD(pipeline_config_t, ref_x),
-    FW_FIELD(pipeline_config_t, ref_y), FW_FIELD(pipeline_config_t, ref_w),
-    FW_FIELD(pipeline_config_t, ref_h), FW_FIELD(pipeline_config_t, hue_centre0),
-    FW_FIELD(pipeline_config_t, luma_centre0), FW_FIELD(pipeline_config_t, y_lo),
-    FW_FIELD(pipeline_config_t, y_hi), FW_FIELD(pipeline_config_t, frac),
-    FW_FIELD(pipeline_config_t, min_support), FW_FIELD(pipeline_config_t, blend_shift),
-    FW_FIELD(pipeline_config_t, hue_and_luma), FW_FIELD(pipeline_config_t, fallback_shift),
-    FW_FIELD(pipeline_config_t, edge_threshold),
-    FW_FIELD(pipeline_config_t, ratio), FW_FIELD(pipeline_config_t, nms),
-    FW_FIELD(pipeline_config_t, right_threshold), FW_FIELD(pipeline_config_t, d_min),
-    FW_FIELD(pipeline_config_t, d_max), FW_FIELD(pipeline_config_t, uniqueness),
-    FW_FIELD(pipeline_config_t, candidate_mode), FW_FIELD(pipeline_config_t, widen),
-    FW_FIELD(pipeline_config_t, camera_mode_drop),
+#define CONFIG_FW_FIELD(R, F, m, T) FW_FIELD(pipeline_config_t, m),
+    STEREO_CONFIG_FIELDS(CONFIG_FW_FIELD)
+#undef CONFIG_FW_FIELD
     FW_FIELD(pipeline_match_t, x), FW_FIELD(pipeline_match_t, y), FW_FIELD(pipeline_match_t, d),
     FW_FIELD(pipeline_match_t, mark),
     FW_FIELD(radio_health_t, frames), FW_FIELD(radio_health_t, pairs_ok),

@@ -162,6 +162,20 @@ static void test_health_counts_since_last_read(void)
     sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x1u;
     FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
     FWT_CHECK(h.frames == 0 && h.pairs_ok == 0x12 && h.mispaired == 0 && h.flags == 0x1u);
+    /* in hue mode, either camera in hue fallback (GROUND_STATUS) raises the radio flag */
+    sim.regfile[STEREO_GROUND_OFFSET / 4] = STEREO_SET(GROUND, MODE, 2u);
+    sim.regfile[STEREO_GROUND_STATUS_OFFSET / 4] = STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.flags == (0x1u | RADIO_HEALTH_HUE_FALLBACK));
+    /* in the other modes the model's fallback status means nothing */
+    sim.regfile[STEREO_GROUND_OFFSET / 4] = STEREO_SET(GROUND, MODE, 0u);
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.flags == 0x1u);
+    sim.regfile[STEREO_GROUND_OFFSET / 4] = STEREO_SET(GROUND, MODE, 2u);
+    sim.regfile[STEREO_GROUND_STATUS_OFFSET / 4] = STEREO_GROUND_STATUS_LEFT_LEARNED_MASK
+                                                  | STEREO_GROUND_STATUS_RIGHT_LEARNED_MASK;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.flags == 0x1u);
     FWT_CHECK_EQ(app_read_health(&app, NULL), FW_ERR_PARAM);
     sim_uninstall();
     FWT_CHECK_EQ(app_read_health(&app, &h), FW_ERR_ID);

@@ -12,6 +12,9 @@ import fcntl
 import subprocess
 from pathlib import Path
 
+from hdl import regmap
+from sim.gen_regs import c_type
+
 ROOT = Path(__file__).resolve().parents[2]
 LIB = ROOT / "build" / "firmware" / "libfirmware.so"
 
@@ -57,18 +60,13 @@ class Adv7180C(C.Structure):
                 ("failed_entry", C.c_int16)]
 
 
+_CTYPES = {"uint8_t": C.c_uint8, "uint16_t": C.c_uint16, "uint32_t": C.c_uint32}
+
+
 class PipelineConfigC(C.Structure):
-    _fields_ = [(n, t) for n, t in (
-        ("mode", C.c_uint8), ("k", C.c_uint8), ("jnd_hue", C.c_uint8), ("jnd_luma", C.c_uint8),
-        ("s_min", C.c_uint8), ("ref_x", C.c_uint16), ("ref_y", C.c_uint16),
-        ("ref_w", C.c_uint16), ("ref_h", C.c_uint16), ("hue_centre0", C.c_uint8),
-        ("luma_centre0", C.c_uint8), ("y_lo", C.c_uint8), ("y_hi", C.c_uint8),
-        ("frac", C.c_uint8), ("min_support", C.c_uint16), ("blend_shift", C.c_uint8),
-        ("hue_and_luma", C.c_uint8), ("fallback_shift", C.c_uint8), ("edge_threshold", C.c_uint16),
-        ("ratio", C.c_uint8), ("nms", C.c_uint8), ("right_threshold", C.c_uint16),
-        ("d_min", C.c_uint8),
-        ("d_max", C.c_uint8), ("uniqueness", C.c_uint8), ("candidate_mode", C.c_uint8),
-        ("widen", C.c_uint8), ("camera_mode_drop", C.c_uint8))]
+    """pipeline_config_t: one member per ``hdl.regmap.config_fields`` field (as the generated
+    STEREO_CONFIG_FIELDS, sim/gen_regs.py ``c_type``)."""
+    _fields_ = [(f.name, _CTYPES[c_type(f.width)]) for _reg, f in regmap.config_fields()]
 
 
 class HealthSnapshotC(C.Structure):
