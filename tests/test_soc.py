@@ -20,6 +20,17 @@ import random
 BASE = regmap.REGS_BASEADDR
 
 
+
+def soc_simulator(**kw):
+    """A :class:`StereoSoC` (IIC clock divider 4) in a simulator with a 100 MHz clock."""
+    soc = StereoSoC(clk_div=4, **kw)
+    m = Module()
+    m.domains.sync = ClockDomain("sync")
+    m.submodules.soc = soc
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    return soc, sim
+
 def addr(name):
     return BASE + regmap.register(name).offset
 
@@ -39,12 +50,7 @@ def test_configure_stream_and_read_results_over_the_bus():
     golden = pipeline_frames([lf, lf], [rf, rf], params)
     assert sum(len(g.records) for g in golden) > 0
 
-    soc = StereoSoC(max_width=64, max_height=16, fifo_depth=64, clk_div=4)
-    m = Module()
-    m.domains.sync = ClockDomain("sync")
-    m.submodules.soc = soc
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
+    soc, sim = soc_simulator(max_width=64, max_height=16, fifo_depth=64)
     packer = Packer(RGBPixel)
     state = {"configured": False, "results": [], "stats": {}, "errors": {}}
 
@@ -109,12 +115,7 @@ def test_configure_stream_and_read_results_over_the_bus():
 def test_sticky_counters_count_since_the_last_clear():
     # beats before any sof are dropped by the left front end: one error per run, one drop per
     # beat; CTRL.clear_errors restarts the counts the CPU sees, the pipeline's own go on
-    soc = StereoSoC(max_width=16, max_height=8, fifo_depth=8, clk_div=4)
-    m = Module()
-    m.domains.sync = ClockDomain("sync")
-    m.submodules.soc = soc
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
+    soc, sim = soc_simulator(max_width=16, max_height=8, fifo_depth=8)
     packer = Packer(RGBPixel)
     seen = []
 
