@@ -54,10 +54,10 @@ def wide_accumulator(m, value, add, *, clear=None, domain="sync", chunk=CHUNK):
     if len(add) >= chunk:
         raise ValueError(f"the addend has {len(add)} bits, at most {chunk - 1}")
     if width <= chunk:
-        with m.If(clear if clear is not None else 0):
-            m.d[domain] += value.eq(0)
-        with m.Else():
-            m.d[domain] += value.eq(value + add)
+        m.d[domain] += value.eq(value + add)
+        if clear is not None:
+            with m.If(clear):
+                m.d[domain] += value.eq(0)
         return value
     low = Signal(chunk, name=f"{value.name}_lo")
     high = Signal(width - chunk, name=f"{value.name}_hi")
