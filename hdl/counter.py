@@ -11,10 +11,16 @@ its carry-out counted by a :func:`wide_counter` above it.
 """
 from amaranth.hdl import Signal, Cat, Mux
 
-__all__ = ["CHUNK", "wide_counter", "wide_accumulator", "saturating_sum"]
+__all__ = ["CHUNK", "saturating_inc", "wide_counter", "wide_accumulator", "saturating_sum"]
 
 #: Bits per chunk: the longest carry chain a counter contributes.
 CHUNK = 16
+
+
+def saturating_inc(counter):
+    """The statement that adds one to ``counter`` (at most ``CHUNK`` bits) unless it is all
+    ones."""
+    return counter.eq(Mux(counter == (1 << len(counter)) - 1, counter, counter + 1))
 
 
 def wide_counter(m, value, inc, *, saturate=True, clear=None, domain="sync", chunk=CHUNK):

@@ -19,7 +19,7 @@ from amaranth.hdl import Elaboratable, Module, Signal, Mux
 from amaranth.lib import wiring
 from amaranth.utils import bits_for
 
-from .counter import wide_counter
+from .counter import saturating_inc, wide_counter
 
 __all__ = ["FrameTracker", "FramedUnit", "check_frame_size"]
 
@@ -98,9 +98,6 @@ class FrameTracker(Elaboratable):
             self.frame_end.eq(self.accept & self.eof),
             self.abandon.eq(self.beat & self.in_frame & (self.sof | bad)),
         ]
-
-        def saturating_inc(counter):
-            return counter.eq(Mux(counter == (1 << len(counter)) - 1, counter, counter + 1))
 
         with m.If(self.beat):
             with m.If(self.accept):

@@ -6,6 +6,7 @@ from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
 from golden.freespace import FREE_BANDS, FREE_NONE, FreeSpaceParams
+from .counter import saturating_inc
 from .framing import FramedUnit
 from .types import GroundPixel, FreeBand
 
@@ -25,10 +26,6 @@ def free_config_ports():
 
 #: Cycles from the transfer of the input beat with ``eof`` to the first result beat offered.
 LATENCY = 4
-
-
-def _saturating_inc(counter):
-    return counter.eq(Mux(counter == (1 << len(counter)) - 1, counter, counter + 1))
 
 
 class FreeSpace(FramedUnit):
@@ -161,7 +158,7 @@ class FreeSpace(FramedUnit):
         bands_out = Signal.like(bands_fill)
         with m.If(end2):
             with m.If(busy):
-                m.d.sync += _saturating_inc(self.lost)
+                m.d.sync += saturating_inc(self.lost)
             with m.Else():
                 m.d.sync += [busy.eq(1), index.eq(0), out_bank.eq(fill_bank),
                              fill_bank.eq(~fill_bank), bands_out.eq(bands_now)]
