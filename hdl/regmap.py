@@ -107,6 +107,14 @@ class Register:
 
 F = Field
 
+
+def GF(name, lsb, width, doc):
+    """A ground model field: its reset value, golden parameter (``frontend.ground.<name>``) and
+    port (``ground.<name>``) all follow from the name."""
+    return F(name, lsb, width, int(getattr(_G, name)), doc, param=f"frontend.ground.{name}",
+             port=f"ground.{name}")
+
+
 REGISTERS: tuple[Register, ...] = (
     Register("ID", 0x00, "ro", "Identification: constant, lets the firmware check the bitstream.", (
         F("version", 0, 16, MAP_VERSION, "register map version"),
@@ -119,35 +127,24 @@ REGISTERS: tuple[Register, ...] = (
                                     "it resumes at the next field start of both cameras"),
     )),
     Register("GROUND", 0x08, "rw", "Ground classifier (golden/ground.py): mode and band width.", (
-        F("mode", 0, 2, int(_G.mode), "0 off (every pixel is an obstacle), 1 luminance, 2 hue",
-          param="frontend.ground.mode", port="ground.mode"),
-        F("k", 4, 4, _G.k, "half-width of the ground band, in JND units",
-          param="frontend.ground.k", port="ground.k"),
-        F("jnd_hue", 8, 4, _G.jnd_hue, "just-noticeable hue difference, hue units (0..191 circle)",
-          param="frontend.ground.jnd_hue", port="ground.jnd_hue"),
-        F("jnd_luma", 12, 4, _G.jnd_luma, "just-noticeable luminance difference, luma codes",
-          param="frontend.ground.jnd_luma", port="ground.jnd_luma"),
-        F("s_min", 16, 8, _G.s_min, "minimum saturation for a reliable hue; greyer pixels use the luminance band",
-          param="frontend.ground.s_min", port="ground.s_min"),
+        GF("mode", 0, 2, "0 off (every pixel is an obstacle), 1 luminance, 2 hue"),
+        GF("k", 4, 4, "half-width of the ground band, in JND units"),
+        GF("jnd_hue", 8, 4, "just-noticeable hue difference, hue units (0..191 circle)"),
+        GF("jnd_luma", 12, 4, "just-noticeable luminance difference, luma codes"),
+        GF("s_min", 16, 8, "minimum saturation for a reliable hue; greyer pixels use the luminance band"),
     )),
     Register("GROUND_REF_POS", 0x0C, "rw", "Reference area (learned as ground): top-left corner. "
              f"Reset: bottom centre of a {REF_WIDTH}x{REF_HEIGHT} frame.", (
-        F("ref_x", 0, 11, _G.ref_x, "first column of the reference area",
-          param="frontend.ground.ref_x", port="ground.ref_x"),
-        F("ref_y", 16, 11, _G.ref_y, "first row of the reference area",
-          param="frontend.ground.ref_y", port="ground.ref_y"),
+        GF("ref_x", 0, 11, "first column of the reference area"),
+        GF("ref_y", 16, 11, "first row of the reference area"),
     )),
     Register("GROUND_REF_SIZE", 0x10, "rw", "Reference area: size.", (
-        F("ref_w", 0, 11, _G.ref_w, "width in pixels",
-          param="frontend.ground.ref_w", port="ground.ref_w"),
-        F("ref_h", 16, 11, _G.ref_h, "height in rows",
-          param="frontend.ground.ref_h", port="ground.ref_h"),
+        GF("ref_w", 0, 11, "width in pixels"),
+        GF("ref_h", 16, 11, "height in rows"),
     )),
     Register("GROUND_INIT", 0x14, "rw", "Ground band centres used before the first frame is learned.", (
-        F("hue_centre0", 0, 8, _G.hue_centre0, "initial hue centre, 0..191",
-          param="frontend.ground.hue_centre0", port="ground.hue_centre0"),
-        F("luma_centre0", 8, 8, _G.luma_centre0, "initial luminance centre",
-          param="frontend.ground.luma_centre0", port="ground.luma_centre0"),
+        GF("hue_centre0", 0, 8, "initial hue centre, 0..191"),
+        GF("luma_centre0", 8, 8, "initial luminance centre"),
     )),
     Register("SOBEL", 0x18, "rw", "Vertical-edge detector (golden/sobel.py).", (
         F("edge_threshold", 0, 11, _S.threshold, "minimum |Gx| of an edge pixel",
@@ -185,27 +182,20 @@ REGISTERS: tuple[Register, ...] = (
                                         "(and counts) edges it has no time for (hdl/matcher.py drop_mode)", port="drop_mode"),
     )),
     Register("GROUND_CLIP", 0x24, "rw", "Ground model v2: luminance clip levels (golden/ground.py).", (
-        F("y_lo", 0, 8, _G.y_lo, "lowest luma code with a reliable hue; darker luma bins are never ground",
-          param="frontend.ground.y_lo", port="ground.y_lo"),
-        F("y_hi", 8, 8, _G.y_hi, "highest luma code with a reliable hue; brighter luma bins are never ground",
-          param="frontend.ground.y_hi", port="ground.y_hi"),
+        GF("y_lo", 0, 8, "lowest luma code with a reliable hue; darker luma bins are never ground"),
+        GF("y_hi", 8, 8, "highest luma code with a reliable hue; brighter luma bins are never ground"),
     )),
     Register("GROUND_SET", 0x28, "rw", "Ground model v2: histogram sets and learning.", (
-        F("frac", 0, 8, _G.frac, "a bin is ground when its count smoothed over +-1 JND reaches "
-                                 "support x frac / 1024 (support: the histogram's total)",
-          param="frontend.ground.frac", port="ground.frac"),
-        F("min_support", 8, 16, _G.min_support, "fewest reliable hue samples (pixels) in the model "
-                                                "for hue classification; fewer: luminance fallback",
-          param="frontend.ground.min_support", port="ground.min_support"),
-        F("blend_shift", 24, 3, _G.blend_shift, "model' = model + (new - model) / 2^blend_shift "
-                                                "(0: the last frame only)",
-          param="frontend.ground.blend_shift", port="ground.blend_shift"),
-        F("hue_and_luma", 28, 1, _G.hue_and_luma, "1: a pixel with a reliable hue also needs its "
-                                                  "luminance in the luma set",
-          param="frontend.ground.hue_and_luma", port="ground.hue_and_luma"),
-        F("fallback_shift", 29, 3, _G.fallback_shift, "in hue fallback the luma set's threshold "
-                                                      "is the luma threshold >> fallback_shift",
-          param="frontend.ground.fallback_shift", port="ground.fallback_shift"),
+        GF("frac", 0, 8, "a bin is ground when its count smoothed over +-1 JND reaches "
+                         "support x frac / 1024 (support: the histogram's total)"),
+        GF("min_support", 8, 16, "fewest reliable hue samples (pixels) in the model "
+                                 "for hue classification; fewer: luminance fallback"),
+        GF("blend_shift", 24, 3, "model' = model + (new - model) / 2^blend_shift "
+                                 "(0: the last frame only)"),
+        GF("hue_and_luma", 28, 1, "1: a pixel with a reliable hue also needs its "
+                                  "luminance in the luma set"),
+        GF("fallback_shift", 29, 3, "in hue fallback the luma set's threshold "
+                                    "is the luma threshold >> fallback_shift"),
     )),
     # Free space (golden/freespace.py, hdl/freespace.py): configuration and each camera's
     # last frame, 16 bands of 16 bits, two bands per word.
