@@ -1,6 +1,6 @@
 """Free space per column band (specification: ``golden/freespace.py``, rule
-:func:`golden.ground.free_space`), and the latch that holds its results for the CPU."""
-from amaranth.hdl import Module, Signal, Mux, Cat, signed
+:func:`golden.ground.free_space`), and the table that holds its results for the CPU."""
+from amaranth.hdl import Module, Signal, Mux, Cat, Const, signed
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
@@ -10,7 +10,7 @@ from .counter import saturating_inc
 from .framing import FramedUnit
 from .types import GroundPixel, FreeBand
 
-__all__ = ["FreeSpace", "FreeSpaceLatch", "free_space_status", "free_config_ports", "LATENCY",
+__all__ = ["FreeSpace", "FreeSpaceTable", "free_space_tables", "free_config_ports", "LATENCY",
            "FREE_BITS"]
 
 #: Register width of each run-time parameter (``band_w``, ``run_r``).
@@ -177,41 +177,61 @@ class FreeSpace(FramedUnit):
         return m
 
 
-class FreeSpaceLatch(wiring.Component):
-    """The last frame's free-space results, for the CPU's registers.
+class FreeSpaceTable(wiring.Component):
+    """The last frame's free-space results of one camera, for the CPU's registers (the
+    register block's ``free_left`` / ``free_right`` table: FREE_LEFT_k, FREE_RIGHT_k).
+
+    The 16 band rows are held in two 8 x 16-bit distributed RAMs (even and odd bands), read
+    asynchronously: 64 LUT RAM sites instead of 256 flip-flops and a 16-way, 16-bit input of
+    the register block's read multiplexer (about 350 LUT4 a camera). A band not yet written
+    since reset reads ``FREE_NONE`` (one valid flag per band: the RAMs cannot be reset).
 
     Ports
     -----
     i : In(stream of :data:`FreeBand`)
-        A :class:`FreeSpace` output; always ready.
-    rows : Out(array of 16 x 16 bits)
-        ``rows[b]``: band ``b``'s row from the last beat of that band (``FREE_NONE`` after
-        reset). The 16 beats of a frame arrive on consecutive cycles after its end, so the
-        registers change only in the 16 cycles after each frame.
+        A :class:`FreeSpace` output; always ready. The 16 beats of a frame arrive on
+        consecutive cycles after its end, so a word changes only in the 16 cycles after each
+        frame.
+    index : In(range(FREE_BANDS // 2))
+        Word ``k``.
+    word : Out(32)
+        Combinational: band ``2k``'s row in bits 0-15, band ``2k + 1``'s in bits 16-31 (the
+        row from the last beat of that band; ``FREE_NONE`` before the first).
     """
 
     i: In(stream.Signature(FreeBand))
-    rows: Out(data.ArrayLayout(16, FREE_BANDS),
-              init=[FREE_NONE] * FREE_BANDS)
+    index: In(range(FREE_BANDS // 2))
+    word: Out(32)
 
     def elaborate(self, platform):
         m = Module()
         m.d.comb += self.i.ready.eq(1)
-        for k in range(FREE_BANDS):
-            with m.If(self.i.valid & (self.i.payload.band == k)):
-                m.d.sync += self.rows[k].eq(self.i.payload.row)
+        beat = self.i.payload
+        valid = Signal(FREE_BANDS)
+        halves = []
+        for parity in (0, 1):
+            mem = m.submodules[f"band{parity}"] = memory.Memory(
+                shape=16, depth=FREE_BANDS // 2, init=[FREE_NONE] * (FREE_BANDS // 2))
+            wr = mem.write_port()
+            rd = mem.read_port(domain="comb")
+            m.d.comb += [wr.addr.eq(beat.band[1:]), wr.data.eq(beat.row),
+                         wr.en.eq(self.i.valid & (beat.band[0] == parity)),
+                         rd.addr.eq(self.index)]
+            seen = Signal(name=f"seen{parity}")
+            m.d.comb += seen.eq(valid.bit_select(Cat(Const(parity, 1), self.index), 1))
+            halves.append(rd.data | Mux(seen, 0, FREE_NONE))
+        with m.If(self.i.valid):
+            m.d.sync += valid.bit_select(beat.band, 1).eq(1)
+        m.d.comb += self.word.eq(Cat(*halves))
         return m
 
 
-def free_space_status(m, pipe):
-    """Latch both cameras' free-space results of ``pipe`` (a
-    :class:`hdl.pipeline.StereoPipeline`) into submodules of ``m``; returns the status inputs
-    of the register block (``free_left_<k>_even`` ...: hdl/regmap.py FREE_LEFT_k, FREE_RIGHT_k,
-    band 2k in ``even``, band 2k + 1 in ``odd``)."""
-    status = {}
+def free_space_tables(m, pipe, regs):
+    """Both cameras' free-space results of ``pipe`` (a :class:`hdl.pipeline.StereoPipeline`)
+    into :class:`FreeSpaceTable` submodules of ``m``, read by the register block ``regs``
+    (its ``free_left`` / ``free_right`` tables: hdl/regmap.py FREE_LEFT_k, FREE_RIGHT_k)."""
     for side in ("left", "right"):
-        latch = m.submodules[f"free_{side}_latch"] = FreeSpaceLatch()
-        wiring.connect(m, getattr(pipe, f"free_{side}"), latch.i)
-        for k in range(FREE_BANDS):
-            status[f"free_{side}_{k // 2}_{'odd' if k % 2 else 'even'}"] = latch.rows[k]
-    return status
+        table = m.submodules[f"free_{side}_table"] = FreeSpaceTable()
+        wiring.connect(m, getattr(pipe, f"free_{side}"), table.i)
+        m.d.comb += [table.index.eq(getattr(regs, f"free_{side}_index")),
+                     getattr(regs, f"free_{side}_word").eq(table.word)]

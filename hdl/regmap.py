@@ -36,7 +36,7 @@ from golden.pipeline import default_params
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
            "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "MAX_WIDTH", "MAX_HEIGHT", "DISPARITY_SPAN",
            "register", "field", "parameter_fields", "config_fields", "param_value",
-           "status_fields", "encode_params"]
+           "status_fields", "tables", "encode_params"]
 
 #: MCS I/O bus addresses: the I/O bus occupies 0xC0000000..0xFFFFFFFF on the MCS.
 REGS_BASEADDR = 0xC000_0000
@@ -98,6 +98,11 @@ class Register:
     kind: str          # "rw", "ro", "pulse", "fifo"
     doc: str
     fields: tuple[Field, ...]
+    #: ``ro`` registers only: the name of the table (a memory outside the block) the register
+    #: is read from, or None: a status input. The registers of one table are consecutive
+    #: words; word ``k`` of the run is entry ``k`` (hdl/regs.py ``<table>_index`` /
+    #: ``<table>_word``).
+    table: str | None = None
 
     @property
     def reset(self) -> int:
@@ -211,10 +216,10 @@ REGISTERS: tuple[Register, ...] = (
                f"{side.capitalize()} camera, last frame: free-space rows of bands {2 * k} and "
                f"{2 * k + 1} (the image row of the lowest obstacle run, scanning up from the "
                "bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF "
-               "after reset (the SoC's latch).", (
+               "after reset (the SoC's table, hdl/freespace.py FreeSpaceTable).", (
                    F("even", 0, 16, 0, f"band {2 * k}: row, or 0xFFFF"),
                    F("odd", 16, 16, 0, f"band {2 * k + 1}: row, or 0xFFFF"),
-               ))
+               ), table=f"free_{side}")
       for side, base in (("left", 0x90), ("right", 0xB0)) for k in range(8)),
     Register("FRAME_COUNT", 0x40, "ro", "Frames completed by the matcher since reset.", (
         F("frames", 0, 32, 0, "frame counter (wraps)"),
@@ -341,9 +346,19 @@ def param_value(params, f):
 
 
 def status_fields():
-    """(register, field) of every status input (the block's own RESULT_LEVEL and ID excluded)."""
+    """(register, field) of every status input (the block's own RESULT_LEVEL and ID, and the
+    registers read from tables, excluded)."""
     return [(r, f) for r in REGISTERS if r.kind == "ro" and r.name not in ("ID", "RESULT_LEVEL")
-            for f in r.fields]
+            and r.table is None for f in r.fields]
+
+
+def tables():
+    """``{table name: its registers in address order}`` (see :attr:`Register.table`)."""
+    runs = {}
+    for r in REGISTERS:
+        if r.table is not None:
+            runs.setdefault(r.table, []).append(r)
+    return {name: sorted(regs, key=lambda r: r.offset) for name, regs in runs.items()}
 
 
 def _check():
@@ -359,6 +374,11 @@ def _check():
             if f.lsb + f.width > 32 or used & f.mask or not 0 <= f.reset < (1 << f.width):
                 raise ValueError(f"bad field {reg.name}.{f.name}")
             used |= f.mask
+        if reg.table is not None and reg.kind != "ro":
+            raise ValueError(f"{reg.name}: only ro registers are read from a table")
+    for name, run in tables().items():
+        if [r.offset for r in run] != list(range(run[0].offset, run[0].offset + 4 * len(run), 4)):
+            raise ValueError(f"table {name}: its registers must be consecutive words")
 
 
 _check()

@@ -144,6 +144,11 @@ class RegisterBlock(wiring.Component):
         flush_results, which the block handles itself).
     <register>_<field> : In(width)
         One input per status field (``frame_count_frames``, ``err_left_errors``...).
+    <table>_index : Out(range(n)), <table>_word : In(32)
+        One pair per table of ``n`` registers (``Register.table``: ``free_left``...): a read of
+        the table's register ``k`` shows ``<table>_word`` in the cycle ``<table>_index`` is
+        ``k`` (the strobe's cycle; the table answers combinationally, e.g. from distributed
+        RAM).
     results : In(stream.Signature(ResultLayout))
         Result records into the FIFO. Always ready: a camera-fed pipeline cannot stall, so a
         record arriving when the FIFO is full is dropped and counted in
@@ -166,6 +171,9 @@ class RegisterBlock(wiring.Component):
             members[f.name] = Out(f.width, init=f.reset)
         for reg, f in regmap.status_fields():
             members[status_port_name(reg, f)] = In(f.width)
+        for name, run in regmap.tables().items():
+            members[f"{name}_index"] = Out(range(len(run)))
+            members[f"{name}_word"] = In(32)
         super().__init__(members)
 
     @property
@@ -221,9 +229,20 @@ class RegisterBlock(wiring.Component):
             if name != "flush_results":
                 m.d.comb += getattr(self, name).eq(p)
 
+        # tables: the word index from the offset (the run is consecutive words)
+        tables = regmap.tables()
+        for name, run in tables.items():
+            index = getattr(self, f"{name}_index")
+            m.d.comb += index.eq(((offset - run[0].offset) >> 2)[:len(index)])
+
         # read multiplexer
         with m.Switch(offset):
+            for name, run in tables.items():
+                with m.Case(*(r.offset for r in run)):
+                    m.d.comb += read_value.eq(getattr(self, f"{name}_word"))
             for reg in regmap.REGISTERS:
+                if reg.table is not None:
+                    continue
                 with m.Case(reg.offset):
                     if reg.kind == "rw":
                         m.d.comb += read_value.eq(stores[reg.name])

@@ -21,7 +21,7 @@ from amaranth.lib.wiring import In, Out
 from . import regmap
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
-from .freespace import free_space_status
+from .freespace import free_space_tables
 from .iic import IICMaster
 from .pairing import FramePairing
 from .pipeline import StereoPipeline
@@ -269,9 +269,9 @@ def _connect_parameters(m, regs, pipe):
 
 
 def _pipeline_status(m, regs, pipe, *, clear, reset=0):
-    """The pipeline's status inputs of the register block: statistics and free space as they
-    are, sticky counters relative to their value at the last ``clear`` (``reset``: the pipeline
-    is being reset, which also clears them)."""
+    """The pipeline's status inputs of the register block (and its free-space tables):
+    statistics as they are, sticky counters relative to their value at the last ``clear``
+    (``reset``: the pipeline is being reset, which also clears them)."""
     status = {
         "frame_count_frames": pipe.frames,
         "stat_edges_count": pipe.frame_edge_pixels,
@@ -280,7 +280,7 @@ def _pipeline_status(m, regs, pipe, *, clear, reset=0):
         "stat_rejects_count": pipe.frame_rejected,
         "stat_drops_count": pipe.frame_drops,
     }
-    status.update(free_space_status(m, pipe))      # FREE_LEFT_k, FREE_RIGHT_k (latched)
+    free_space_tables(m, pipe, regs)                # FREE_LEFT_k, FREE_RIGHT_k
     for side in ("left", "right"):
         status[f"ground_status_{side}_learned"] = getattr(pipe, f"{side}_ground_learned")
         status[f"ground_status_{side}_hue_fallback"] = getattr(pipe, f"{side}_hue_fallback")

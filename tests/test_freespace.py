@@ -7,7 +7,7 @@ from amaranth.sim import Simulator
 
 from golden.freespace import FREE_BANDS, FREE_NONE, FreeSpaceParams, free_frame
 from golden.pipeline import default_params
-from hdl.freespace import LATENCY, FreeSpace, FreeSpaceLatch
+from hdl.freespace import LATENCY, FreeSpace, FreeSpaceTable
 from hdl.types import FreeBand, GroundPixel
 from sim.streams import (Packer, check_unit, frames_words, malformed_cases,
                          words_to_frames)
@@ -143,29 +143,49 @@ def test_undrained_results_are_lost_and_counted_never_stalling():
         assert np.array_equal(g["band"], np.arange(FREE_BANDS)[None])
 
 
-def test_latch_keeps_last_frame_rows():
-    dut = FreeSpaceLatch()
-    beats = [POUT.pack_int(band=b, row=(b * 7) % 50, sof=b == 0, eol=b == 15, eof=b == 15)
+def test_table_keeps_last_frame_rows():
+    """Two bands per word; FREE_NONE for a band not yet written; the last beat of a band wins;
+    nothing changes while no beat is valid."""
+    dut = FreeSpaceTable()
+    frame = [POUT.pack_int(band=b, row=(b * 7) % 50, sof=b == 0, eol=b == 15, eof=b == 15)
              for b in range(FREE_BANDS)]
-    beats[3] = POUT.pack_int(band=3, row=FREE_NONE)
+    frame[3] = POUT.pack_int(band=3, row=FREE_NONE)
     result = {}
 
+    async def words(ctx):
+        out = []
+        for k in range(FREE_BANDS // 2):
+            ctx.set(dut.index, k)
+            w = ctx.get(dut.word)
+            out += [w & 0xFFFF, w >> 16]
+        return out
+
     async def bench(ctx):
-        assert [ctx.get(dut.rows[k]) for k in range(FREE_BANDS)] == [FREE_NONE] * FREE_BANDS
+        assert await words(ctx) == [FREE_NONE] * FREE_BANDS
         assert ctx.get(dut.i.ready)
-        for b in beats:
+        for b in (5, 10):                       # two bands of a partial frame
+            ctx.set(dut.i.payload.as_value(), POUT.pack_int(band=b, row=100 + b))
+            ctx.set(dut.i.valid, 1)
+            await ctx.tick()
+        ctx.set(dut.i.valid, 0)
+        await ctx.tick()
+        result["partial"] = await words(ctx)
+        for b in frame:
             ctx.set(dut.i.payload.as_value(), b)
             ctx.set(dut.i.valid, 1)
             await ctx.tick()
         ctx.set(dut.i.valid, 0)
         ctx.set(dut.i.payload.as_value(), POUT.pack_int(band=0, row=1))
         await ctx.tick()
-        result["rows"] = [ctx.get(dut.rows[k]) for k in range(FREE_BANDS)]
+        result["rows"] = await words(ctx)
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
     sim.add_testbench(bench)
     sim.run()
+    partial = [FREE_NONE] * FREE_BANDS
+    partial[5], partial[10] = 105, 110
+    assert result["partial"] == partial
     want = [(b * 7) % 50 for b in range(FREE_BANDS)]
     want[3] = FREE_NONE
     assert result["rows"] == want
