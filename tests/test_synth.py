@@ -5,14 +5,39 @@ import json
 import pytest
 
 from hdl.platform import CAMERA_PINS, IIC_PINS, RobotBoardPlatform
-from sim.synth import (BUDGET, build_ise, carry_length, count_cells, longest_path, lut_levels,
-                       synthesize, write_report)
+from sim.synth import (BUDGET, build_ise, carry_length, count_cells, longest_path, lut_breakdown,
+                       lut_levels, synthesize, write_report)
 
 
 def test_count_cells():
     n = count_cells({"LUT1": 2, "LUT2": 3, "LUT4": 5, "INV": 1, "FDRE": 7, "FDSE": 1,
                      "RAMB16_S18_S18": 2, "MULT18X18": 3, "MUXCY": 9, "XORCY": 8, "IBUF": 4})
     assert (n["LUT4"], n["INV"], n["FF"], n["RAMB16"], n["MULT18X18"], n["carry"]) == (11, 1, 8, 2, 3, 17)
+    assert n["LUT_sites"] == n["LUT4"] == 11
+    n = count_cells({"LUT3": 4, "RAM16X1D": 3, "RAM16X1S": 2})
+    assert (n["LUT4"], n["LUTRAM"], n["LUT_sites"]) == (4, 5, 4 + 3 * 2 + 2)
+    with pytest.raises(ValueError, match="RAM128X1D"):
+        count_cells({"RAM128X1D": 1})
+
+
+def test_breakdown_shares_a_lut_between_the_parts_it_feeds():
+    def cell(t, ins, outs):
+        return {"type": t, "port_directions": {**{p: "input" for p in ins}, **{p: "output" for p in outs}},
+                "connections": {**ins, **outs}}
+    # a.q -> L1 -> L2 -> a.r and b.s; L3 -> b.s; one RAM16X1D in b
+    netlist = {"modules": {"t": {"cells": {
+        "fa": cell("FDRE", {"D": [3]}, {"Q": [1]}),
+        "l1": cell("LUT2", {"I0": [1]}, {"O": [2]}),
+        "l2": cell("LUT2", {"I0": [2]}, {"O": [3]}),
+        "fb": cell("FDRE", {"D": [4]}, {"Q": [5]}),
+        "l3": cell("LUT3", {"I0": [2]}, {"O": [4]}),
+        "b.mem.0": cell("RAM16X1D", {"D": [5]}, {"DPO": [6]}),
+    }, "netnames": {"a.q": {"bits": [1]}, "a.r": {"bits": [3]}, "b.s": {"bits": [5]},
+                    "$x": {"hide_name": 1, "bits": [2, 4, 6]}}}}}
+    parts = lut_breakdown(netlist, "t", depth=1)
+    # l2 feeds a (fa.D); l3 feeds b; l1 feeds both (half each); the RAM: 2 sites in b:
+    # a 1.5 -> 2, b 3.5 -> 4, largest first
+    assert list(parts.items()) == [("b", 4), ("a", 2)]
 
 
 def test_lut_levels_ignores_carry_cells():
@@ -53,15 +78,19 @@ def test_color_estimate(color_counts):
 
 
 def test_report(tmp_path):
-    color_counts = {"LUT4": 380, "FF": 222, "RAMB16": 1, "MULT18X18": 5, "levels": 10, "ltp": 33}
-    path = write_report({"color": color_counts}, tmp_path)
+    color_counts = {"LUT4": 380, "LUT_sites": 400, "FF": 222, "RAMB16": 1, "MULT18X18": 5,
+                    "levels": 10, "ltp": 33, "breakdown": {"track": 300, "conv": 100}}
+    soc_counts = dict(color_counts, LUT_sites=12500, RAMB16=20)
+    path = write_report({"color": color_counts, "soc": soc_counts}, tmp_path)
     report = json.loads(path.read_text())
     assert "ESTIMATES" in report["note"]
     assert report["budget"] == BUDGET
     assert set(report["designs"]["color"]) >= {"LUT4", "FF", "RAMB16", "MULT18X18", "levels"}
     md = (tmp_path / "report.md").read_text()
     assert md.startswith("# Spartan-3 resource ESTIMATES")
-    assert f"| color | {color_counts['LUT4']} | {color_counts['FF']} |" in md
+    assert f"| color | {color_counts['LUT4']} | 400 | {color_counts['FF']} |" in md
+    assert "- **color**: track 300, conv 100" in md
+    assert "LUT_sites 12500 of 12000 (over by 500), RAMB16 20 of 20: DOES NOT FIT" in md
 
 
 def test_platform_pins_are_distinct():
