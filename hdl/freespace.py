@@ -181,10 +181,17 @@ class FreeSpaceTable(wiring.Component):
     """The last frame's free-space results of one camera, for the CPU's registers (the
     register block's ``free_left`` / ``free_right`` table: FREE_LEFT_k, FREE_RIGHT_k).
 
-    The 16 band rows are held in two 8 x 16-bit distributed RAMs (even and odd bands), read
-    asynchronously: 64 LUT RAM sites instead of 256 flip-flops and a 16-way, 16-bit input of
-    the register block's read multiplexer (about 350 LUT4 a camera). A band not yet written
-    since reset reads ``FREE_NONE`` (one valid flag per band: the RAMs cannot be reset).
+    A band's row is below ``max_height`` or ``FREE_NONE``, so it is kept as ``bits_for(max_height
+    - 1)`` bits and a "none" bit, in two 8-word distributed RAMs (even and odd bands) read
+    asynchronously, and widened to 16 bits on the way out: 36 LUT RAM sites at 240 lines,
+    instead of 256 flip-flops and a 16-way input of the register block's read multiplexer. A
+    band not yet written since reset reads ``FREE_NONE`` (one valid flag per band: the RAMs
+    cannot be reset).
+
+    Parameters
+    ----------
+    max_height : int
+        The free-space unit's frame limit (its rows are below it).
 
     Ports
     -----
@@ -199,30 +206,36 @@ class FreeSpaceTable(wiring.Component):
         row from the last beat of that band; ``FREE_NONE`` before the first).
     """
 
-    i: In(stream.Signature(FreeBand))
-    index: In(range(FREE_BANDS // 2))
-    word: Out(32)
+    def __init__(self, *, max_height=1024):
+        if not isinstance(max_height, int) or not 1 <= max_height <= FREE_NONE:
+            self._MustUse__silence = True
+            raise ValueError(f"max_height must be an integer in 1..{FREE_NONE}, not {max_height!r}")
+        self._row_bits = bits_for(max_height - 1)
+        super().__init__({"i": In(stream.Signature(FreeBand)),
+                          "index": In(range(FREE_BANDS // 2)), "word": Out(32)})
 
     def elaborate(self, platform):
         m = Module()
         m.d.comb += self.i.ready.eq(1)
         beat = self.i.payload
+        bits = self._row_bits
+        none = beat.row == FREE_NONE
         valid = Signal(FREE_BANDS)
         halves = []
         for parity in (0, 1):
             mem = m.submodules[f"band{parity}"] = memory.Memory(
-                shape=16, depth=FREE_BANDS // 2, init=[FREE_NONE] * (FREE_BANDS // 2))
+                shape=bits + 1, depth=FREE_BANDS // 2, init=[1 << bits] * (FREE_BANDS // 2))
             wr = mem.write_port()
             rd = mem.read_port(domain="comb")
-            m.d.comb += [wr.addr.eq(beat.band[1:]), wr.data.eq(beat.row),
+            m.d.comb += [wr.addr.eq(beat.band[1:]), wr.data.eq(Cat(beat.row[:bits], none)),
                          wr.en.eq(self.i.valid & (beat.band[0] == parity)),
                          rd.addr.eq(self.index)]
             seen = Signal(name=f"seen{parity}")
             m.d.comb += seen.eq(valid.bit_select(Cat(Const(parity, 1), self.index), 1))
-            halves.append(rd.data | Mux(seen, 0, FREE_NONE))
+            halves.append(Mux(seen & ~rd.data[bits], rd.data[:bits], FREE_NONE))
         with m.If(self.i.valid):
             m.d.sync += valid.bit_select(beat.band, 1).eq(1)
-        m.d.comb += self.word.eq(Cat(*halves))
+        m.d.comb += self.word.eq(Cat(halves[0][:16], halves[1][:16]))
         return m
 
 
@@ -231,7 +244,7 @@ def free_space_tables(m, pipe, regs):
     into :class:`FreeSpaceTable` submodules of ``m``, read by the register block ``regs``
     (its ``free_left`` / ``free_right`` tables: hdl/regmap.py FREE_LEFT_k, FREE_RIGHT_k)."""
     for side in ("left", "right"):
-        table = m.submodules[f"free_{side}_table"] = FreeSpaceTable()
+        table = m.submodules[f"free_{side}_table"] = FreeSpaceTable(max_height=pipe.max_height)
         wiring.connect(m, getattr(pipe, f"free_{side}"), table.i)
         m.d.comb += [table.index.eq(getattr(regs, f"free_{side}_index")),
                      getattr(regs, f"free_{side}_word").eq(table.word)]

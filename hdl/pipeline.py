@@ -59,6 +59,7 @@ class StereoPipeline(wiring.Component):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._matcher = dict(max_disparity=max_disparity, window=window,
                              queue_depth=queue_depth)
+        self.max_width, self.max_height = max_width, max_height
         self.max_disparity = max_disparity
         self.window = window
         ports = {

@@ -146,10 +146,11 @@ def test_undrained_results_are_lost_and_counted_never_stalling():
 def test_table_keeps_last_frame_rows():
     """Two bands per word; FREE_NONE for a band not yet written; the last beat of a band wins;
     nothing changes while no beat is valid."""
-    dut = FreeSpaceTable()
+    dut = FreeSpaceTable(max_height=240)        # rows kept in 8 bits and a "none" bit
     frame = [POUT.pack_int(band=b, row=(b * 7) % 50, sof=b == 0, eol=b == 15, eof=b == 15)
              for b in range(FREE_BANDS)]
     frame[3] = POUT.pack_int(band=3, row=FREE_NONE)
+    frame[9] = POUT.pack_int(band=9, row=239)
     result = {}
 
     async def words(ctx):
@@ -187,8 +188,10 @@ def test_table_keeps_last_frame_rows():
     partial[5], partial[10] = 105, 110
     assert result["partial"] == partial
     want = [(b * 7) % 50 for b in range(FREE_BANDS)]
-    want[3] = FREE_NONE
+    want[3], want[9] = FREE_NONE, 239
     assert result["rows"] == want
+    with pytest.raises(ValueError, match="max_height"):
+        FreeSpaceTable(max_height=0)
 
 
 def test_frontend_free_space_amaranth_three_frames_with_stalls():
