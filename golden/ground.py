@@ -327,7 +327,7 @@ class GroundModel:
     recall in hue fallback with 4.9, 7.4, 8.3, 8.9, 10.3 % of the obstacle pixels marked ground
     and 0.0, 0.1, 0.3, 0.6, 0.8 % of the obstacle edges removed.
 
-    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,290 cycles at the
+    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,301 cycles at the
     default JNDs), after the last row of the reference region; no frame is lost.
     """
 

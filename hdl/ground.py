@@ -24,10 +24,12 @@ CLEAR_CYCLES = 520
 
 def search_cycles(jnd_hue, jnd_luma):
     """Cycles of the search after the beat that ends the reference region: three for the last
-    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 12 to compute
-    the thresholds (an 8-cycle shift-and-add product and the join of its halves), the set pass (one read per bin and window position: 192 x (2 jnd_hue + 1) +
-    256 x (2 jnd_luma + 1)), its 6-stage pipeline and the hand-over."""
-    return 3 + 512 + 5 + 12 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
+    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 23 to compute
+    the two thresholds (one after the other: for each an 8-cycle shift-and-add product, the
+    join of its halves, the shift and the clamp), the set pass (one read per bin and window
+    position: 192 x (2 jnd_hue + 1) + 256 x (2 jnd_luma + 1)), its 6-stage pipeline and the
+    hand-over."""
+    return 3 + 512 + 5 + 23 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
 class GroundClassifier(FramedUnit):
@@ -41,7 +43,7 @@ class GroundClassifier(FramedUnit):
         Converted pixels. Backpressure from ``o`` goes straight through. ``ready`` is also low
         while the search runs *and* the next pixels could belong to a reference region: after
         the frame's last region row when the region reaches the frame's bottom
-        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,290 at
+        (``search_cycles(jnd_hue, jnd_luma)`` cycles of vertical blanking are needed, 3,301 at
         the defaults, or the source waits), for ``CLEAR_CYCLES`` after reset, and when a frame
         is abandoned before its search (its counts are cleared first).
     o : Out(stream of :data:`GroundPixel`)
@@ -235,10 +237,9 @@ class GroundClassifier(FramedUnit):
         sup_h = Cat(sup_h_lo, sup_h_hi); sup_y = Cat(sup_y_lo, sup_y_hi)
         t_step = Signal(3)                                         # threshold computation
         thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24); f_left = Signal(3)
-        # products support x frac: low 16 bits with a carry count, high 16 bits summed apart
+        # product support x frac: low 16 bits with a carry count, high 16 bits summed apart
         # and joined with the carries in one more step
-        prod_h_lo = Signal(16); prod_h_hi = Signal(16); prod_h_c = Signal(4)
-        prod_y_lo = Signal(16); prod_y_hi = Signal(16); prod_y_c = Signal(4)
+        prod_lo = Signal(16); prod_hi = Signal(16); prod_c = Signal(4)
         b_run = Signal(); b_luma = Signal()
         b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
         b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
@@ -311,39 +312,44 @@ class GroundClassifier(FramedUnit):
                 m.d.sync += [sup_y_lo.eq(s_y[:16]), sup_y_hi.eq(sup_y_hi + s_y[16])]
         a_done = Signal()
         m.d.comb += a_done.eq(a_v5 & ~a_v4 & busy)
-        m_sup_h = Signal(32); m_sup_y = Signal(32); m_frac = Signal(8); m_left = Signal(4)
+        # thresholds: max(1, support * frac >> 10) for hue, then for luma, by one shift-and-add
+        # product over 8 cycles each (once per frame: no multiplier); the high half joined
+        # with the low half's carries in one more step; then the hue fallback's threshold
+        m_sup = Signal(32); m_frac = Signal(8); m_left = Signal(4); t_luma = Signal()
         with m.If(a_done):
             with m.If(commit):
-                m.d.sync += [t_step.eq(1), model_valid.eq(1), m_left.eq(8), m_frac.eq(cfg.frac),
-                             prod_h_lo.eq(0), prod_h_hi.eq(0), prod_h_c.eq(0),
-                             prod_y_lo.eq(0), prod_y_hi.eq(0), prod_y_c.eq(0)]
+                m.d.sync += [t_step.eq(1), t_luma.eq(0), model_valid.eq(1), m_left.eq(8),
+                             m_frac.eq(cfg.frac), prod_lo.eq(0), prod_hi.eq(0), prod_c.eq(0)]
             with m.Else():
                 m.d.sync += busy.eq(0)
-        # thresholds: max(1, support * frac >> 10), the product by shift and add over 8 cycles
-        # (once per frame: no multiplier), the high halves joined with the low halves' carries
-        # in one more step, and the hue fallback
         with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
             m.d.sync += t_step.eq(Mux(t_step == 5, 0, t_step + 1))
+        support = Mux(t_luma, sup_y, sup_h)
         with m.If(t_step == 1):
-            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1),
-                         m_sup_h.eq(m_sup_h << 1), m_sup_y.eq(m_sup_y << 1),
+            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1), m_sup.eq(m_sup << 1),
                          fallback_next.eq((sup_h_hi == 0) & (sup_h_lo < cfg.min_support))]
             with m.If(m_left == 8):
-                m.d.sync += [m_sup_h.eq(sup_h << 1), m_sup_y.eq(sup_y << 1)]
+                m.d.sync += m_sup.eq(support << 1)
             with m.If(m_frac[0]):
-                for lo, hi, c, term in ((prod_h_lo, prod_h_hi, prod_h_c, Mux(m_left == 8, sup_h, m_sup_h)),
-                                        (prod_y_lo, prod_y_hi, prod_y_c, Mux(m_left == 8, sup_y, m_sup_y))):
-                    s_lo = lo + term[:16]
-                    m.d.sync += [lo.eq(s_lo[:16]), c.eq(c + s_lo[16]),
-                                 hi.eq(hi + term[16:32])]
+                term = Mux(m_left == 8, support, m_sup)
+                s_lo = prod_lo + term[:16]
+                m.d.sync += [prod_lo.eq(s_lo[:16]), prod_c.eq(prod_c + s_lo[16]),
+                             prod_hi.eq(prod_hi + term[16:32])]
         with m.If(t_step == 2):
-            m.d.sync += [prod_h_hi.eq(prod_h_hi + prod_h_c), prod_y_hi.eq(prod_y_hi + prod_y_c)]
+            m.d.sync += prod_hi.eq(prod_hi + prod_c)
         with m.If(t_step == 3):
-            m.d.sync += [thr_h.eq(Cat(prod_h_lo, prod_h_hi) >> FRAC_SHIFT),
-                         thr_y.eq(Cat(prod_y_lo, prod_y_hi) >> FRAC_SHIFT)]
-        with m.If(t_step == 4):
-            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), thr_y.eq(Mux(thr_y == 0, 1, thr_y)),
-                         thr_f.eq(thr_y), f_left.eq(cfg.fallback_shift)]
+            with m.If(t_luma):
+                m.d.sync += thr_y.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
+            with m.Else():
+                m.d.sync += thr_h.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
+        with m.If((t_step == 4) & ~t_luma):
+            # the hue threshold done: the luma product next
+            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), t_step.eq(1), t_luma.eq(1),
+                         m_left.eq(8), m_frac.eq(cfg.frac), prod_lo.eq(0), prod_hi.eq(0),
+                         prod_c.eq(0)]
+        with m.Elif(t_step == 4):
+            m.d.sync += [thr_y.eq(Mux(thr_y == 0, 1, thr_y)), thr_f.eq(thr_y),
+                         f_left.eq(cfg.fallback_shift)]
         # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
         # 192 cycles), taken as the luma threshold when the luma bins start
         with m.Elif(f_left != 0):
