@@ -238,9 +238,9 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
     restart_at = None
     if fault in ("missing-sof-left", "long-line-left", "noise-left"):
-        ldata = inject(ldata, fault)
+        ldata = inject(ldata, fault, seed=seed)
     elif fault in ("missing-sof-right", "extra-sof-right"):
-        rdata = inject(rdata, fault)
+        rdata = inject(rdata, fault, seed=seed)
     elif fault == "reset-mid-frame":
         sav = _field_spans(ldata)[FAULT_FIELD]["sav"]
         restart_at = sav[len(sav) // 2] * CAM_PS          # ps
@@ -403,15 +403,23 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv=None):
-    ap = _Parser(prog="python -m sim system", description=__doc__.split("\n")[0])
-    ap.add_argument("--left")
-    ap.add_argument("--right")
-    ap.add_argument("--scene", default="mixed")
-    ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--fault", choices=FAULTS)
-    ap.add_argument("--width", type=int, default=720)
-    ap.add_argument("--height", type=int, default=240)
-    ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc")
+    ap = _Parser(prog="python -m sim system",
+                 description=" ".join(__doc__.split("\n\n")[0].split()),
+                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument("--left", help="left image (PNG/JPEG, colour); with --right, instead of --scene")
+    ap.add_argument("--right", help="right image")
+    ap.add_argument("--scene", default="mixed",
+                    help="embedded pair when no images are given: a synthetic scene of "
+                         "sim/scenes.py or 'motorcycle'")
+    ap.add_argument("--frames", type=int, default=5,
+                    help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
+    ap.add_argument("--fault", choices=FAULTS,
+                    help=f"fault injected in field {FAULT_FIELD} (see the module documentation)")
+    ap.add_argument("--width", type=int, default=720, help="field width, even, 16..720")
+    ap.add_argument("--height", type=int, default=240, help="field height, 8..240")
+    ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc",
+                    help="camera timing: NTSC 525/60, or short vertical blanking (tests)")
+    ap.add_argument("--seed", type=int, default=1, help="seed of the noise-left fault's bytes")
     try:
         args = ap.parse_args(argv)
         if (args.left is None) != (args.right is None):
@@ -425,7 +433,8 @@ def main(argv=None):
             right = field_of(_load(args.right), args.width, args.height)
         else:
             left, right = scene_pair(args.scene, args.width, args.height)
-        res = run_system(left, right, frames=args.frames, fault=args.fault, timing=args.timing)
+        res = run_system(left, right, frames=args.frames, fault=args.fault, timing=args.timing,
+                         seed=args.seed)
     except SystemError_ as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

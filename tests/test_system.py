@@ -59,6 +59,9 @@ def test_faults_change_only_their_stream():
     for fault in ("missing-sof-left", "long-line-left", "noise-left"):
         assert inject(ldata, fault) != ldata
     assert len(inject(ldata, "long-line-left")) == len(ldata) + 8
+    # the noise fault's bytes follow its seed (sim system --seed)
+    assert inject(ldata, "noise-left", seed=1) == inject(ldata, "noise-left", seed=1)
+    assert inject(ldata, "noise-left", seed=1) != inject(ldata, "noise-left", seed=2)
     with pytest.raises(ValueError):
         inject(ldata, "reset-mid-frame")
 
