@@ -46,9 +46,9 @@ from pathlib import Path
 
 from sim.export import BUILD, chosen_designs, design_arguments, export_verilog
 
-__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "SOC_BUDGET", "LUTRAM_SITES", "synthesize", "count_cells",
-           "lut_levels", "lut_breakdown",
-           "longest_path", "carry_length", "write_report", "build_ise", "main"]
+__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "SOC_BUDGET", "LUTRAM_SITES", "synthesize",
+           "synthesize_component", "count_cells", "lut_levels", "lut_breakdown", "longest_path",
+           "carry_length", "write_report", "build_ise", "main"]
 
 #: XC3S1000 resources (DS099).
 BUDGET = {"device": "XC3S1000-4FT256", "LUT_sites": 15360, "LUT4": 15360, "FF": 15360, "RAMB16": 24, "MULT18X18": 24}
@@ -278,7 +278,21 @@ def synthesize(name, out_dir=None, params=None):
     """Synthesise design ``name``; returns its counts (see the module docstring)."""
     out = Path(out_dir or BUILD / "synth") / name
     out.mkdir(parents=True, exist_ok=True)
-    vpath = export_verilog(name, params=params, out_dir=out)
+    return _synthesize_verilog(name, export_verilog(name, params=params, out_dir=out), out)
+
+
+def synthesize_component(name, component, out_dir):
+    """Synthesise an Amaranth component that is not a registered design (a part of a unit,
+    e.g. in its tests) as top module ``name``; returns its counts."""
+    from amaranth.back import verilog
+    out = Path(out_dir) / name
+    out.mkdir(parents=True, exist_ok=True)
+    vpath = out / f"{name}.v"
+    vpath.write_text(verilog.convert(component, name=name, emit_src=False))
+    return _synthesize_verilog(name, vpath, out)
+
+
+def _synthesize_verilog(name, vpath, out):
     script = (f"read_verilog {vpath.name}; "
               f"synth_xilinx -family xc3s -nowidelut -flatten -top {name}; "
               f"tee -q -o stat.json stat -json; "
