@@ -38,6 +38,19 @@ SGBM_BLOCK = 5
 BM_BLOCKS = (7, 15)
 RATIO_SWEEP = tuple(range(0, 61, 3))
 UNIQUENESS_SWEEP = (32, 48, 64, 96, 128)
+#: From what the RTL implements (v1) to v2, one rule at a time, on v2's edges: what each step
+#: buys, in the order the RTL would add them (name, matcher settings over v1's).
+RTL_LADDER = (
+    ("v1 (the RTL today)", {}),
+    ("+ census cost", dict(cost="census")),
+    ("+ candidates of either Gx sign", dict(cost="census", sign="any")),
+    ("+ widen 2", dict(cost="census", sign="any", widen=2)),
+    ("+ uniqueness 64", dict(cost="census", sign="any", widen=2, uniqueness=64)),
+    ("+ unique right pixel", dict(cost="census", sign="any", widen=2, uniqueness=64,
+                                  consistency="unique_right")),
+    ("+ subpixel: v2", dict(cost="census", sign="any", widen=2, uniqueness=64,
+                            consistency="unique_right", subpixel=True)),
+)
 
 
 def _gain(im, g, o):
@@ -262,8 +275,8 @@ def run(bench=None, quick=False):
     f1, f2 = _frame(left, right, p1), _frame(left, right, p2)
     scored = f2.left.edge.astype(bool) & np.isfinite(gt)
     scored1 = f1.left.edge.astype(bool) & np.isfinite(gt)
-    f1b = _frame(left, right, replace(p1, frontend=p2.frontend,
-                                      right_threshold=p2.right_threshold))
+    p1b = replace(p1, frontend=p2.frontend, right_threshold=p2.right_threshold)   # v1 on v2's edges
+    f1b = _frame(left, right, p1b)
     methods = {"v1 (default, RTL today), its own edges (T 192)": _method_row(f1, scored1, gt),
                "v1 on v2's edges": _method_row(f1b, scored, gt),
                "v2": _method_row(f2, scored, gt)}
@@ -274,6 +287,14 @@ def run(bench=None, quick=False):
         f = _frame(left, right, replace(p2, matcher=replace(p2.matcher, **kw)))
         methods[label] = _method_row(f, scored, gt)
     rep["methods"] = methods
+    gain = HARD_CASES["gain 1.2, offset +10"](right)
+    rep["rtl_ladder"] = {}
+    for label, kw in RTL_LADDER:
+        p = replace(p1b, matcher=replace(p1b.matcher, **kw))
+        rep["rtl_ladder"][label] = {"plain": _method_row(_frame(left, right, p), scored, gt),
+                                    "gain": _method_row(_frame(left, gain, p), scored, gt)}
+    say("matcher_v2.rtl_ladder", "v1's matcher settings on v2's front end, one v2 rule added "
+        "at a time (sim.bench_matcher.RTL_LADDER); 'gain': right image at gain 1.2, offset +10")
     rep["uniqueness_sweep"] = {
         u: _method_row(_frame(left, right, replace(p2, matcher=replace(p2.matcher,
                                                                        uniqueness=u))),
@@ -363,6 +384,13 @@ def markdown(rep):
         L.append(f"| {name} | {_acc(r)} | {_pct(r['eval_fraction'], 3)} |")
     for name, r in rep["opencv_same_pixels"].items():
         L.append(f"| {name} ({r['settings']}) | {_acc(r)} | 100 |")
+    L += ["", "From the RTL's rules (v1) to v2, one rule at a time (v2's edges; the must-hold: "
+          "bad-2 <= 6 %, bad-1 <= 9 %, >= 8,000 within 2 px, gain case bad-2 <= 8 %):", "",
+          "| step | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err | "
+          "SAD evals % dense | gain 1.2 +10: bad-2 % |", "|---|---|---|---|---|---|---|---|---|"]
+    for name, r in rep["rtl_ladder"].items():
+        L.append(f"| {name} | {_acc(r['plain'])} | {_pct(r['plain']['eval_fraction'], 3)} | "
+                 f"{_pct(r['gain']['bad2'])} |")
     L += ["", "Version 2 at other uniqueness margins (u / 256; the default is 64):", "",
           "| u | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err |",
           "|---|---|---|---|---|---|---|"]

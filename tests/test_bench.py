@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from sim import bench_matcher
 from sim.bench import BM_BLOCKS, score
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -61,6 +62,10 @@ def test_quick_bench_has_the_matcher_v2_section(quick_run):
     for row in rep["equal_counts"]:
         assert row["ours"]["n"] == row["n"]
     assert "gain 1.2, offset +10" in rep["hard_cases"] and rep["scenes"]["mixed"]["v2"]
+    # the ladder from the RTL's rules to v2 ends at v2 itself
+    ladder = rep["rtl_ladder"]
+    assert list(ladder) == [name for name, _ in bench_matcher.RTL_LADDER]
+    assert ladder["+ subpixel: v2"]["plain"]["bad2"] == rep["methods"]["v2"]["bad2"]
     assert rep["speed"]["golden_matcher_v2_s"] > 0 and rep["speed"]["stereobm_7_s"] > 0
     assert "## Matcher v2 (issue 13)" in (out / "report.md").read_text()
 
