@@ -9,6 +9,12 @@ from sim.synth import (BUDGET, build_ise, carry_length, count_cells, longest_pat
                        lut_levels, synthesize, write_report)
 
 
+def cell(t, ins, outs):
+    """A netlist cell of type ``t`` with input and output ports ``{port: [bits]}``."""
+    return {"type": t, "port_directions": {**{p: "input" for p in ins}, **{p: "output" for p in outs}},
+            "connections": {**ins, **outs}}
+
+
 def test_count_cells():
     n = count_cells({"LUT1": 2, "LUT2": 3, "LUT4": 5, "INV": 1, "FDRE": 7, "FDSE": 1,
                      "RAMB16_S18_S18": 2, "MULT18X18": 3, "MUXCY": 9, "XORCY": 8, "IBUF": 4})
@@ -21,9 +27,6 @@ def test_count_cells():
 
 
 def test_breakdown_shares_a_lut_between_the_parts_it_feeds():
-    def cell(t, ins, outs):
-        return {"type": t, "port_directions": {**{p: "input" for p in ins}, **{p: "output" for p in outs}},
-                "connections": {**ins, **outs}}
     # a.q -> L1 -> L2 -> a.r and b.s; L3 -> b.s; one RAM16X1D in b
     netlist = {"modules": {"t": {"cells": {
         "fa": cell("FDRE", {"D": [3]}, {"Q": [1]}),
@@ -41,9 +44,6 @@ def test_breakdown_shares_a_lut_between_the_parts_it_feeds():
 
 
 def test_lut_levels_ignores_carry_cells():
-    def cell(t, ins, outs):
-        return {"type": t, "port_directions": {**{p: "input" for p in ins}, **{p: "output" for p in outs}},
-                "connections": {**ins, **outs}}
     # FF(1) -> LUT(2) -> MUXCY(3) -> MUXCY(4) -> LUT(5) -> INV(6) -> FF
     netlist = {"modules": {"t": {"cells": {
         "ff": cell("FDRE", {"D": [6]}, {"Q": [1]}),
