@@ -84,15 +84,31 @@ def _pair_index(hi, lo):
     return index
 
 
+#: Pixels converted per step of :func:`rgb_to_yhs` (its temporaries stay in cache).
+_BAND_PIXELS = 1 << 15
+
+
 def rgb_to_yhs(rgb):
     """Convert an (H, W, 3) uint8 RGB image to three (H, W) uint8 arrays Y, H, S.
 
     The same results as :func:`rgb_to_yhs_reference` (tests/test_golden_fast.py checks all
-    2**24 colours) in uint8 arithmetic: the two products are read from 64 K tables of the
-    rules above, the middle component is ``R + G + B - mx - mn`` modulo 256, so ``|num| = mid
-    - mn``, and the hue's sign and sextant come from three comparisons."""
+    2**24 colours) in uint8 arithmetic, a band of rows at a time: the two products are read
+    from 64 K tables of the rules above, the middle component is ``R + G + B - mx - mn``
+    modulo 256, so ``|num| = mid - mn``, and the hue's sign and sextant come from three
+    comparisons."""
     rgb = _check_rgb(rgb)
-    r, g, b = np.moveaxis(rgb, 2, 0).copy()      # contiguous planes: 5x faster operations
+    h, w = rgb.shape[:2]
+    out = np.empty((3, h, w), dtype=np.uint8)
+    rows = max(1, _BAND_PIXELS // max(w, 1))
+    for y0 in range(0, h, rows):
+        band = (slice(None), slice(y0, y0 + rows))
+        out[band] = _yhs(np.moveaxis(rgb[y0:y0 + rows], 2, 0).copy())
+    return out[0], out[1], out[2]
+
+
+def _yhs(planes):
+    """Y, H, S of the contiguous uint8 planes ``(R, G, B)``."""
+    r, g, b = planes
     rg, gb, rb = r >= g, g >= b, r >= b
     mx = np.maximum(np.maximum(r, g), b)
     mn = np.minimum(np.minimum(r, g), b)

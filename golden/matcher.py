@@ -419,44 +419,110 @@ class WindowCosts:
         return total
 
     def sparse(self, il, ds):
-        r, w = self.r, self.vl.shape[1]
+        if self.cost == "census":
+            return self._sparse_census(il, ds)
+        return self._sparse_sad(il, ds)
+
+    def _sparse_census(self, il, ds):
+        k = 2 * self.r + 1
         n = len(il)
         out = np.zeros(n, dtype=np.int32)
         ir = il - ds
-        if self.cost == "census":
-            packed = self.packed()
-            k = 2 * r + 1
-            width = -(-k // 4) * 4
-            counts = np.zeros((_CHUNK, width), dtype=np.uint8)
-            for s in range(0, n, _CHUNK):
-                m = min(_CHUNK, n - s)
-                for w_, (pl, pr) in enumerate(packed):
-                    t = pl[il[s:s + m]]
-                    t ^= pr[ir[s:s + m]]
-                    np.bitwise_count(t, out=counts[:m, :k])
-                    if min(8, k - 8 * w_) <= 7:
-                        # byte sums of 4 counts (each <= 56, sum < 256) via a multiply
-                        q = counts[:m].view(np.uint32)
-                        part = (q * np.uint32(0x01010101)) >> np.uint32(24)
-                        for c in range(part.shape[1]):
-                            out[s:s + m] += part[:, c].astype(np.int32)
-                    else:
-                        out[s:s + m] += counts[:m, :k].sum(axis=1, dtype=np.int32)
-            return out
-        # gather each pair's two k x k windows from sliding views of the uint8 luminance
-        # (one copy per window), |a - b| as max - min in uint8, summed in int32
-        k = 2 * r + 1
-        wl, wr = (sliding_window_view(v.astype(np.uint8), (k, k)) for v in (self.vl, self.vr))
-        row, col = np.divmod(il, w)                      # y - r, x - r
-        colr = col - (il - ir)                           # x - d - r
+        packed = self.packed()
+        width = -(-k // 4) * 4
+        counts = np.zeros((_CHUNK, width), dtype=np.uint8)
         for s in range(0, n, _CHUNK):
-            e = min(n, s + _CHUNK)
-            a, b = wl[row[s:e], col[s:e]], wr[row[s:e], colr[s:e]]
-            hi = np.maximum(a, b)
-            np.minimum(a, b, out=a)
-            np.subtract(hi, a, out=hi)
-            out[s:e] = hi.reshape(e - s, -1).sum(axis=1, dtype=np.int32)
+            m = min(_CHUNK, n - s)
+            for w_, (pl, pr) in enumerate(packed):
+                t = pl[il[s:s + m]]
+                t ^= pr[ir[s:s + m]]
+                np.bitwise_count(t, out=counts[:m, :k])
+                if min(8, k - 8 * w_) <= 7:
+                    # byte sums of 4 counts (each <= 56, sum < 256) via a multiply
+                    q = counts[:m].view(np.uint32)
+                    part = (q * np.uint32(0x01010101)) >> np.uint32(24)
+                    for c in range(part.shape[1]):
+                        out[s:s + m] += part[:, c].astype(np.int32)
+                else:
+                    out[s:s + m] += counts[:m, :k].sum(axis=1, dtype=np.int32)
         return out
+
+    def _sparse_sad(self, il, ds):
+        """SAD of the windows at left origins ``il`` and disparities ``ds``, band by band of
+        window rows (:data:`_BAND_BYTES`): per window row, the row's bytes in uint64 words
+        (:func:`_byte_words`), ``|a - b|`` as max - min byte by byte, added as four 16-bit
+        lanes and folded into one sum by a multiply every ``fold`` rows (while the sum of the
+        lanes fits 16 bits: ``255 k fold <= 65535``). Windows wider than 257, whose one row
+        overflows a lane sum, take the dense form."""
+        k, (h, w) = 2 * self.r + 1, self.vl.shape
+        if 255 * k > 0xFFFF:
+            return self.dense(il, ds)
+        fold = 0xFFFF // (255 * k)
+        nw = -(-k // 8)
+        # the last word of a row holds k - 8 (nw - 1) of the row's bytes, the rest are cleared
+        tail = np.uint64((1 << (8 * (k - 8 * (nw - 1)))) - 1)
+        order = np.argsort(il, kind="stable") if np.any(il[1:] < il[:-1]) else None
+        if order is not None:
+            il, ds = il[order], ds[order]
+        flat = [np.zeros(h * w + 8 * nw, dtype=np.uint8) for _ in range(2)]
+        for f, v in zip(flat, (self.vl, self.vr)):
+            f[:h * w] = v.ravel()
+        band = max(1, _BAND_BYTES // (8 * w))               # window origins' rows per band
+        out = np.zeros(len(il), dtype=np.int32)
+        for row0 in range(0, h, band):
+            lo = row0 * w
+            s0, s1 = np.searchsorted(il, (lo, (row0 + band) * w))
+            if s0 == s1:
+                continue
+            stop = min(h, row0 + band + k - 1) * w
+            wl, wr = (_byte_words(f, lo, stop) for f in flat)
+            for s in range(s0, s1, _SAD_CHUNK):
+                e = min(s1, s + _SAD_CHUNK)
+                ia = il[s:e] - lo
+                ib = ia - ds[s:e]
+                lanes = np.zeros(e - s, dtype=np.uint64)
+                for j in range(k):
+                    for m in range(nw):
+                        a, b = np.take(wl, ia + 8 * m), np.take(wr, ib + 8 * m)
+                        a8, b8 = a.view(np.uint8), b.view(np.uint8)
+                        diff = np.maximum(a8, b8)
+                        diff -= np.minimum(a8, b8, out=a8)
+                        diff = diff.view(np.uint64)
+                        if m == nw - 1:
+                            diff &= tail
+                        lanes += diff & _LANES
+                        diff >>= np.uint64(8)
+                        diff &= _LANES
+                        lanes += diff
+                    ia += w
+                    ib += w
+                    if (j + 1) % fold == 0 or j == k - 1:
+                        lanes *= _FOLD
+                        lanes >>= np.uint64(48)
+                        out[s:e] += lanes.astype(np.int32)
+                        lanes[:] = 0
+        if order is not None:
+            out[order] = out.copy()
+        return out
+
+
+#: The even bytes of a word (four 16-bit lanes), and the multiplier that adds the lanes into
+#: the top one.
+_LANES = np.uint64(0x00FF00FF00FF00FF)
+_FOLD = np.uint64(0x0001000100010001)
+#: Evaluations per step of the sparse SAD (its arrays stay in cache).
+_SAD_CHUNK = 16384
+#: Words per band of the sparse SAD, in bytes (one image): small buffers, reused by the
+#: allocator, where whole-frame words (8 bytes a pixel) cost a page fault every 4 KB.
+_BAND_BYTES = 1 << 19
+
+
+def _byte_words(flat, start, stop):
+    """Word ``i`` = the 8 bytes ``flat[start + i .. start + i + 7]`` as one little-endian uint64
+    (byte ``start + i`` in the low byte), for ``i`` in ``0 .. stop - start - 1``, aligned (a
+    copy); ``flat`` must hold 7 bytes past ``stop``."""
+    return np.ndarray((stop - start,), dtype=np.uint64, buffer=flat, offset=start,
+                      strides=(1,)).copy()
 
 
 def window_costs(vl, vr, ys, xs, ds, window, cost, form="auto"):

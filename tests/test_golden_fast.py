@@ -146,3 +146,33 @@ def test_sobel_rejects_non_binary_ground():
     for ground in (np.full((4, 4), 2, dtype=np.uint8), np.full((4, 4), -1, dtype=np.int16)):
         with pytest.raises(ValueError, match="only 0 and 1"):
             sobel_edges(y, ground)
+
+
+# ------------------------------------------------------------------ matcher window costs
+
+@pytest.mark.parametrize("window", [3, 5, 7, 9, 15, 17, 31])
+def test_sparse_sad_against_dense(window):
+    """The word-wise sparse SAD (one or more words per window row, a fold every few rows for
+    wide windows) against the dense box sums, on random and clipped luminance."""
+    from golden.matcher import window_costs
+    rng = np.random.default_rng(window)
+    h, w = 40, 90
+    ya, yb = rng.integers(0, 256, (2, h, w)).astype(np.int32)
+    ya[:, :60] = 255                                # |a - b| = 255 over whole windows
+    yb[:, :60] = 0
+    r = window // 2
+    ys = rng.integers(r, h - r, 400)
+    xs = rng.integers(r + 12, w - r, 400)
+    ds = rng.integers(0, 13, 400)
+    sparse = window_costs(ya, yb, ys, xs, ds, window, "sad", form="sparse")
+    assert same(sparse, window_costs(ya, yb, ys, xs, ds, window, "sad", form="dense"))
+    assert sparse.max() == 255 * window * window
+
+
+def test_sparse_sad_window_beyond_a_lane_sum_is_dense():
+    from golden.matcher import window_costs
+    rng = np.random.default_rng(1)
+    ya, yb = rng.integers(0, 256, (2, 261, 270)).astype(np.int32)
+    ys, xs, ds = np.array([130, 130]), np.array([133, 135]), np.array([0, 5])
+    sparse = window_costs(ya, yb, ys, xs, ds, 259, "sad", form="sparse")
+    assert same(sparse, window_costs(ya, yb, ys, xs, ds, 259, "sad", form="dense"))
