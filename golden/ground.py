@@ -275,6 +275,20 @@ def with_neighbours(bits):
     return out
 
 
+def _lookup(table, index):
+    """``table[index]`` for a uint8 ``index`` array, a band at a time (``np.take`` converts
+    its indices to intp: 8 bytes a pixel for a whole frame)."""
+    out = np.empty(index.shape, dtype=table.dtype)
+    flat, src = out.reshape(-1), np.ascontiguousarray(index).reshape(-1)
+    for s in range(0, src.size, _LOOKUP_BAND):
+        np.take(table, src[s:s + _LOOKUP_BAND], out=flat[s:s + _LOOKUP_BAND])
+    return out
+
+
+#: Pixels per step of :func:`_lookup`.
+_LOOKUP_BAND = 1 << 15
+
+
 class GroundModel:
     """Ground model v2, what the RTL implements (Ulrich & Nourbakhsh 2000, appearance-based
     obstacle detection: a pixel is ground when its value is frequent in the reference area's
@@ -370,7 +384,7 @@ class GroundModel:
         values = np.arange(256)
         # bit 0: luma_ok (with the clip levels), bit 1: Y within the clip levels
         luma_bits = (self._luma_ok(values) | ((values >= p.y_lo) & (values <= p.y_hi)) << 1)
-        bits = np.take(luma_bits.astype(np.uint8), y)
+        bits = _lookup(luma_bits.astype(np.uint8), y)
         luma_ok = (bits & np.uint8(1)).view(bool)
         if p.mode == GroundMode.LUMA:
             return luma_ok.view(np.uint8)
@@ -379,7 +393,7 @@ class GroundModel:
         if self.hue_fallback:
             # the floor shows no reliable hue: a pixel that does is not floor
             return (with_neighbours(luma_ok) & ~rel).view(np.uint8)
-        hue_ok = np.take(self._hue_ok(values).astype(np.uint8), h).view(bool)
+        hue_ok = _lookup(self._hue_ok(values).astype(np.uint8), h).view(bool)
         if p.hue_and_luma:
             hue_ok &= luma_ok
         return ((rel & hue_ok) | (luma_ok & ~rel)).view(np.uint8)

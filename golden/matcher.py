@@ -249,14 +249,15 @@ def _field(img, name):
 
 
 def matched_values(y, params):
-    """What the window cost compares: luminance (int32) or census words (uint8). Luminance is
+    """What the window cost compares: luminance or census words, both uint8. Luminance is
     8-bit (0..255); anything else is a :class:`ValueError`."""
     y = np.asarray(y)
-    if y.size and (int(y.min()) < 0 or int(y.max()) > 255):
+    if y.dtype != np.uint8 and y.size and (int(y.min()) < 0 or int(y.max()) > 255):
         raise ValueError(f"luminance must be in 0..255, not {int(y.min())}..{int(y.max())}")
+    y = y.astype(np.uint8, copy=False)
     if params.cost == "census":
-        return census(y.astype(np.uint8))
-    return y.astype(np.int32)
+        return census(y)
+    return y
 
 
 def _spread(a, k):
@@ -277,7 +278,7 @@ def candidates(left, right, params):
     er, nr = _field(right, "edge").astype(bool), _field(right, "neg").astype(bool)
     h, w = el.shape
     r = p.window // 2
-    ys, xs = np.nonzero(el)
+    ys, xs = np.divmod(np.flatnonzero(el), w)
     inside = (xs >= r) & (xs < w - r) & (ys >= r) & (ys < h - r)
     nd = p.d_max - p.d_min + 1
     # Right map per edge kind, columns x - r < 0 cleared (the right window must be inside),
@@ -338,10 +339,11 @@ def _packed_columns(v, r):
 #: Evaluations gathered per step of the sparse form (small enough to stay in cache).
 _CHUNK = 8192
 #: The dense form is used when the evaluations outnumber this fraction of (distinct d) x pixels.
-#: Measured at 752x480, W = 7 (CPU time): a sparse evaluation costs about as much as 20 pixels
-#: of one dense cost map for ``sad`` (0.45 us against 0.02 us) and 3 for ``census`` (packed
-#: columns: 0.1 us against 0.03 us); a noise pair (2.7 % / 8.4 %) is still faster sparse.
-DENSE_ABOVE = {"sad": 0.04, "census": 0.3}
+#: Measured at 752x480, W = 7 (CPU time): a sparse evaluation costs about as much as 4 pixels
+#: of one dense cost map for ``sad`` (0.055 us against 0.012 us, plus 0.01 us a value read
+#: from the maps) and 3 for ``census`` (packed columns: 0.1 us against 0.03 us); a noise pair
+#: (2.7 % / 8.4 %) is still faster sparse.
+DENSE_ABOVE = {"sad": 0.25, "census": 0.3}
 
 
 class WindowCosts:
@@ -397,6 +399,7 @@ class WindowCosts:
 
     def dense(self, il, ds):
         r, w = self.r, self.vl.shape[1]
+        vl, vr = (v.astype(np.int32) for v in (self.vl, self.vr))
         row, col = np.divmod(il, w)                      # y - r, x - r
         out = np.empty(len(il), dtype=np.int32)
         order = np.argsort(ds, kind="stable")
@@ -406,7 +409,7 @@ class WindowCosts:
             if self.cost == "census":
                 box = self._census_dense(d)
             else:
-                box = _box_sum(np.abs(self.vl[:, d:] - self.vr[:, :w - d]), r)
+                box = _box_sum(np.abs(vl[:, d:] - vr[:, :w - d]), r)
             out[sel] = box[row[sel], col[sel] - d]                 # [y - r, x - d - r]
         return out
 
@@ -480,20 +483,23 @@ class WindowCosts:
                 e = min(s1, s + _SAD_CHUNK)
                 ia = il[s:e] - lo
                 ib = ia - ds[s:e]
-                lanes = np.zeros(e - s, dtype=np.uint64)
+                a, b, t, lanes = (np.empty(e - s, dtype=np.uint64) for _ in range(4))
+                a8, b8 = a.view(np.uint8), b.view(np.uint8)
+                lanes[:] = 0
                 for j in range(k):
                     for m in range(nw):
-                        a, b = np.take(wl, ia + 8 * m), np.take(wr, ib + 8 * m)
-                        a8, b8 = a.view(np.uint8), b.view(np.uint8)
-                        diff = np.maximum(a8, b8)
-                        diff -= np.minimum(a8, b8, out=a8)
-                        diff = diff.view(np.uint64)
+                        np.take(wl, ia + 8 * m if m else ia, out=a, mode="clip")
+                        np.take(wr, ib + 8 * m if m else ib, out=b, mode="clip")
+                        np.maximum(a8, b8, out=t.view(np.uint8))
+                        np.minimum(a8, b8, out=a8)
+                        t -= a                                 # no borrows: per byte t >= a
                         if m == nw - 1:
-                            diff &= tail
-                        lanes += diff & _LANES
-                        diff >>= np.uint64(8)
-                        diff &= _LANES
-                        lanes += diff
+                            t &= tail
+                        np.bitwise_and(t, _LANES, out=a)
+                        lanes += a
+                        t >>= np.uint64(8)
+                        t &= _LANES
+                        lanes += t
                     ia += w
                     ib += w
                     if (j + 1) % fold == 0 or j == k - 1:
@@ -587,7 +593,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
     n, nd = cand.shape
     lin = np.flatnonzero(cand)                 # row-major: grouped by edge, increasing d
     ck = lin % nd
-    ncand = cand.sum(axis=1)
+    ncand = np.count_nonzero(cand, axis=1)
     costs = WindowCosts(vl, vr, p.window, p.cost)
     origin = costs.origin(ys, xs)
     c = costs.at(np.repeat(origin, ncand), ck + p.d_min, form)
