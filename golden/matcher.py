@@ -294,21 +294,25 @@ def candidates(left, right, params):
     padded = np.zeros((h, w + pad), dtype=np.uint8)
     padded[:, pad + r:] = kinds[:, r:]
     windows = sliding_window_view(padded, nd, axis=1)          # [y, x - d_max + pad, k']
-    cand = windows[ys, xs - p.d_max + pad][:, ::-1]             # k = d - d_min
+    # the kinds each edge accepts: 0 outside, bit 1 (neg) or bit 0 (pos) for the same sign
+    accept = inside.astype(np.uint8)
     if p.mode == "adaptive" and p.sign == "same":
-        cand = cand & np.where(nl[ys, xs], 2, 1).astype(np.uint8)[:, None]
-    cand = (cand != 0) & inside[:, None]
-    return ys, xs, inside, cand
+        accept <<= nl[ys, xs].view(np.uint8)
+    cand = windows[ys, xs - p.d_max + pad][:, ::-1]             # k = d - d_min
+    cand &= accept[:, None]
+    return ys, xs, inside, cand != 0
 
 
 # ------------------------------------------------------------------ window costs
 
 def _box_sum(a, r):
-    """Sum of ``a`` over the (2r+1)^2 window centred on each pixel whose window is inside;
-    returns an array of shape (H - 2r, W - 2r) (index [y - r, x - r])."""
+    """Sum of ``a`` (values 0..255) over the (2r+1)^2 window centred on each pixel whose
+    window is inside; returns an array of shape (H - 2r, W - 2r) (index [y - r, x - r]). The
+    prefix sums are int32 while the whole frame's sum fits."""
     k = 2 * r + 1
-    c = np.zeros((a.shape[0] + 1, a.shape[1] + 1), dtype=np.int64)
-    np.cumsum(np.cumsum(a, axis=0, dtype=np.int64), axis=1, out=c[1:, 1:])
+    dtype = np.int32 if 255 * a.size < 2 ** 31 else np.int64
+    c = np.zeros((a.shape[0] + 1, a.shape[1] + 1), dtype=dtype)
+    np.cumsum(np.cumsum(a, axis=0, dtype=dtype), axis=1, out=c[1:, 1:])
     return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
 
 
