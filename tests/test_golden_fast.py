@@ -176,3 +176,27 @@ def test_sparse_sad_window_beyond_a_lane_sum_is_dense():
     ys, xs, ds = np.array([130, 130]), np.array([133, 135]), np.array([0, 5])
     sparse = window_costs(ya, yb, ys, xs, ds, 259, "sad", form="sparse")
     assert same(sparse, window_costs(ya, yb, ys, xs, ds, 259, "sad", form="dense"))
+
+
+def test_bands_and_chunks(monkeypatch):
+    """Small bands and chunks: every band border of the colour conversion, the classifier's
+    table reads and the sparse SAD (whose pairs also come unsorted here) is crossed."""
+    import golden.color, golden.ground, golden.matcher
+    from golden.matcher import window_costs
+    monkeypatch.setattr(golden.color, "_BAND_PIXELS", 50)
+    monkeypatch.setattr(golden.ground, "_LOOKUP_BAND", 37)
+    monkeypatch.setattr(golden.matcher, "_BAND_BYTES", 8 * 60 * 3)
+    monkeypatch.setattr(golden.matcher, "_SAD_CHUNK", 23)
+    rng = np.random.default_rng(17)
+    img = random_rgb(rng, 21, 60)
+    for fast, ref in zip(rgb_to_yhs(img), rgb_to_yhs_reference(img)):
+        assert same(fast, ref)
+    y, hue, s = rgb_to_yhs_reference(img)
+    model = GroundModel(GroundParams(ref_x=5, ref_y=10, ref_w=40, ref_h=11, min_support=4))
+    for _ in range(2):
+        assert same(model.classify(y, hue, s), model.classify_reference(y, hue, s))
+        model.learn(y, hue, s)
+    ya, yb = rng.integers(0, 256, (2, 21, 60)).astype(np.int32)
+    ys, xs, ds = rng.integers(3, 18, 300), rng.integers(15, 57, 300), rng.integers(0, 12, 300)
+    sparse = window_costs(ya, yb, ys, xs, ds, 7, "sad", form="sparse")
+    assert same(sparse, window_costs(ya, yb, ys, xs, ds, 7, "sad", form="dense"))
