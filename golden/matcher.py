@@ -471,10 +471,12 @@ class WindowCosts:
         order = np.argsort(il, kind="stable") if np.any(il[1:] < il[:-1]) else None
         if order is not None:
             il, ds = il[order], ds[order]
-        flat = [np.zeros(h * w + 8 * nw, dtype=np.uint8) for _ in range(2)]
+        flat = [np.empty(h * w + 8 * nw, dtype=np.uint8) for _ in range(2)]
         for f, v in zip(flat, (self.vl, self.vr)):
             f[:h * w] = v.ravel()
+            f[h * w:] = 0
         band = max(1, _BAND_BYTES // (8 * w))               # window origins' rows per band
+        words = np.empty((2, min(h, band + k - 1) * w), dtype=np.uint64)   # reused per band
         out = np.zeros(len(il), dtype=np.int32)
         for row0 in range(0, h, band):
             lo = row0 * w
@@ -482,7 +484,7 @@ class WindowCosts:
             if s0 == s1:
                 continue
             stop = min(h, row0 + band + k - 1) * w
-            wl, wr = (_byte_words(f, lo, stop) for f in flat)
+            wl, wr = (_byte_words(f, lo, stop, into) for f, into in zip(flat, words))
             for s in range(s0, s1, _SAD_CHUNK):
                 e = min(s1, s + _SAD_CHUNK)
                 ia = il[s:e] - lo
@@ -527,12 +529,15 @@ _SAD_CHUNK = 16384
 _BAND_BYTES = 1 << 19
 
 
-def _byte_words(flat, start, stop):
+def _byte_words(flat, start, stop, into):
     """Word ``i`` = the 8 bytes ``flat[start + i .. start + i + 7]`` as one little-endian uint64
-    (byte ``start + i`` in the low byte), for ``i`` in ``0 .. stop - start - 1``, aligned (a
-    copy); ``flat`` must hold 7 bytes past ``stop``."""
-    return np.ndarray((stop - start,), dtype=np.uint64, buffer=flat, offset=start,
-                      strides=(1,)).copy()
+    (byte ``start + i`` in the low byte), for ``i`` in ``0 .. stop - start - 1``, copied
+    (aligned) into the start of the uint64 array ``into``, which is returned; ``flat`` must
+    hold 7 bytes past ``stop``."""
+    words = into[:stop - start]
+    np.copyto(words, np.ndarray((stop - start,), dtype=np.uint64, buffer=flat, offset=start,
+                                strides=(1,)))
+    return words
 
 
 def window_costs(vl, vr, ys, xs, ds, window, cost, form="auto"):

@@ -144,13 +144,19 @@ def gradients_reference(y):
     return gx, gy
 
 
+#: Pixels per band of :func:`sobel_edges` (its int16 temporaries stay in cache).
+_BAND_PIXELS = 1 << 15
+
+
 def sobel_edges(y, ground, params=SobelParams()):
     """Vertical obstacle edges of one frame.
 
     ``y``: (H, W) uint8 luminance; ``ground``: (H, W) array of 0/1 (1 = ground);
     ``params``: :class:`SobelParams`. Returns ``(edge, neg)``, two (H, W) uint8 arrays of 0/1.
-    The same as :func:`sobel_edges_reference`, in int16 over the interior only (border pixels
-    stay 0; the neighbours of non-maximum suppression are views one column either side).
+    The same as :func:`sobel_edges_reference`, in int16 over the interior only, a band of rows
+    at a time: each band's :func:`gradients` with one row above and below it, whose interior
+    is the band (border pixels stay 0; the neighbours of non-maximum suppression are views one
+    column either side).
     """
     params.validate()
     y = _check_y(y)
@@ -160,12 +166,22 @@ def sobel_edges(y, ground, params=SobelParams()):
     if not (ground.dtype == np.uint8 and int(ground.max(initial=0)) <= 1
             or np.isin(ground, (0, 1)).all()):
         raise ValueError("ground must hold only 0 and 1")
-    gx, gy = gradients(y)
     h, w = y.shape
     edge = np.zeros((h, w), dtype=np.uint8)
     neg = np.zeros((h, w), dtype=np.uint8)
     if h < 3 or w < 3:
         return edge, neg
+    rows = max(1, _BAND_PIXELS // w)
+    for y0 in range(1, h - 1, rows):
+        band = slice(y0 - 1, min(h - 1, y0 + rows) + 1)      # the band and its halo rows
+        _band_edges(y[band], ground[band], params, edge[band], neg[band])
+    return edge, neg
+
+
+def _band_edges(y, ground, params, edge, neg):
+    """Edges of the interior rows of one band (``y`` with a halo row at each end) into the
+    interior of ``edge`` and ``neg``."""
+    gx, gy = gradients(y)
     ax = np.abs(gx)                                    # int16, <= 1020
     inner = (slice(1, -1), slice(1, -1))
     a = ax[inner]
@@ -180,7 +196,6 @@ def sobel_edges(y, ground, params=SobelParams()):
         cand &= a > ax[1:-1, 2:]
     edge[inner] = cand
     neg[inner] = cand & (gx[inner] < 0)
-    return edge, neg
 
 
 def sobel_edges_reference(y, ground, params=SobelParams()):

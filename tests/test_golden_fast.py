@@ -200,3 +200,16 @@ def test_bands_and_chunks(monkeypatch):
     ys, xs, ds = rng.integers(3, 18, 300), rng.integers(15, 57, 300), rng.integers(0, 12, 300)
     sparse = window_costs(ya, yb, ys, xs, ds, 7, "sad", form="sparse")
     assert same(sparse, window_costs(ya, yb, ys, xs, ds, 7, "sad", form="dense"))
+
+
+@pytest.mark.parametrize("band", [1, 130, 200])
+def test_sobel_bands(band, monkeypatch):
+    """Bands of 1, 2 and 3 rows (and a last, shorter band) against the whole-frame reference."""
+    import golden.sobel
+    monkeypatch.setattr(golden.sobel, "_BAND_PIXELS", band)
+    rng = np.random.default_rng(band)
+    y = rng.integers(0, 256, (12, 60), dtype=np.uint8)
+    ground = (rng.random((12, 60)) < 0.2).astype(np.uint8)
+    params = SobelParams(threshold=40, ratio=4)
+    for fast, ref in zip(sobel_edges(y, ground, params), sobel_edges_reference(y, ground, params)):
+        assert same(fast, ref)
