@@ -601,7 +601,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
     ys, xs, inside, cand = candidates(left, right, p)
     n, nd = cand.shape
     lin = np.flatnonzero(cand)                 # row-major: grouped by edge, increasing d
-    ck = lin % nd
+    ck = (lin % nd).astype(np.int32)
     ncand = np.count_nonzero(cand, axis=1)
     costs = WindowCosts(vl, vr, p.window, p.cost)
     origin = costs.origin(ys, xs)
@@ -614,11 +614,10 @@ def match(left, right, params=MatcherParams(), form="auto"):
     if len(c):
         rows = np.flatnonzero(has)
         starts = (np.cumsum(ncand) - ncand)[rows]
-        best = np.minimum.reduceat(c * np.int32(nd) + ck.astype(np.int32), starts)
+        best = np.minimum.reduceat(c * np.int32(nd) + ck, starts)
         kbest[rows], cbest[rows] = best % nd, best // nd   # smallest cost, then smallest d
-        far = np.abs(ck - np.repeat(kbest[rows], ncand[rows])) > 1
+        far = np.abs(ck - np.repeat(best % nd, ncand[rows])) > 1
         far_min[rows] = np.minimum.reduceat(np.where(far, c, _NONE), starts)
-        c = c.astype(np.int64)
     unique = far_min * 256 > cbest * (256 + p.uniqueness)
     ok = has & unique
     idx = np.flatnonzero(ok)
@@ -631,7 +630,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
             q = idx * nd + kn
             pos = np.minimum(np.searchsorted(lin, q), max(len(lin) - 1, 0))
             found = usable & (lin[pos] == q)
-            cn = np.where(found, c[pos], _NONE)
+            cn = np.where(found, c[pos].astype(np.int64), _NONE)
             missing = np.flatnonzero(usable & ~found)          # evaluated now
             cn[missing] = costs.at(origin[idx[missing]], d[missing] + step, form)
             evaluations += len(missing)
