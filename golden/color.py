@@ -152,6 +152,7 @@ def rgb_to_yhs_reference(rgb):
     hue = np.where(hue < 0, hue + HUE_STEPS, hue)
     sat = np.minimum((delta.astype(np.uint32) * RECIP[mx] + np.uint32(128)) >> 8, 255)
     chroma = delta != 0
-    return (luma(rgb),
+    y = (77 * r.astype(np.int32) + 150 * g.astype(np.int32) + 29 * b.astype(np.int32) + 128) >> 8
+    return (y.astype(np.uint8),
             np.where(chroma, hue, 0).astype(np.uint8),
             np.where(chroma, sat, 0).astype(np.uint8))
