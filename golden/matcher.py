@@ -535,7 +535,7 @@ def _byte_words(flat, start, stop, into):
     (aligned) into the start of the uint64 array ``into``, which is returned; ``flat`` must
     hold 7 bytes past ``stop``."""
     words = into[:stop - start]
-    np.copyto(words, np.ndarray((stop - start,), dtype=np.uint64, buffer=flat, offset=start,
+    np.copyto(words, np.ndarray((stop - start,), dtype="<u8", buffer=flat, offset=start,
                                 strides=(1,)))
     return words
 
