@@ -481,8 +481,8 @@ def free_space(mask, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
     starts = np.arange(0, used, band_w)
     widths = np.minimum(starts + band_w, used) - starts
     obstacle_px = (mask[:, :used] == 0).view(np.uint8)
-    counts = np.add.reduceat(obstacle_px, starts, axis=1, dtype=np.uint16)   # (h, bands)
-    obstacle = 2 * counts.astype(np.int32) > widths
+    counts = np.add.reduceat(obstacle_px, starts, axis=1, dtype=np.int32)    # (h, bands)
+    obstacle = 2 * counts > widths
     runs = np.zeros((h + 1, len(starts)), dtype=np.int32)
     np.cumsum(obstacle, axis=0, dtype=np.int32, out=runs[1:])
     ends = runs[run_r:] - runs[:-run_r] == run_r    # rows r - run_r + 1 .. r all obstacle
