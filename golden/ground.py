@@ -62,6 +62,7 @@ from .color import HUE_STEPS
 __all__ = ["GroundMode", "GroundParams", "HIST_MAX", "hue_distance", "classify",
            "learn_centres", "PeakGroundModel", "GroundModel", "ground_frames",
            "FREE_BANDS", "FREE_NONE", "FREE_BAND_W", "FREE_RUN_R", "free_space",
+           "free_space_reference", "region_histograms_reference",
            "reliable_hue", "region_histograms", "smoothed", "ground_set", "with_neighbours"]
 
 HIST_BITS = 16
@@ -209,7 +210,25 @@ def reliable_hue(y, s, params):
 
 def region_histograms(y, h, s, params):
     """v2 histograms of one frame's reference region (checkerboard as in v1; the hue histogram
-    counts only reliable hues), uint32, saturating at HIST_MAX."""
+    counts only reliable hues), uint32, saturating at HIST_MAX. The same as
+    :func:`region_histograms_reference`, with the checkerboard and the reliability test made
+    over the region only."""
+    region = (slice(params.ref_y, params.ref_y + params.ref_h),
+              slice(params.ref_x, params.ref_x + params.ref_w))
+    ry, rh, rs = (np.asarray(a)[region] for a in (y, h, s))
+    rows, cols = ry.shape
+    # x + y even: frame coordinates (the region starts at ref_x, ref_y)
+    even = np.add.outer(np.arange(params.ref_y, params.ref_y + rows, dtype=np.int32) & 1,
+                        np.arange(params.ref_x, params.ref_x + cols, dtype=np.int32) & 1) != 1
+    ok = reliable_hue(ry, rs, params)
+    hue = np.bincount(rh[even & ok], minlength=256)[:HUE_STEPS]
+    lum = np.bincount(ry[~even], minlength=256)
+    return (np.minimum(hue, HIST_MAX).astype(np.uint32), np.minimum(lum, HIST_MAX).astype(np.uint32))
+
+
+def region_histograms_reference(y, h, s, params):
+    """:func:`region_histograms` as the rule reads: the checkerboard of the whole frame and the
+    reliable hues of the whole frame, cut to the region."""
     region = (slice(params.ref_y, params.ref_y + params.ref_h),
               slice(params.ref_x, params.ref_x + params.ref_w))
     yy, xx = np.indices(np.asarray(y).shape)
@@ -254,6 +273,20 @@ def with_neighbours(bits):
     out[:, 1:] &= bits[:, :-1]
     out[:, :-1] &= bits[:, 1:]
     return out
+
+
+def _lookup(table, index):
+    """``table[index]`` for a uint8 ``index`` array, a band at a time (``np.take`` converts
+    its indices to intp: 8 bytes a pixel for a whole frame)."""
+    out = np.empty(index.shape, dtype=table.dtype)
+    flat, src = out.reshape(-1), np.ascontiguousarray(index).reshape(-1)
+    for s in range(0, src.size, _LOOKUP_BAND):
+        np.take(table, src[s:s + _LOOKUP_BAND], out=flat[s:s + _LOOKUP_BAND])
+    return out
+
+
+#: Pixels per step of :func:`_lookup`.
+_LOOKUP_BAND = 1 << 15
 
 
 class GroundModel:
@@ -338,6 +371,52 @@ class GroundModel:
         self.hue_fallback = False
 
     def classify(self, y, h, s):
+        """Ground mask (uint8 0/1) of one frame with the current sets. The same as
+        :meth:`classify_reference`; for uint8 inputs each per-value rule (the luma band or set
+        and the clip levels; the hue band or set) is first evaluated for all 256 values and
+        then read per pixel."""
+        y, h, s = (np.asarray(a) for a in (y, h, s))
+        if not all(a.dtype == np.uint8 for a in (y, h, s)):
+            return self.classify_reference(y, h, s)
+        p = self.params
+        if p.mode == GroundMode.OFF:
+            return np.zeros(y.shape, dtype=np.uint8)
+        values = np.arange(256)
+        # bit 0: luma_ok (with the clip levels), bit 1: Y within the clip levels
+        luma_bits = (self._luma_ok(values) | ((values >= p.y_lo) & (values <= p.y_hi)) << 1)
+        bits = _lookup(luma_bits.astype(np.uint8), y)
+        luma_ok = (bits & np.uint8(1)).view(bool)
+        if p.mode == GroundMode.LUMA:
+            return luma_ok.view(np.uint8)
+        rel = s >= np.uint8(p.s_min)
+        rel &= (bits >> np.uint8(1)).view(bool)
+        if self.hue_fallback:
+            # the floor shows no reliable hue: a pixel that does is not floor
+            return (with_neighbours(luma_ok) & ~rel).view(np.uint8)
+        hue_ok = _lookup(self._hue_ok(values).astype(np.uint8), h).view(bool)
+        if p.hue_and_luma:
+            hue_ok &= luma_ok
+        return ((rel & hue_ok) | (luma_ok & ~rel)).view(np.uint8)
+
+    def _luma_ok(self, values):
+        """luma_ok of the luminances ``values``: the set (or the default band) and the clip
+        levels."""
+        p = self.params
+        if self.sets is None:
+            ok = np.abs(values - int(p.luma_centre0)) <= p.k * p.jnd_luma
+        else:
+            ok = self.sets[1][values]
+        return ok & (values >= p.y_lo) & (values <= p.y_hi)
+
+    def _hue_ok(self, values):
+        """hue_ok of the hues ``values`` (the set, or the default band)."""
+        p = self.params
+        if self.sets is None:
+            return hue_distance(values, p.hue_centre0) <= p.k * p.jnd_hue
+        return self.sets[0][np.minimum(values, HUE_STEPS - 1)]
+
+    def classify_reference(self, y, h, s):
+        """:meth:`classify` as the rules above read, per pixel in array form."""
         p = self.params
         y = np.asarray(y).astype(np.int32)
         in_range = (y >= p.y_lo) & (y <= p.y_hi)
@@ -389,9 +468,33 @@ def free_space(mask, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
     FREE_NONE): the image row of the lowest obstacle run of at least ``run_r`` rows, scanning up
     from the bottom row, as the run's bottom row; FREE_NONE when the band has none. A band's row
     is an obstacle row when more than half of its pixels in that row are obstacle (mask 0).
-    Streaming form (what the RTL does, top to bottom): per band a run counter; on an obstacle
-    row it counts up (saturating at ``run_r``) and, once at ``run_r``, the band's result becomes
-    this row; any other row resets it."""
+    Streaming form (what the RTL does, top to bottom; :func:`free_space_reference`): per band a
+    run counter; on an obstacle row it counts up (saturating at ``run_r``) and, once at
+    ``run_r``, the band's result becomes this row; any other row resets it. So the result is
+    the last row ending ``run_r`` consecutive obstacle rows, which is how it is computed here."""
+    mask = np.asarray(mask)
+    h, w = mask.shape
+    out = np.full(FREE_BANDS, FREE_NONE, dtype=np.uint16)
+    used = min(w, FREE_BANDS * band_w)                 # columns of the bands inside the image
+    if used == 0:
+        return out
+    starts = np.arange(0, used, band_w)
+    widths = np.minimum(starts + band_w, used) - starts
+    obstacle_px = (mask[:, :used] == 0).view(np.uint8)
+    counts = np.add.reduceat(obstacle_px, starts, axis=1, dtype=np.int32)    # (h, bands)
+    obstacle = 2 * counts > widths
+    runs = np.zeros((h + 1, len(starts)), dtype=np.int32)
+    np.cumsum(obstacle, axis=0, dtype=np.int32, out=runs[1:])
+    ends = runs[run_r:] - runs[:-run_r] == run_r    # rows r - run_r + 1 .. r all obstacle
+    rows = np.arange(run_r - 1, h, dtype=np.int32)[:, None]
+    last = np.where(ends, rows, -1).max(axis=0, initial=-1)
+    out[:len(starts)] = np.where(last >= 0, last, FREE_NONE)
+    return out
+
+
+def free_space_reference(mask, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
+    """:func:`free_space` as the RTL computes it: per band and row, the majority test and the
+    saturating run counter."""
     mask = np.asarray(mask)
     h, w = mask.shape
     out = np.full(FREE_BANDS, FREE_NONE, dtype=np.uint16)

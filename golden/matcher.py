@@ -249,14 +249,15 @@ def _field(img, name):
 
 
 def matched_values(y, params):
-    """What the window cost compares: luminance (int32) or census words (uint8). Luminance is
+    """What the window cost compares: luminance or census words, both uint8. Luminance is
     8-bit (0..255); anything else is a :class:`ValueError`."""
     y = np.asarray(y)
-    if y.size and (int(y.min()) < 0 or int(y.max()) > 255):
+    if y.dtype != np.uint8 and y.size and (int(y.min()) < 0 or int(y.max()) > 255):
         raise ValueError(f"luminance must be in 0..255, not {int(y.min())}..{int(y.max())}")
+    y = y.astype(np.uint8, copy=False)
     if params.cost == "census":
-        return census(y.astype(np.uint8))
-    return y.astype(np.int32)
+        return census(y)
+    return y
 
 
 def _spread(a, k):
@@ -277,7 +278,7 @@ def candidates(left, right, params):
     er, nr = _field(right, "edge").astype(bool), _field(right, "neg").astype(bool)
     h, w = el.shape
     r = p.window // 2
-    ys, xs = np.nonzero(el)
+    ys, xs = np.divmod(np.flatnonzero(el), w)
     inside = (xs >= r) & (xs < w - r) & (ys >= r) & (ys < h - r)
     nd = p.d_max - p.d_min + 1
     # Right map per edge kind, columns x - r < 0 cleared (the right window must be inside),
@@ -293,21 +294,25 @@ def candidates(left, right, params):
     padded = np.zeros((h, w + pad), dtype=np.uint8)
     padded[:, pad + r:] = kinds[:, r:]
     windows = sliding_window_view(padded, nd, axis=1)          # [y, x - d_max + pad, k']
-    cand = windows[ys, xs - p.d_max + pad][:, ::-1]             # k = d - d_min
+    # the kinds each edge accepts: 0 outside, bit 1 (neg) or bit 0 (pos) for the same sign
+    accept = inside.astype(np.uint8)
     if p.mode == "adaptive" and p.sign == "same":
-        cand = cand & np.where(nl[ys, xs], 2, 1).astype(np.uint8)[:, None]
-    cand = (cand != 0) & inside[:, None]
-    return ys, xs, inside, cand
+        accept <<= nl[ys, xs].view(np.uint8)
+    cand = windows[ys, xs - p.d_max + pad][:, ::-1]             # k = d - d_min
+    cand &= accept[:, None]
+    return ys, xs, inside, cand != 0
 
 
 # ------------------------------------------------------------------ window costs
 
 def _box_sum(a, r):
-    """Sum of ``a`` over the (2r+1)^2 window centred on each pixel whose window is inside;
-    returns an array of shape (H - 2r, W - 2r) (index [y - r, x - r])."""
+    """Sum of ``a`` (values 0..255) over the (2r+1)^2 window centred on each pixel whose
+    window is inside; returns an array of shape (H - 2r, W - 2r) (index [y - r, x - r]). The
+    prefix sums are int32 while the whole frame's sum fits."""
     k = 2 * r + 1
-    c = np.zeros((a.shape[0] + 1, a.shape[1] + 1), dtype=np.int64)
-    np.cumsum(np.cumsum(a, axis=0, dtype=np.int64), axis=1, out=c[1:, 1:])
+    dtype = np.int32 if 255 * a.size < 2 ** 31 else np.int64
+    c = np.zeros((a.shape[0] + 1, a.shape[1] + 1), dtype=dtype)
+    np.cumsum(np.cumsum(a, axis=0, dtype=dtype), axis=1, out=c[1:, 1:])
     return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
 
 
@@ -338,10 +343,11 @@ def _packed_columns(v, r):
 #: Evaluations gathered per step of the sparse form (small enough to stay in cache).
 _CHUNK = 8192
 #: The dense form is used when the evaluations outnumber this fraction of (distinct d) x pixels.
-#: Measured at 752x480, W = 7 (CPU time): a sparse evaluation costs about as much as 20 pixels
-#: of one dense cost map for ``sad`` (0.45 us against 0.02 us) and 3 for ``census`` (packed
-#: columns: 0.1 us against 0.03 us); a noise pair (2.7 % / 8.4 %) is still faster sparse.
-DENSE_ABOVE = {"sad": 0.04, "census": 0.3}
+#: Measured at 752x480, W = 7 (CPU time): a sparse evaluation costs about as much as 4 pixels
+#: of one dense cost map for ``sad`` (0.055 us against 0.012 us, plus 0.01 us a value read
+#: from the maps) and 3 for ``census`` (packed columns: 0.1 us against 0.03 us); a noise pair
+#: (2.7 % / 8.4 %) is still faster sparse.
+DENSE_ABOVE = {"sad": 0.25, "census": 0.3}
 
 
 class WindowCosts:
@@ -397,6 +403,7 @@ class WindowCosts:
 
     def dense(self, il, ds):
         r, w = self.r, self.vl.shape[1]
+        vl, vr = (v.astype(np.int32) for v in (self.vl, self.vr))
         row, col = np.divmod(il, w)                      # y - r, x - r
         out = np.empty(len(il), dtype=np.int32)
         order = np.argsort(ds, kind="stable")
@@ -406,7 +413,7 @@ class WindowCosts:
             if self.cost == "census":
                 box = self._census_dense(d)
             else:
-                box = _box_sum(np.abs(self.vl[:, d:] - self.vr[:, :w - d]), r)
+                box = _box_sum(np.abs(vl[:, d:] - vr[:, :w - d]), r)
             out[sel] = box[row[sel], col[sel] - d]                 # [y - r, x - d - r]
         return out
 
@@ -419,44 +426,118 @@ class WindowCosts:
         return total
 
     def sparse(self, il, ds):
-        r, w = self.r, self.vl.shape[1]
+        if self.cost == "census":
+            return self._sparse_census(il, ds)
+        return self._sparse_sad(il, ds)
+
+    def _sparse_census(self, il, ds):
+        k = 2 * self.r + 1
         n = len(il)
         out = np.zeros(n, dtype=np.int32)
         ir = il - ds
-        if self.cost == "census":
-            packed = self.packed()
-            k = 2 * r + 1
-            width = -(-k // 4) * 4
-            counts = np.zeros((_CHUNK, width), dtype=np.uint8)
-            for s in range(0, n, _CHUNK):
-                m = min(_CHUNK, n - s)
-                for w_, (pl, pr) in enumerate(packed):
-                    t = pl[il[s:s + m]]
-                    t ^= pr[ir[s:s + m]]
-                    np.bitwise_count(t, out=counts[:m, :k])
-                    if min(8, k - 8 * w_) <= 7:
-                        # byte sums of 4 counts (each <= 56, sum < 256) via a multiply
-                        q = counts[:m].view(np.uint32)
-                        part = (q * np.uint32(0x01010101)) >> np.uint32(24)
-                        for c in range(part.shape[1]):
-                            out[s:s + m] += part[:, c].astype(np.int32)
-                    else:
-                        out[s:s + m] += counts[:m, :k].sum(axis=1, dtype=np.int32)
-            return out
-        # gather each pair's two k x k windows from sliding views of the uint8 luminance
-        # (one copy per window), |a - b| as max - min in uint8, summed in int32
-        k = 2 * r + 1
-        wl, wr = (sliding_window_view(v.astype(np.uint8), (k, k)) for v in (self.vl, self.vr))
-        row, col = np.divmod(il, w)                      # y - r, x - r
-        colr = col - (il - ir)                           # x - d - r
+        packed = self.packed()
+        width = -(-k // 4) * 4
+        counts = np.zeros((_CHUNK, width), dtype=np.uint8)
         for s in range(0, n, _CHUNK):
-            e = min(n, s + _CHUNK)
-            a, b = wl[row[s:e], col[s:e]], wr[row[s:e], colr[s:e]]
-            hi = np.maximum(a, b)
-            np.minimum(a, b, out=a)
-            np.subtract(hi, a, out=hi)
-            out[s:e] = hi.reshape(e - s, -1).sum(axis=1, dtype=np.int32)
+            m = min(_CHUNK, n - s)
+            for w_, (pl, pr) in enumerate(packed):
+                t = pl[il[s:s + m]]
+                t ^= pr[ir[s:s + m]]
+                np.bitwise_count(t, out=counts[:m, :k])
+                if min(8, k - 8 * w_) <= 7:
+                    # byte sums of 4 counts (each <= 56, sum < 256) via a multiply
+                    q = counts[:m].view(np.uint32)
+                    part = (q * np.uint32(0x01010101)) >> np.uint32(24)
+                    for c in range(part.shape[1]):
+                        out[s:s + m] += part[:, c].astype(np.int32)
+                else:
+                    out[s:s + m] += counts[:m, :k].sum(axis=1, dtype=np.int32)
         return out
+
+    def _sparse_sad(self, il, ds):
+        """SAD of the windows at left origins ``il`` and disparities ``ds``, band by band of
+        window rows (:data:`_BAND_BYTES`): per window row, the row's bytes in uint64 words
+        (:func:`_byte_words`), ``|a - b|`` as max - min byte by byte, added as four 16-bit
+        lanes and folded into one sum by a multiply every ``fold`` rows (while the sum of the
+        lanes fits 16 bits: ``255 k fold <= 65535``). Windows wider than 257, whose one row
+        overflows a lane sum, take the dense form."""
+        k, (h, w) = 2 * self.r + 1, self.vl.shape
+        if 255 * k > 0xFFFF:
+            return self.dense(il, ds)
+        fold = 0xFFFF // (255 * k)
+        nw = -(-k // 8)
+        # the last word of a row holds k - 8 (nw - 1) of the row's bytes, the rest are cleared
+        tail = np.uint64((1 << (8 * (k - 8 * (nw - 1)))) - 1)
+        order = np.argsort(il, kind="stable") if np.any(il[1:] < il[:-1]) else None
+        if order is not None:
+            il, ds = il[order], ds[order]
+        flat = [np.empty(h * w + 8 * nw, dtype=np.uint8) for _ in range(2)]
+        for f, v in zip(flat, (self.vl, self.vr)):
+            f[:h * w] = v.ravel()
+            f[h * w:] = 0
+        band = max(1, _BAND_BYTES // (8 * w))               # window origins' rows per band
+        words = np.empty((2, min(h, band + k - 1) * w), dtype=np.uint64)   # reused per band
+        out = np.zeros(len(il), dtype=np.int32)
+        for row0 in range(0, h, band):
+            lo = row0 * w
+            s0, s1 = np.searchsorted(il, (lo, (row0 + band) * w))
+            if s0 == s1:
+                continue
+            stop = min(h, row0 + band + k - 1) * w
+            wl, wr = (_byte_words(f, lo, stop, into) for f, into in zip(flat, words))
+            for s in range(s0, s1, _SAD_CHUNK):
+                e = min(s1, s + _SAD_CHUNK)
+                ia = il[s:e] - lo
+                ib = ia - ds[s:e]
+                a, b, t, lanes = (np.empty(e - s, dtype=np.uint64) for _ in range(4))
+                a8, b8 = a.view(np.uint8), b.view(np.uint8)
+                lanes[:] = 0
+                for j in range(k):
+                    for m in range(nw):
+                        np.take(wl, ia + 8 * m if m else ia, out=a, mode="clip")
+                        np.take(wr, ib + 8 * m if m else ib, out=b, mode="clip")
+                        np.maximum(a8, b8, out=t.view(np.uint8))
+                        np.minimum(a8, b8, out=a8)
+                        t -= a                                 # no borrows: per byte t >= a
+                        if m == nw - 1:
+                            t &= tail
+                        np.bitwise_and(t, _LANES, out=a)
+                        lanes += a
+                        t >>= np.uint64(8)
+                        t &= _LANES
+                        lanes += t
+                    ia += w
+                    ib += w
+                    if (j + 1) % fold == 0 or j == k - 1:
+                        lanes *= _FOLD
+                        lanes >>= np.uint64(48)
+                        out[s:e] += lanes.astype(np.int32)
+                        lanes[:] = 0
+        if order is not None:
+            out[order] = out.copy()
+        return out
+
+
+#: The even bytes of a word (four 16-bit lanes), and the multiplier that adds the lanes into
+#: the top one.
+_LANES = np.uint64(0x00FF00FF00FF00FF)
+_FOLD = np.uint64(0x0001000100010001)
+#: Evaluations per step of the sparse SAD (its arrays stay in cache).
+_SAD_CHUNK = 16384
+#: Words per band of the sparse SAD, in bytes (one image): small buffers, reused by the
+#: allocator, where whole-frame words (8 bytes a pixel) cost a page fault every 4 KB.
+_BAND_BYTES = 1 << 19
+
+
+def _byte_words(flat, start, stop, into):
+    """Word ``i`` = the 8 bytes ``flat[start + i .. start + i + 7]`` as one little-endian uint64
+    (byte ``start + i`` in the low byte), for ``i`` in ``0 .. stop - start - 1``, copied
+    (aligned) into the start of the uint64 array ``into``, which is returned; ``flat`` must
+    hold 7 bytes past ``stop``."""
+    words = into[:stop - start]
+    np.copyto(words, np.ndarray((stop - start,), dtype="<u8", buffer=flat, offset=start,
+                                strides=(1,)))
+    return words
 
 
 def window_costs(vl, vr, ys, xs, ds, window, cost, form="auto"):
@@ -520,8 +601,8 @@ def match(left, right, params=MatcherParams(), form="auto"):
     ys, xs, inside, cand = candidates(left, right, p)
     n, nd = cand.shape
     lin = np.flatnonzero(cand)                 # row-major: grouped by edge, increasing d
-    ck = lin % nd
-    ncand = cand.sum(axis=1)
+    ck = (lin % nd).astype(np.int32)
+    ncand = np.count_nonzero(cand, axis=1)
     costs = WindowCosts(vl, vr, p.window, p.cost)
     origin = costs.origin(ys, xs)
     c = costs.at(np.repeat(origin, ncand), ck + p.d_min, form)
@@ -533,11 +614,10 @@ def match(left, right, params=MatcherParams(), form="auto"):
     if len(c):
         rows = np.flatnonzero(has)
         starts = (np.cumsum(ncand) - ncand)[rows]
-        best = np.minimum.reduceat(c * np.int32(nd) + ck.astype(np.int32), starts)
+        best = np.minimum.reduceat(c * np.int32(nd) + ck, starts)
         kbest[rows], cbest[rows] = best % nd, best // nd   # smallest cost, then smallest d
-        far = np.abs(ck - np.repeat(kbest[rows], ncand[rows])) > 1
+        far = np.abs(ck - np.repeat(best % nd, ncand[rows])) > 1
         far_min[rows] = np.minimum.reduceat(np.where(far, c, _NONE), starts)
-        c = c.astype(np.int64)
     unique = far_min * 256 > cbest * (256 + p.uniqueness)
     ok = has & unique
     idx = np.flatnonzero(ok)
@@ -550,7 +630,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
             q = idx * nd + kn
             pos = np.minimum(np.searchsorted(lin, q), max(len(lin) - 1, 0))
             found = usable & (lin[pos] == q)
-            cn = np.where(found, c[pos], _NONE)
+            cn = np.where(found, c[pos].astype(np.int64), _NONE)
             missing = np.flatnonzero(usable & ~found)          # evaluated now
             cn[missing] = costs.at(origin[idx[missing]], d[missing] + step, form)
             evaluations += len(missing)

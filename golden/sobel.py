@@ -65,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["DEFAULT_THRESHOLD", "THRESHOLD_BITS", "RATIO_BITS", "SobelParams", "gradients",
-           "sobel_edges", "edge_density"]
+           "gradients_reference", "sobel_edges", "sobel_edges_reference", "edge_density"]
 
 THRESHOLD_BITS = 11
 RATIO_BITS = 4
@@ -106,7 +106,29 @@ def _check_y(y):
 
 def gradients(y):
     """Sobel gradients of an (H, W) uint8 image: two (H, W) int16 arrays ``gx``, ``gy``, zero on
-    the border (first/last row and column, and everywhere when H < 3 or W < 3)."""
+    the border (first/last row and column, and everywhere when H < 3 or W < 3). Computed in
+    int16 (|Gx|, |Gy| <= 1020); :func:`gradients_reference` is the same in int32."""
+    y = _check_y(y)
+    h, w = y.shape
+    gx = np.zeros((h, w), dtype=np.int16)
+    gy = np.zeros((h, w), dtype=np.int16)
+    if h < 3 or w < 3:
+        return gx, gy
+    v = y.astype(np.int16)
+    # Vertical [1, 2, 1] smoothing of each column, horizontal [-1, 0, 1] difference.
+    col = v[1:-1, :] << 1
+    col += v[:-2, :]
+    col += v[2:, :]
+    np.subtract(col[:, 2:], col[:, :-2], out=gx[1:-1, 1:-1])
+    row = v[:, 1:-1] << 1
+    row += v[:, :-2]
+    row += v[:, 2:]
+    np.subtract(row[2:, :], row[:-2, :], out=gy[1:-1, 1:-1])
+    return gx, gy
+
+
+def gradients_reference(y):
+    """:func:`gradients` in int32, the two separable passes over the whole frame."""
     y = _check_y(y)
     h, w = y.shape
     gx = np.zeros((h, w), dtype=np.int16)
@@ -122,12 +144,63 @@ def gradients(y):
     return gx, gy
 
 
+#: Pixels per band of :func:`sobel_edges` (its int16 temporaries stay in cache).
+_BAND_PIXELS = 1 << 15
+
+
 def sobel_edges(y, ground, params=SobelParams()):
     """Vertical obstacle edges of one frame.
 
     ``y``: (H, W) uint8 luminance; ``ground``: (H, W) array of 0/1 (1 = ground);
     ``params``: :class:`SobelParams`. Returns ``(edge, neg)``, two (H, W) uint8 arrays of 0/1.
+    The same as :func:`sobel_edges_reference`, in int16 over the interior only, a band of rows
+    at a time: each band's :func:`gradients` with one row above and below it, whose interior
+    is the band (border pixels stay 0; the neighbours of non-maximum suppression are views one
+    column either side).
     """
+    params.validate()
+    y = _check_y(y)
+    ground = np.asarray(ground)
+    if ground.shape != y.shape:
+        raise ValueError(f"ground has shape {ground.shape}, expected {y.shape}")
+    if not (ground.dtype == np.uint8 and int(ground.max(initial=0)) <= 1
+            or np.isin(ground, (0, 1)).all()):
+        raise ValueError("ground must hold only 0 and 1")
+    h, w = y.shape
+    edge = np.zeros((h, w), dtype=np.uint8)
+    neg = np.zeros((h, w), dtype=np.uint8)
+    if h < 3 or w < 3:
+        return edge, neg
+    rows = max(1, _BAND_PIXELS // w)
+    for y0 in range(1, h - 1, rows):
+        band = slice(y0 - 1, min(h - 1, y0 + rows) + 1)      # the band and its halo rows
+        _band_edges(y[band], ground[band], params, edge[band], neg[band])
+    return edge, neg
+
+
+def _band_edges(y, ground, params, edge, neg):
+    """Edges of the interior rows of one band (``y`` with a halo row at each end) into the
+    interior of ``edge`` and ``neg``."""
+    gx, gy = gradients(y)
+    ax = np.abs(gx)                                    # int16, <= 1020
+    inner = (slice(1, -1), slice(1, -1))
+    a = ax[inner]
+    cand = a >= np.int16(params.threshold)
+    cand &= ground[inner] == 0
+    if params.ratio:
+        ay = np.abs(gy[inner])
+        ay *= np.int16(params.ratio)                   # <= 15 * 1020
+        cand &= (a << 2) >= ay
+    if params.nms:
+        cand &= a >= ax[1:-1, :-2]
+        cand &= a > ax[1:-1, 2:]
+    edge[inner] = cand
+    neg[inner] = cand & (gx[inner] < 0)
+
+
+def sobel_edges_reference(y, ground, params=SobelParams()):
+    """:func:`sobel_edges` as the rules above read: full-frame int32 magnitudes, the interior
+    mask, the candidate test and the neighbours of non-maximum suppression as shifted copies."""
     params.validate()
     y = _check_y(y)
     ground = np.asarray(ground)
@@ -135,7 +208,7 @@ def sobel_edges(y, ground, params=SobelParams()):
         raise ValueError(f"ground has shape {ground.shape}, expected {y.shape}")
     if not np.isin(ground, (0, 1)).all():
         raise ValueError("ground must hold only 0 and 1")
-    gx, gy = gradients(y)
+    gx, gy = gradients_reference(y)
     ax = np.abs(gx.astype(np.int32))
     ay = np.abs(gy.astype(np.int32))
     h, w = y.shape
