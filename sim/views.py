@@ -20,13 +20,15 @@ import csv
 import json
 import math
 import os
+from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 
 import numpy as np
 
 from . import draw
 from .camera import disparity, match_table
 
-__all__ = ["write_outputs", "topview_points", "MATCH_COLUMNS", "MATCH_COLUMNS_V2"]
+__all__ = ["write_outputs", "write_camera_views", "topview_points", "MATCH_COLUMNS", "MATCH_COLUMNS_V2"]
 
 MATCH_COLUMNS = ("x", "y", "d", "cost", "z_m", "x_m", "forward_m", "valid")
 #: With matcher version 2's records: d is the subpixel disparity (decimal), conf the confidence.
@@ -338,41 +340,68 @@ def _depth_limits(z, camera, params):
     return lo, hi
 
 
-def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstacles=()):
+def write_camera_views(out, frame, left, right, params):
+    """Write the views that show only the front ends' results (edges, ground) of ``frame``
+    into ``out``; returns their paths by name. They do not depend on the records, so
+    ``python -m sim run`` draws them while the RTL runs."""
+    os.makedirs(out, exist_ok=True)
+    p = lambda name: os.path.join(out, name)
+    jobs = {"edges": (_edges_view, p("edges.png"), left, frame.left, "left camera: vertical edges"),
+            "right_edges": (_edges_view, p("right_edges.png"), right, frame.right,
+                            "right camera: vertical edges (the matcher's candidates)"),
+            "ground": (_ground_view, p("ground_mask.png"), left, frame.left,
+                       params.frontend.ground, "left camera: ground"),
+            "right_ground": (_ground_view, p("right_ground_mask.png"), right, frame.right,
+                             params.right_frontend().ground, "right camera: ground")}
+    return _draw_all(jobs)
+
+
+def _draw_all(jobs):
+    """Run the view functions ``{name: (function, *args)}`` on a few threads (PNG encoding
+    and most of the NumPy work release the GIL); returns ``{name: path}`` in the same order."""
+    with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+        futures = {name: pool.submit(*job) for name, job in jobs.items()}
+        return {name: f.result() for name, f in futures.items()}
+
+
+def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstacles=(),
+                  camera_views=None):
     """Write the views of the last of ``frames`` (:class:`golden.pipeline.PipelineFrame`, their
     records may come from the RTL; ``lefts`` / ``rights`` the RGB images), a contact sheet
     when there are several, ``matches.csv`` and ``summary.json`` into ``out``; returns the
     paths written by name. ``obstacles``: a synthetic scene's :class:`sim.scenes.Box` and
-    :class:`sim.scenes.Cylinder` objects (robot at the origin), drawn in the top view."""
+    :class:`sim.scenes.Cylinder` objects (robot at the origin), drawn in the top view.
+    ``camera_views``: the paths :func:`write_camera_views` already wrote for this frame (else
+    they are drawn here)."""
     os.makedirs(out, exist_ok=True)
     frame, left, right = frames[-1], lefts[-1], rights[-1]
     rec = frame.records
     table = match_table(camera, rec)
     n = len(rec)
-    paths = {}
     p = lambda name: os.path.join(out, name)
     vmin, vmax = _depth_limits(table["z_m"], camera, params)
     mp = params.matcher
-    paths["depth"] = _points_view(
-        p("depth.png"), left, rec, table["z_m"], table["valid"], label="depth z (m)",
-        title=f"depth of {n} matches (camera: {camera.source})", norm=_depth_norm(vmin, vmax),
-        cmap=_depth_cmap)
-    paths["disparity"] = _points_view(
-        p("disparity.png"), left, rec, disparity(rec), np.ones(n, bool),
-        label="disparity d (px)", title=f"disparity of {n} matches, searched {mp.d_min}..{mp.d_max} px",
-        norm=draw.Norm(mp.d_min, max(mp.d_max, mp.d_min + 1)), cmap=draw.turbo)
-    paths["edges"] = _edges_view(p("edges.png"), left, frame.left, "left camera: vertical edges")
-    paths["right_edges"] = _edges_view(p("right_edges.png"), right, frame.right,
-                                       "right camera: vertical edges (the matcher's candidates)")
-    paths["ground"] = _ground_view(p("ground_mask.png"), left, frame.left, params.frontend.ground,
-                                   "left camera: ground")
-    paths["right_ground"] = _ground_view(p("right_ground_mask.png"), right, frame.right,
-                                         params.right_frontend().ground, "right camera: ground")
-    paths["topview"] = _topview(p("topview.png"), table, camera, params, left.shape[1], obstacles)
+    jobs = {"depth": (_points_view, p("depth.png"), left, rec, table["z_m"], table["valid"]),
+            "disparity": (_points_view, p("disparity.png"), left, rec, disparity(rec),
+                          np.ones(n, bool))}
+    kinds = {"depth": dict(label="depth z (m)", norm=_depth_norm(vmin, vmax), cmap=_depth_cmap,
+                           title=f"depth of {n} matches (camera: {camera.source})"),
+             "disparity": dict(label="disparity d (px)", cmap=draw.turbo,
+                               norm=draw.Norm(mp.d_min, max(mp.d_max, mp.d_min + 1)),
+                               title=f"disparity of {n} matches, searched {mp.d_min}..{mp.d_max} px")}
+    jobs = {k: (partial(f, **kinds[k]), *args) for k, (f, *args) in jobs.items()}
+    jobs["topview"] = (_topview, p("topview.png"), table, camera, params, left.shape[1], obstacles)
     if len(frames) > 1:
         every = np.concatenate([camera.depth(disparity(f.records)) for f in frames])
-        paths["frames"] = _contact_sheet(p("frames.png"), frames, lefts, camera,
-                                         *_depth_limits(every, camera, params))
+        jobs["frames"] = (_contact_sheet, p("frames.png"), frames, lefts, camera,
+                          *_depth_limits(every, camera, params))
+    drawn = _draw_all(jobs)
+    if camera_views is None:
+        camera_views = write_camera_views(out, frame, left, right, params)
+    order = ("depth", "disparity", "edges", "right_edges", "ground", "right_ground", "topview",
+             "frames")
+    both = {**drawn, **camera_views}
+    paths = {k: both[k] for k in order if k in both}
     paths["matches"] = p("matches.csv")
     with open(paths["matches"], "w", newline="") as f:
         w = csv.writer(f)
