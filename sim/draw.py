@@ -6,7 +6,7 @@ an RGB :class:`Canvas`, text in Pillow's built-in FreeType font, colour maps as 
 fits, axes with round ticks, colour bars and legends. PNGs are written with zlib level 1.
 """
 import math
-from functools import lru_cache
+import threading
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -20,9 +20,14 @@ PNG_LEVEL = 1
 SMALL, MEDIUM, LARGE = 10, 12, 13
 
 
-@lru_cache(maxsize=None)
+_fonts = threading.local()     # a FreeType face must not be shared between threads
+
+
 def font(px):
-    return ImageFont.load_default(px)
+    cache = _fonts.__dict__.setdefault("by_size", {})
+    if px not in cache:
+        cache[px] = ImageFont.load_default(px)
+    return cache[px]
 
 
 def colour(c):
