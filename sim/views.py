@@ -284,15 +284,21 @@ def _topview(path, table, camera, params, width, obstacles=()):
 
 
 def _dashed(d, points, dash=5, gap=4):
-    """A dashed polyline through ``points`` (pixel pairs) on ImageDraw ``d``."""
+    """A dashed polyline through ``points`` (pixel pairs) on ImageDraw ``d``; the dash pattern
+    runs on across the vertices (a circle's short segments too)."""
+    period, phase = dash + gap, 0.0
     for (xa, ya), (xb, yb) in zip(points, points[1:]):
         n = math.hypot(xb - xa, yb - ya)
         t = 0.0
         while t < n:
-            e = min(n, t + dash)
-            d.line((xa + (xb - xa) * t / n, ya + (yb - ya) * t / n,
-                    xa + (xb - xa) * e / n, ya + (yb - ya) * e / n), fill=(0, 0, 0))
-            t = e + gap
+            pos = (phase + t) % period
+            step = min(n - t, (dash - pos) if pos < dash else (period - pos))
+            if pos < dash:
+                e = t + step
+                d.line((xa + (xb - xa) * t / n, ya + (yb - ya) * t / n,
+                        xa + (xb - xa) * e / n, ya + (yb - ya) * e / n), fill=(0, 0, 0))
+            t += max(step, 1e-6)
+        phase = (phase + n) % period
 
 
 def _contact_sheet(path, frames, lefts, camera, vmin, vmax):
