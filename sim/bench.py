@@ -44,7 +44,7 @@ from golden.matcher import DISPARITIES
 from sim import bench_matcher
 from station import bench as station_bench
 from sim.bench_ground import bench_section as bench_ground_section
-from sim import bench_depth
+from sim import bench_depth, bench_sim
 from sim.timing import bench_timing
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
@@ -407,7 +407,7 @@ def resources(bench, out_dir, quick):
 def pipeline_rtl_run(left, right, params, frames, register_params=True):
     """The pipeline RTL on the Verilator harness (no idle cycles, no backpressure), as
     sim.backends.run_unit runs it, keeping the harness's own timing. ``register_params=False``
-    builds it without the simulation wrapper's parameter registers (to measure their gain)."""
+    builds it without the simulation wrapper's registers (to measure their gain)."""
     from sim.units import UNITS, Job
     from sim.config import config_values
     from sim.verilator import run_verilator
@@ -417,7 +417,8 @@ def pipeline_rtl_run(left, right, params, frames, register_params=True):
     t0 = time.perf_counter()
     run = run_verilator(dut, inputs=unit.words(job), out_frames=unit.outputs(job),
                         runtime=config_values(dut, params), seed=0, idle=0.0, stall=0.0,
-                        timeout=1_000_000, name=unit.name, register_params=register_params)
+                        timeout=1_000_000, name=unit.name, register_params=register_params,
+                        register_inputs=register_params)
     wall = time.perf_counter() - t0
     mism = unit.mismatches(job, run.outputs, dut)
     golden_stats = job.golden[-1].stats
@@ -527,7 +528,7 @@ def sim_speed(bench, quick, left, full_frame):
         out["backends"][be] = row
         bench.source(f"sim_speed.{be}", origin)
     name, fw, fh, run, (l, r, params, frames) = full_frame
-    print(f"      {name} {fw}x{fh}: the pipeline again without the harness's parameter registers "
+    print(f"      {name} {fw}x{fh}: the pipeline again without the harness's input registers "
           "(one more build)", file=sys.stderr, flush=True)
     plain = pipeline_rtl_run(l, r, params, frames, register_params=False)[0]
     out["verilator_pipeline_full_frame"] = {
@@ -748,8 +749,9 @@ def write_markdown(path, rep):
     L += ["", f"Verilator harness on the whole pipeline ({v['scene']}, {v['size'][0]}x"
           f"{v['size'][1]}): {v['simulated_cycles']} cycles in {v['sim_seconds']:.3f} s = "
           f"{v['cycles_per_second_sim']} cycles/s; built without the simulation wrapper's "
-          f"parameter registers: {v['plain_cycles_per_second_sim']} cycles/s "
-          f"({v['speedup_vs_plain']}x in favour of the registers, measured in the same run).", ""]
+          f"input registers: {v['plain_cycles_per_second_sim']} cycles/s "
+          f"({v['speedup_vs_plain']}x in favour of the registers, measured in the same run).", "",
+          *bench_sim.markdown(s["harness"]), ""]
     sw = rep["software_speed"]
     L += ["## 4. Software speed", "",
           f"{sw['frame']}, median of >= {sw['repeats']} runs on {sw['cpus']} CPU(s) "
@@ -827,6 +829,7 @@ def main(argv=None):
 
     bench.progress("simulation speed per backend (frontend, 32x16, 2 frames)")
     rep["sim_speed"] = sim_speed(bench, args.quick, left, full_frame)
+    rep["sim_speed"]["harness"] = bench_sim.harness_speed(bench, args.quick, (left, right))
 
     bench.progress("software speed: golden pipeline vs OpenCV StereoBM")
     rep["software_speed"] = software_speed(bench, args.quick, left, right)

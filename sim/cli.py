@@ -16,6 +16,7 @@ import tempfile
 import threading
 import time
 import traceback
+from concurrent.futures import ThreadPoolExecutor
 import warnings
 from dataclasses import replace
 from types import SimpleNamespace
@@ -368,7 +369,7 @@ def cmd_run(args, flags):
     from .camera import load_camera, depth_error
     from .units import UNITS, Job, records_from_words, stream_mismatches
     from .raw_outputs import write_raw_outputs
-    from .views import write_outputs
+    from .views import write_outputs, write_camera_views
     progress = Progress(5)
     left, right, grey, ground_default, camera, truth, obstacles, source = _run_inputs(args)
     if args.camera:
@@ -387,18 +388,26 @@ def cmd_run(args, flags):
     prepare_out(args.out)
     ground = params.frontend.ground
     progress(f"golden model: {args.frames} frame(s) of {w}x{h}, ground "
-             f"{GroundMode(ground.mode).name.lower()}")
-    golden = job.golden
-    progress(f"RTL on {args.backend} (the first Verilator build of a design takes about a "
-             f"minute; later runs reuse it)")
+             f"{GroundMode(ground.mode).name.lower()}, and its edge and ground views, beside "
+             "the RTL")
     t0 = time.time()
     failure = None
-    try:
-        result = run_backend(unit, job, dut, args, progress, timeout=1_000_000)
-        rtl_frames = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"])
-    except RtlFailure as e:
-        failure, result, rtl_frames = str(e).splitlines()[0], None, []
-    seconds = time.time() - t0
+    # The golden model and the views of its front ends do not wait for the RTL (which runs in
+    # another process on Verilator). Job.golden is computed once even when run_unit asks for
+    # it at the same time (functools.cached_property holds a lock in Python 3.11).
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        camera_views = pool.submit(lambda: write_camera_views(args.out, job.golden[-1],
+                                                              job.left[-1], job.right[-1], params))
+        progress(f"RTL on {args.backend} (the first Verilator build of a design takes about a "
+                 f"minute; later runs reuse it)")
+        try:
+            result = run_backend(unit, job, dut, args, progress, timeout=1_000_000)
+            rtl_frames = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"])
+        except RtlFailure as e:
+            failure, result, rtl_frames = str(e).splitlines()[0], None, []
+        seconds = time.time() - t0
+        camera_views = camera_views.result()
+    golden = job.golden
     progress("comparing with golden")
     last = golden[-1]
     if result is not None:
@@ -443,7 +452,8 @@ def cmd_run(args, flags):
                           result=result, camera=camera, truth=truth, summary=summary)
     progress(f"writing views to {args.out}")
     paths = write_outputs(args.out, run.frames, job.left, job.right, camera=camera,
-                          params=params, summary=summary, obstacles=obstacles)
+                          params=params, summary=summary, obstacles=obstacles,
+                          camera_views=camera_views)
     # Further outputs of a run hook in here: they get ``run`` (the last frame's golden data in
     # run.golden[-1], the RTL's in run.result) and write into args.out.
     paths.update(write_raw_outputs(args.out, run.golden[-1], free=_rtl_free_space(result),

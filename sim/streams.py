@@ -86,7 +86,9 @@ def frame_words(packer, frame):
 
 def frames_words(packer, frames):
     """All beats of a list of frames, as a list of Python ints."""
-    return [int(v) for f in frames for v in frame_words(packer, f)]
+    if not frames:
+        return []
+    return np.concatenate([frame_words(packer, f) for f in frames]).astype(np.uint64).tolist()
 
 
 def words_to_frames(packer, words, *, strict=True):

@@ -93,3 +93,19 @@ def test_no_contact_sheet_for_one_frame(run, tmp_path):
     assert "frames" not in paths and not (tmp_path / "frames.png").exists()
     with open(paths["matches"]) as f:
         assert {row["valid"] for row in csv.DictReader(f)} == {"0"}
+
+
+def test_camera_views_drawn_ahead_are_kept(run, tmp_path):
+    """sim run draws the edge and ground views while the RTL runs: write_outputs then keeps
+    them (not drawn again) and lists every view in the usual order."""
+    frame, frames, camera, paths = run
+    params = default_params(*frame.left.shape[1::-1])
+    ahead = views.write_camera_views(str(tmp_path), frames[-1], frame.left, frame.right, params)
+    assert list(ahead) == ["edges", "right_edges", "ground", "right_ground"]
+    stamps = {k: (tmp_path / p).stat().st_mtime_ns for k, p in ahead.items()}
+    got = views.write_outputs(str(tmp_path), frames, [frame.left] * 2, [frame.right] * 2,
+                              camera=camera, params=params, summary={}, camera_views=ahead)
+    assert list(got) == list(paths)
+    assert {k: (tmp_path / got[k]).stat().st_mtime_ns for k in ahead} == stamps
+    for k in ahead:     # the same pictures as drawn by write_outputs alone
+        assert np.array_equal(np.asarray(Image.open(got[k])), np.asarray(Image.open(paths[k])))

@@ -30,7 +30,7 @@ from sim.export import BUILD, export_verilog, ports, registered, silenced, sourc
 from sim.streams import Deadlock
 
 __all__ = ["VerilatorRun", "VerilatorBuild", "VerilatorError", "verilator_bin", "build",
-           "run_verilator", "HARNESS"]
+           "run_verilator", "HARNESS", "param_register_wrapper", "input_register_wrapper"]
 
 HARNESS = Path(__file__).resolve().parent / "harness.cpp"
 #: Verilator flags (part of the build hash).
@@ -91,9 +91,11 @@ def module_ports(verilog, name):
     return {x.strip() for x in m.group(1).split(",") if x.strip()}
 
 
-def ports_header(name, p, clk=True, rst=True):
+def ports_header(name, p, clk=True, rst=True, registered_inputs=False):
     """The C++ accessors of design_ports.h for module ``name`` with ports ``p`` (``clk``, ``rst``:
-    whether the module has them; a purely combinational component has neither)."""
+    whether the module has them; a purely combinational component has neither;
+    ``registered_inputs``: the module is an :func:`input_register_wrapper` with every input
+    behind a register)."""
     for port in [*p.streams, *p.status]:
         if port.width > 64:
             raise ValueError(f"port {port.name} is {port.width} bits wide; the harness handles "
@@ -116,6 +118,7 @@ def ports_header(name, p, clk=True, rst=True):
              "#pragma once", f'#include "{top}.h"', f"using Top = {top};",
              f"constexpr int N_IN = {len(ins)}, N_OUT = {len(outs)}, "
              f"N_PARAM = {len(params)}, N_STATUS = {len(status)};",
+             f"constexpr bool REGISTERED_INPUTS = {'true' if registered_inputs else 'false'};",
              f"static const char* const IN_NAMES[] = {names(ins)};",
              f"static const char* const OUT_NAMES[] = {names(outs)};",
              f"static const char* const PARAM_NAMES[] = {names(params)};",
@@ -166,6 +169,22 @@ def param_register_wrapper(verilog, name, p):
     per cycle. Behind registers it is settled once per clock edge. The harness sets the
     parameters before reset and never changes them, so the outputs are the same cycle for
     cycle (the Verilator tests compare them with golden)."""
+    return _register_wrapper(verilog, name, p, every_input=False)
+
+
+def input_register_wrapper(verilog, name, p):
+    """Like :func:`param_register_wrapper`, but every input but ``clk`` goes through a
+    register: the stream ``valid``/``payload``/``ready`` lines and ``rst`` too (``rst``'s
+    register starts at 1, the others at 0). No logic then depends combinationally on a
+    top-level input, so one Verilator evaluation after each rising edge settles the whole
+    design, and the harness (``REGISTERED_INPUTS``) sets each cycle's inputs one cycle ahead:
+    the design sees the same values in the same cycles as without the wrapper, combinational
+    paths from its inputs to its outputs (a ``ready`` that follows ``valid`` or the output's
+    ``ready``) included."""
+    return _register_wrapper(verilog, name, p, every_input=True)
+
+
+def _register_wrapper(verilog, name, p, every_input):
     core = f"{name}_core"
     text, n = re.subn(r"^module\s+" + re.escape(name) + r"\b", f"module {core}", verilog,
                       count=1, flags=re.M)
@@ -185,13 +204,16 @@ def param_register_wrapper(verilog, name, p):
             raise VerilatorError(f"no declaration of port {port} of {name}")
         direction, rng = m.group(1), (m.group(2) or "").strip()
         decls.append(f"  {direction} {rng} {ref};")
-        if direction == "input" and port.lstrip("\\") in plain and "clk" in names:
-            q = f"param_q_{len(regs)}"
-            regs.append(f"  reg {rng} {q};\n  always @(posedge clk) {q} <= {ref};")
+        if direction == "input" and "clk" in names and port != "clk" and \
+                (every_input or port.lstrip("\\") in plain):
+            q = f"{'in' if every_input else 'param'}_q_{len(regs)}"
+            init = "" if not every_input else " = 1'b1" if port == "rst" else " = 0"
+            regs.append(f"  reg {rng} {q}{init};\n  always @(posedge clk) {q} <= {ref};")
             conns.append(f"    .{ref}({q})")
         else:
             conns.append(f"    .{ref}({ref})")
-    wrapper = (f"\n// Simulation wrapper (sim/verilator): run-time parameters held in registers.\n"
+    what = "every input but the clock" if every_input else "run-time parameters"
+    wrapper = (f"\n// Simulation wrapper (sim/verilator): {what} held in registers.\n"
                f"module {name}({', '.join(n + ' ' if n.startswith(chr(92)) else n for n in names)});\n" + "\n".join(decls) + "\n"
                + "\n".join(regs) + f"\n  {core} core (\n" + ",\n".join(conns) + "\n  );\nendmodule\n")
     return text + wrapper
@@ -267,14 +289,17 @@ class VerilatorBuild:
 _built = {}     # (name, hash) -> VerilatorBuild, for this process
 
 
-def build(name, component=None, params=None, verilog=None, register_params=True):
+def build(name, component=None, params=None, verilog=None, register_params=True,
+          register_inputs=True):
     """Build (or reuse) the harness for design ``name``. ``component`` defaults to the
-    registered design; ``verilog`` (text) defaults to its export. ``register_params``: wrap
-    the design so its run-time parameters come from registers (:func:`param_register_wrapper`;
-    off only to measure what that gains). Safe to call from several processes at once (a lock
-    file per design)."""
+    registered design; ``verilog`` (text) defaults to its export. ``register_inputs``: wrap a
+    clocked design so that every input comes from a register and the harness evaluates it once
+    per cycle (:func:`input_register_wrapper`); else ``register_params``: so that its run-time
+    parameters do (:func:`param_register_wrapper`). Both off only to measure what they gain.
+    Safe to call from several processes at once (a lock file per design)."""
     harness = HARNESS.read_text()
-    flags = (" ".join(VERILATOR_FLAGS), CFLAGS, OPT, f"register_params={register_params}")
+    flags = (" ".join(VERILATOR_FLAGS), CFLAGS, OPT, f"register_params={register_params}",
+             f"register_inputs={register_inputs}")
     base = BUILD / "verilator" / name
     if component is None:
         component, params = registered(name, params)
@@ -300,8 +325,12 @@ def build(name, component=None, params=None, verilog=None, register_params=True)
         verilog = export_verilog(name, component, params or {},
                                  out_dir=BUILD / "verilator" / name).read_text()
     names = module_ports(verilog, name)
-    header = ports_header(name, p, clk="clk" in names, rst="rst" in names)
-    if register_params:
+    register_inputs = register_inputs and "clk" in names
+    header = ports_header(name, p, clk="clk" in names, rst="rst" in names,
+                          registered_inputs=register_inputs)
+    if register_inputs:
+        verilog = input_register_wrapper(verilog, name, p)
+    elif register_params:
         verilog = param_register_wrapper(verilog, name, p)
     key = text_hash(verilog, header, harness, *flags)
     if (name, key) in _built:
@@ -353,7 +382,7 @@ class VerilatorRun:
 
 def run_verilator(design, *, inputs, out_frames=None, out_words=None, params=None, runtime=None,
                   seed=0, idle=0.0, stall=0.0, timeout=10000, max_cycles=None, name=None,
-                  register_params=True):
+                  register_params=True, register_inputs=True):
     """Simulate ``design`` on whole streams.
 
     ``design``: a registered design name, a component, or a factory returning one.
@@ -364,14 +393,17 @@ def run_verilator(design, *, inputs, out_frames=None, out_words=None, params=Non
     plain input ports, set before reset is released.
     ``seed``, ``idle``, ``stall``: random idle cycles before each input word and random
     ``ready``-low cycles on the outputs (probabilities, 0 = none).
+    ``register_params``, ``register_inputs``: the simulation wrapper (:func:`build`).
     """
     if isinstance(design, str):
         name = name or design
-        b = build(design, params=params, register_params=register_params)
+        b = build(design, params=params, register_params=register_params,
+                  register_inputs=register_inputs)
     else:
         component = design() if isinstance(design, type) or not hasattr(design, "elaborate") else design
         name = name or type(component).__name__.lower()
-        b = build(name, component=component, register_params=register_params)
+        b = build(name, component=component, register_params=register_params,
+                  register_inputs=register_inputs)
     p = b.ports
     out_frames, out_words, runtime = dict(out_frames or {}), dict(out_words or {}), dict(runtime or {})
     args = [str(b.exe), "--seed", str(seed), "--idle", repr(float(idle)), "--stall",

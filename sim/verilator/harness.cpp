@@ -10,6 +10,12 @@
 // probability --stall in each cycle, independently of valid. Every port has its own seeded
 // generator, so a run is reproducible from --seed.
 //
+// With REGISTERED_INPUTS (design_ports.h) the Verilated model is a wrapper that feeds every
+// input of the design but the clock through a register (sim/verilator input_register_wrapper):
+// the harness sets the inputs of each cycle in the cycle before, and the design's logic is
+// evaluated once per cycle, after the rising edge. The ports move the same words in the same
+// cycles as without the wrapper.
+//
 // Usage:
 //   harness [--in NAME FILE]... [--out NAME FILE EOF_BIT COUNT]... [--param NAME HEX]...
 //           [--seed N] [--idle P] [--stall P] [--timeout CYCLES] [--max-cycles CYCLES]
@@ -172,49 +178,27 @@ int main(int argc, char** argv) {
 
     auto ctx = std::make_unique<VerilatedContext>();
     auto top = std::make_unique<Top>(ctx.get());
+    if (REGISTERED_INPUTS && reset_cycles < 1) die("--reset-cycles must be at least 1");
 
-    // Parameters are set before and held through reset.
-    for (auto& [k, v] : params) param_set(top.get(), k, v.data());
-    set_clk(top.get(), 0);
-    set_rst(top.get(), 1);
-    for (int k = 0; k < N_IN; k++) in_drive(top.get(), k, false, 0);
-    for (int k = 0; k < N_OUT; k++) out_ready(top.get(), k, false);
-    top->eval();
-    for (uint64_t c = 0; c < reset_cycles; c++) {
-        set_clk(top.get(), 1); top->eval();
-        set_clk(top.get(), 0); top->eval();
-    }
-    set_rst(top.get(), 0);
-
-    auto t0 = std::chrono::steady_clock::now();
     uint64_t cycle = 0, quiet = 0;
     int64_t first_offer = -1, last_take = -1;
-    int status = 0;
-    std::string message;
-    while (true) {
-        bool all_done = true;
-        for (int k = 0; k < N_OUT; k++) all_done &= outs[k].done();
-        if (all_done) break;
-        if (cycle >= max_cycles) {
-            status = 4;
-            message = "max cycles reached";
-            break;
-        }
-        // Drive the inputs and the output ready lines for this cycle.
+    bool oready[N_OUT > 0 ? N_OUT : 1] = {};
+    // The input and output ready lines of cycle c.
+    auto drive = [&](uint64_t c) {
         for (int k = 0; k < N_IN; k++) {
             InStream& s = ins[k];
             if (!s.offering && s.pos < s.words.size() && !in_rng[k].chance(idle_t)) s.offering = true;
             in_drive(top.get(), k, s.offering, s.offering ? s.words[s.pos] : 0);
-            if (s.offering && first_offer < 0) first_offer = (int64_t)cycle;
+            if (s.offering && first_offer < 0) first_offer = (int64_t)c;
         }
-        bool oready[N_OUT > 0 ? N_OUT : 1];
         for (int k = 0; k < N_OUT; k++) {
             oready[k] = !out_rng[k].chance(stall_t);
             out_ready(top.get(), k, oready[k]);
         }
-        set_clk(top.get(), 0);
-        top->eval();
-        // Sample the transfers that the coming rising edge makes.
+    };
+    // The transfers that the rising edge ending cycle c makes (the design's outputs settled
+    // for that cycle); whether anything moved.
+    auto sample = [&](uint64_t c) {
         bool moved = false;
         for (int k = 0; k < N_IN; k++) {
             InStream& s = ins[k];
@@ -230,12 +214,62 @@ int main(int argc, char** argv) {
                 uint64_t w = out_payload(top.get(), k);
                 s.words.push_back(w);
                 if (s.eof_bit >= 0 && ((w >> s.eof_bit) & 1)) s.frames++;
-                last_take = (int64_t)cycle;
+                last_take = (int64_t)c;
                 moved = true;
             }
         }
-        set_clk(top.get(), 1);
-        top->eval();
+        return moved;
+    };
+    auto edge = [&]() {
+        set_clk(top.get(), 1); top->eval();
+        set_clk(top.get(), 0); top->eval();
+    };
+
+    // Parameters are set before and held through reset.
+    for (auto& [k, v] : params) param_set(top.get(), k, v.data());
+    set_clk(top.get(), 0);
+    set_rst(top.get(), 1);
+    for (int k = 0; k < N_IN; k++) in_drive(top.get(), k, false, 0);
+    for (int k = 0; k < N_OUT; k++) out_ready(top.get(), k, false);
+    top->eval();
+    for (uint64_t c = 0; c < reset_cycles; c++) {
+        if (REGISTERED_INPUTS && c + 1 == reset_cycles) {
+            // The design sees its inputs through registers (sim/verilator
+            // input_register_wrapper): what it is to see in a cycle is set in the one before.
+            set_rst(top.get(), 0);
+            drive(0);
+        }
+        edge();
+    }
+    set_rst(top.get(), 0);
+
+    auto t0 = std::chrono::steady_clock::now();
+    int status = 0;
+    std::string message;
+    while (true) {
+        bool all_done = true;
+        for (int k = 0; k < N_OUT; k++) all_done &= outs[k].done();
+        if (all_done) break;
+        if (cycle >= max_cycles) {
+            status = 4;
+            message = "max cycles reached";
+            break;
+        }
+        bool moved;
+        if (REGISTERED_INPUTS) {
+            // The rising edge that began this cycle settled every output: one evaluation of
+            // the design per cycle (the falling edge's evaluation has no logic to run).
+            moved = sample(cycle);
+            drive(cycle + 1);
+            edge();
+        } else {
+            // Plain inputs: settle the outputs on this cycle's inputs, then the rising edge.
+            drive(cycle);
+            top->eval();
+            moved = sample(cycle);
+            set_clk(top.get(), 1); top->eval();
+            set_clk(top.get(), 0);
+        }
         cycle++;
         quiet = moved ? 0 : quiet + 1;
         if (quiet >= timeout) {
