@@ -187,7 +187,8 @@ class Matcher(wiring.Component):
     mode_full, widen, drop_mode : In(1)
         Full mode (every d is a candidate); widen candidates by one pixel; camera mode.
     frame_<stat> : Out(32)
-        Statistics of the last finished frame, see :data:`STAT_KEYS`.
+        Statistics of the last finished frame, see :data:`STAT_KEYS` (counted in as many bits
+        as a frame of ``max_width`` x ``max_height`` needs; the upper bits are 0).
     frames : Out(32)
         Frames finished.
     errors : Out(16), dropped : Out(32)
@@ -460,7 +461,12 @@ class Matcher(wiring.Component):
         neg_mask = Signal(ND + 2)
         l_edge = Signal()                 # left pixel c1 - 1 (delayed one column)
         l_neg = Signal()
-        stat = {name: Signal(32, name=f"cnt_{name}") for name in STAT_KEYS}
+        # per-frame statistics as wide as a frame's counts can be (at most one per pixel; SAD
+        # evaluations at most ND + 2 per pixel, the widened candidates): no bit that is always
+        # 0 in a counter or in the register block's read multiplexer
+        pixels = MW * self._max_height
+        stat = {name: Signal(bits_for(pixels * (ND + 2) if name == "sad_evaluations" else pixels),
+                             name=f"cnt_{name}") for name in STAT_KEYS}
 
         rp_lf = L.fmem.read_port()
         rp_rf = R.fmem.read_port()
