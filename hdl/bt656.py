@@ -39,9 +39,11 @@ class YCbCrToRGB(wiring.Component):
         :data:`CONVERT_LATENCY` cycles later.
 
     Stages: (1) ``c = Y - 16``, ``d = Cb - 128``, ``e = Cr - 128``; (2) the five constant
-    products, the rounding constant 128 added to ``298 c``; (3) the R and B sums and G's chroma
-    sum; (4) G's subtraction; (5) ``>> 8`` (floor: the sum's bits from 8 up) and the clamp to
-    0..255. Each stage is at most one multiplier or one carry chain between registers.
+    products (``-100 d`` and ``-208 e`` for G); (3) per channel, the sum of the products' high
+    parts (``p >> 8``) and the sum of their low bytes plus the rounding constant 128; (4) the
+    high sum plus the low sum's carry (its bits from 8 up), which is the whole sum ``>> 8``
+    (floor); (5) the clamp to 0..255. Each stage is one multiplier or adders of at most 11 bits
+    between registers (the full 19-bit sums would be one 19-bit carry chain).
     """
 
     i_valid: In(1)
@@ -60,25 +62,33 @@ class YCbCrToRGB(wiring.Component):
             m.d.sync += [valid[s].eq(valid[s - 1]), flags[s].eq(flags[s - 1])]
 
         # stage 1: centred operands
-        c, d, e = Signal(signed(10)), Signal(signed(10)), Signal(signed(10))
-        m.d.sync += [c.eq(self.i.y - 16), d.eq(self.i.cb - 128), e.eq(self.i.cr - 128)]
-        # stage 2: products (the rounding constant rides on the luma product)
-        py = Signal(signed(20))
-        pre, pgd, pge, pbd = (Signal(signed(20), name=n) for n in ("p_re", "p_gd", "p_ge", "p_bd"))
-        m.d.sync += [py.eq(k["y"] * c + 128), pre.eq(k["r_cr"] * e), pgd.eq(k["g_cb"] * d),
-                     pge.eq(k["g_cr"] * e), pbd.eq(k["b_cb"] * d)]
-        # stage 3: R and B sums; G's two chroma products summed, its luma term kept
-        sr3, sb3, gc3, py3 = (Signal(signed(21), name=n) for n in ("sum_r", "sum_b", "sum_gc",
-                                                                    "py3"))
-        m.d.sync += [sr3.eq(py + pre), sb3.eq(py + pbd), gc3.eq(pgd + pge), py3.eq(py)]
-        # stage 4: G's subtraction; R and B wait
-        sr, sg, sb = (Signal(signed(21), name=f"sum{n}") for n in "rgb")
-        m.d.sync += [sr.eq(sr3), sg.eq(py3 - gc3), sb.eq(sb3)]
-        # stage 5: >> 8 and clamp to 0..255
+        c, d, e = Signal(signed(9)), Signal(signed(8)), Signal(signed(8))
+        # (x - 128 of a byte is the byte with its top bit flipped, read as signed)
+        m.d.sync += [c.eq(self.i.y - 16), d.eq(self.i.cb ^ 0x80), e.eq(self.i.cr ^ 0x80)]
+        # stage 2: the five products (G's two negated: every sum below is an addition)
+        py, pre, pbd = Signal(signed(18)), Signal(signed(17)), Signal(signed(18))
+        ngd, nge = Signal(signed(15)), Signal(signed(16))
+        m.d.sync += [py.eq(k["y"] * c), pre.eq(k["r_cr"] * e), pbd.eq(k["b_cb"] * d),
+                     ngd.eq(-k["g_cb"] * d), nge.eq(-k["g_cr"] * e)]
+        # stage 3: each sum split at bit 8 (v = 256 (v >> 8) + v[:8]): the high parts summed,
+        # and the low bytes with the rounding constant, whose bits from 8 up are the carry
+        terms = {"r": (py, pre), "g": (py, ngd, nge), "b": (py, pbd)}
+        high = {"r": signed(10), "g": signed(10), "b": signed(11)}
+        sums = {}
+        # py + 128 = 256 (py >> 8 + py[7]) + (py[:8] ^ 128): the constant is a bit flip and a
+        # carry into the high part
+        for n, ts in terms.items():
+            hi3 = Signal(high[n], name=f"{n}_high")
+            lo3 = Signal(10, name=f"{n}_low")
+            m.d.sync += [hi3.eq(sum(t[8:].as_signed() for t in ts) + py[7]),
+                         lo3.eq((py[:8] ^ 128) + sum(t[:8] for t in ts[1:]))]
+            # stage 4: the carry of the low bytes into the high part: the sum >> 8 (floor)
+            sums[n] = Signal(high[n], name=f"sum_{n}")
+            m.d.sync += sums[n].eq(hi3 + lo3[8:])
+        # stage 5: clamp to 0..255
         out = self.o
-        for name, v in (("r", sr), ("g", sg), ("b", sb)):
-            q = v[8:]
-            m.d.sync += getattr(out, name).eq(Mux(q[-1], 0, Mux(q[8:-1].any(), 255, q[:8])))
+        for n, q in sums.items():
+            m.d.sync += getattr(out, n).eq(Mux(q[-1], 0, Mux(q[8:-1].any(), 255, q[:8])))
         m.d.comb += [self.o_valid.eq(valid[-1]), out.sof.eq(flags[-1][0]),
                      out.eol.eq(flags[-1][1]), out.eof.eq(flags[-1][2])]
         return m

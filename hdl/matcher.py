@@ -391,6 +391,12 @@ class Matcher(wiring.Component):
                 m.d.sync += [c.open.eq(1), c.ended.eq(0)]
             with m.If(write):
                 m.d.sync += c.wrow.eq(track.y + 1)
+            # wrow steps by one at the first written beat of a line (lines are written from
+            # their first beat on, after an eol or the sof) and at no other beat
+            c.fresh = Signal(name=f"{name}_fresh")     # the last written beat ended its line
+            with m.If(write):
+                m.d.sync += c.fresh.eq(p.eol)
+            c.write = write
             m.d.sync += bumped.eq(counted & p.eol)
             with m.If(counted):
                 with m.If(p.eol):
@@ -511,9 +517,16 @@ class Matcher(wiring.Component):
         x3 = Signal(XW); last3 = Signal()
         want_push = Signal()
         m.d.comb += want_push.eq(edge3 & ~border3 & (cand3 != 0))
-        # Drop-mode doom test for the scanner's own row (its flags are being overwritten).
+        # Drop-mode doom test for the scanner's own row (its flags are being overwritten):
+        # wrow > s_lim, registered one step ahead from the next wrow (wrow + 1 at a write that
+        # starts a line; the sof's wrow of 1 is never above s_lim). s_lim changes only at
+        # ROW_END and at `complete`, cycles before the scanner is in SCAN again, and the test
+        # matters only in SCAN: there the register equals the test on this cycle's wrow.
         s_lim = Signal(YW + 1, init=ROWS)     # s_row + ROWS
-        m.d.comb += s_doomed.eq((L.wrow > s_lim) | (R.wrow > s_lim))
+        s_doom = {id(c): Signal(name=f"s_doom_{n}") for n, c in cams.items()}
+        m.d.sync += [s_doom[id(c)].eq((c.wrow > s_lim) | (c.write & c.fresh & (c.wrow == s_lim)))
+                     for c in (L, R)]
+        m.d.comb += s_doomed.eq(s_doom[id(L)] | s_doom[id(R)])
 
         s_need = Signal(YW + 1, init=r)   # s_row + r
         ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()

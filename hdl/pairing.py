@@ -1,6 +1,6 @@
 """Stereo frame pairing between the camera FIFOs and the pipeline (specification and rules:
 ``golden/pairing.py``)."""
-from amaranth.hdl import EnableInserter, Module, ResetInserter, Signal
+from amaranth.hdl import EnableInserter, Module, Mux, ResetInserter, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -101,12 +101,15 @@ class FramePairing(wiring.Component):
             i, o, t = me["i"], me["o"], me["tracker"]
             with m.If(me["passing"]):
                 # each side's handshake depends on its own beat only (the other side's
-                # abandon stops this side from the next cycle on); a non-sof bad beat is
-                # consumed, a sof that cuts the frame is kept for the next pair
-                with m.If(t.abandon):
-                    m.d.comb += i.ready.eq(~i.payload.sof)
-                with m.Else():
-                    m.d.comb += i.ready.eq(t.accept & o.ready)
+                # abandon stops this side from the next cycle on), and only on registers and
+                # the beat's flags, not on the tracker's checks: inside the frame every beat
+                # but a sof is taken when the output has room (a bad one is not forwarded,
+                # and without room it is discarded a cycle later); a sof that cuts the frame
+                # is kept for the next pair. The frame's first beat is its sof, which the
+                # tracker takes unless it is an eof without eol.
+                p = i.payload
+                m.d.comb += i.ready.eq(o.ready & Mux(t.in_frame, ~p.sof,
+                                                     p.sof & ~(p.eof & ~p.eol)))
                 with m.If(abandon | (t.frame_end & o.ready)):
                     m.d.sync += me["passing"].eq(0)
                 m.d.comb += me["commit"].eq(i.valid & i.ready)

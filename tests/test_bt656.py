@@ -122,9 +122,11 @@ def test_converter_matches_golden_on_random_codes():
     from amaranth.sim import Simulator
     from hdl.bt656 import YCbCrToRGB, CONVERT_LATENCY
     rng = np.random.default_rng(7)
-    ycc = rng.integers(0, 256, (400, 3))
-    ycc[:8] = [[0, 0, 0], [255, 255, 255], [0, 255, 0], [255, 0, 255], [16, 128, 128],
-               [235, 128, 128], [255, 0, 0], [0, 0, 255]]
+    # every code near the ends and the centres of Y, Cb, Cr crossed (the carries out of the
+    # low bytes and the clamps at both ends), then random codes
+    edges = [0, 1, 15, 16, 17, 127, 128, 129, 235, 240, 254, 255]
+    ycc = np.concatenate([np.array(np.meshgrid(edges, edges, edges)).reshape(3, -1).T,
+                          rng.integers(0, 256, (400, 3))])
     want = ycbcr_to_rgb(ycc[:, 0], ycc[:, 1], ycc[:, 2]).tolist()
     dut = YCbCrToRGB()
     got = []
