@@ -27,10 +27,14 @@ class ColorConvert(FramedUnit):
     Pipeline (every stage moves together when the output register is free or being read; at
     most one carry chain per register-to-register path):
 
-    1. input register; the three channel comparisons and differences; the luma products;
-    2. max, min, delta, sextant base and signed numerator; the luma sum of two products;
-    3. ``|num|``; the reciprocal table read (addresses delta and max); the luma sum;
+    1. input register; the three channel comparisons and differences;
+    2. max, min, delta, sextant base and signed numerator; the luma products (from the stage
+       1 registers, not from the input register with its many loads: a multiplier block's
+       routing on ECP5 is long);
+    3. ``|num|``; the reciprocal table read (addresses delta and max); the sum of two luma
+       products, the rounding constant added to the third;
     4. register of the table outputs (a block-RAM output never feeds a multiplier directly);
+       the luma sum;
     5. the two multiplies;
     6. hue quotient rounding; saturation rounding and clamp;
     7. output register: hue sextant offset and wrap-around.
@@ -75,11 +79,10 @@ class ColorConvert(FramedUnit):
         r, g, b = p.r, p.g, p.b
         flags = Signal(3)
         m.d.comb += flags.eq(Cat(p.sof, p.eol, p.eof))
-        # 1. comparisons, differences, luma products
+        # 1. comparisons, differences
         s1 = stage(1, v=track.accept, flags=flags,
                    r_ge_g=r >= g, r_ge_b=r >= b, g_ge_b=g >= b,
                    gb=g - b, br=b - r, rg=r - g,
-                   yr=r * 77, yg=g * 150, yb=b * 29 + 128,
                    r=r, g=g, b=b)
         # 2. extremes and sextant
         r_max = Signal(); g_max = Signal()
@@ -95,7 +98,7 @@ class ColorConvert(FramedUnit):
         m.d.comb += num.eq(Mux(r_max, s1["gb"], Mux(g_max, s1["br"], s1["rg"])))
         s2 = stage(2, v=s1["v"], flags=s1["flags"], mx=mx, delta=(mx - mn)[:8], num=num,
                    base=Mux(r_max, 0, Mux(g_max, 2 * HUE_SEXTANT, 4 * HUE_SEXTANT)),
-                   yrg=s1["yr"] + s1["yg"], yb=s1["yb"])
+                   yr=s1["r"] * 77, yg=s1["g"] * 150, yb=s1["b"] * 29)
         # 3. |num|, table reads
         rd_hue = recip.read_port()
         rd_sat = recip.read_port()
@@ -104,10 +107,11 @@ class ColorConvert(FramedUnit):
         neg = s2["num"] < 0
         s3 = stage(3, v=s2["v"], flags=s2["flags"], delta=s2["delta"], chroma=s2["delta"] != 0,
                    neg=neg, absnum=Mux(neg, -s2["num"], s2["num"])[:8], base=s2["base"],
-                   y=((s2["yrg"] + s2["yb"]) >> 8)[:8])
+                   yrg=s2["yr"] + s2["yg"], yb=s2["yb"] + 128)
         # 4. table outputs registered
         s4 = stage(4, v=s3["v"], flags=s3["flags"], delta=s3["delta"], chroma=s3["chroma"],
-                   neg=s3["neg"], absnum=s3["absnum"], base=s3["base"], y=s3["y"],
+                   neg=s3["neg"], absnum=s3["absnum"], base=s3["base"],
+                   y=((s3["yrg"] + s3["yb"]) >> 8)[:8],
                    rhue=rd_hue.data, rsat=rd_sat.data)
         # 5. multiplies (|num| <= delta, so the hue product stays below 2**17 + 2**8)
         s5 = stage(5, v=s4["v"], flags=s4["flags"], chroma=s4["chroma"], neg=s4["neg"],
