@@ -105,6 +105,18 @@ def count_cells(cells_by_type):
                                      "carry", "LUTRAM")}
 
 
+def _net_names(module):
+    """``{bit: name}`` of the visible (not Yosys-generated) nets of a netlist module, the
+    first name of each bit."""
+    names = {}
+    for net, info in module.get("netnames", {}).items():
+        if not info.get("hide_name"):
+            for b in info["bits"]:
+                if isinstance(b, int):
+                    names.setdefault(b, net)
+    return names
+
+
 def _comb_graph(netlist, top):
     module = netlist["modules"][top]
     cells = module["cells"]
@@ -152,12 +164,7 @@ def longest_path(netlist, top):
     if not comb:
         return 0, []
     end = max(comb, key=visit)
-    names = {}
-    for net, info in module.get("netnames", {}).items():
-        if not info.get("hide_name"):
-            for b in info["bits"]:
-                if isinstance(b, int):
-                    names.setdefault(b, net)
+    names = _net_names(module)
 
     def bits(cell, direction):
         return [b for p, d in cells[cell]["port_directions"].items() if d == direction
@@ -212,12 +219,7 @@ def lut_breakdown(netlist, top, depth=2):
     first."""
     module = netlist["modules"][top]
     cells = module["cells"]
-    names = {}
-    for net, info in module["netnames"].items():
-        if not info.get("hide_name"):
-            for b in info["bits"]:
-                if isinstance(b, int):
-                    names.setdefault(b, net)
+    names = _net_names(module)
     loads = defaultdict(list)
     outputs = {}
     for cname, cell in cells.items():

@@ -142,7 +142,7 @@ def _ground_view(path, image, camera_frame, gp, title):
     else:
         hue_spans, luma_spans = (_runs(np.asarray(st)) for st in camera_frame.sets)
         what = "learned set"
-    fw, fh = canvas.width, canvas.height
+    fh = canvas.height
     px0 = LEFT + w * k + 50
     gap = 70
     ph = (fh - 55 - 45 - gap) / 2
