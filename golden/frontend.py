@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .census import census
 from .color import rgb_to_yhs
 from .freespace import FreeSpaceParams
 from .ground import GroundModel, GroundParams
@@ -38,9 +39,13 @@ class FrontEndFrame:
     sets: tuple = None   # (hue set, luma set) the frame was classified with; None: default bands
     free: np.ndarray = None  # free-space row per column band (uint16, golden.freespace)
 
-    def output(self):
-        """The front end's output stream fields."""
-        return dict(y=self.y, edge=self.edge, neg=self.neg)
+    def output(self, cost="sad"):
+        """The front end's output stream fields. The matcher takes them as they are
+        (:func:`golden.matcher.match` computes the census words itself); ``cost = "census"``:
+        the stream of a front end built for the census cost, whose Sobel unit computes the
+        census words and sends them in place of the luminance (``hdl.sobel.SobelEdges``)."""
+        y = census(self.y) if cost == "census" else self.y
+        return dict(y=y, edge=self.edge, neg=self.neg)
 
 
 def as_rgb(image):

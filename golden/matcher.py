@@ -128,7 +128,7 @@ from .census import census
 
 __all__ = ["MatcherParams", "match", "candidates", "window_costs", "RECORD_DTYPE",
            "RECORD_DTYPE_V2", "STAT_KEYS", "accuracy", "MAX_DISPARITY", "DISPARITIES",
-           "DISPARITY_BITS", "DISPARITY_SPAN", "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "CONFIDENCE_MAX", "CONFIDENCE_OFFSET",
+           "DISPARITY_BITS", "DISPARITY_SPAN", "SUBPIXEL_BITS", "SUBPIXEL_ONE", "MAX_WIDEN", "RTL", "V2", "CONFIDENCE_MAX", "CONFIDENCE_OFFSET",
            "v2_params", "WindowCosts", "record_dtype"]
 
 #: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``,
@@ -231,6 +231,12 @@ class MatcherParams:
 #: uniqueness 64 / 256, each right pixel matched once, subpixel d and confidence.
 V2 = dict(uniqueness=64, widen=2, cost="census", sign="any", consistency="unique_right",
           subpixel=True)
+
+
+#: What the RTL runs by default (hdl/matcher.py): version 2's census cost, candidates and
+#: uniqueness, without its two post-steps (``unique_right``, ``subpixel``), which the RTL does
+#: not implement yet.
+RTL = {k: v for k, v in V2.items() if k not in ("consistency", "subpixel")}
 
 
 def v2_params(**overrides):

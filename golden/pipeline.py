@@ -7,11 +7,12 @@ import numpy as np
 from .freespace import FreeSpaceParams
 from .frontend import FrontEndParams, FrontEndFrame, FrontEndModel
 from .ground import GroundMode, GroundParams
-from .matcher import MAX_DISPARITY, MatcherParams, match, v2_params
+from .matcher import MAX_DISPARITY, RTL, MatcherParams, match, v2_params
 from .sobel import SobelParams
 
 __all__ = ["PipelineParams", "PipelineFrame", "PipelineModel", "pipeline_frames",
-           "default_params", "LEFT_THRESHOLD", "RIGHT_THRESHOLD", "V2_THRESHOLD"]
+           "default_params", "LEFT_THRESHOLD", "RIGHT_THRESHOLD", "V2_THRESHOLD",
+           "RTL_THRESHOLDS"]
 
 #: Sobel thresholds of the default pipeline. The left image's edges are the pixels matched, so
 #: they should be strong; the right image's edges only say where candidates are, so a weaker
@@ -26,6 +27,14 @@ RIGHT_THRESHOLD = 96
 #: its census cost, wider candidates and consistency check keep bad-2 below 6 % on the weaker
 #: left edges of 128, which gives more points within 2 px than 192 (sim/bench_matcher.py).
 V2_THRESHOLD = 128
+#: Sobel thresholds (left, right) of the RTL's default (``default_params(...)``, matcher
+#: :data:`golden.matcher.RTL`): without version 2's unique_right step, a weaker right threshold
+#: keeps more true matches among the candidates. Measured on the motorcycle pair, ground off,
+#: over the left edges of 128 (sim/bench_matcher.py): right 96 gives bad-2 5.7 %, 8,688 points
+#: within 2 px, 1.59 % of dense evaluations; right 64 / 80 / 112 / 128: bad-2 5.9 / 5.8 / 6.0 /
+#: 6.7 %; left 144 / 160 / 192 with right 96: bad-2 5.5 / 5.4 / 5.2 % but 8,008 / 7,421 / 6,334
+#: points within 2 px.
+RTL_THRESHOLDS = (128, 96)
 
 
 @dataclass(frozen=True)
@@ -57,25 +66,34 @@ class PipelineFrame:
     stats: dict              # STAT_KEYS
 
 
-def default_params(width, height, *, ground="hue", version=1, **matcher):
+def default_params(width, height, *, ground="hue", version="rtl", thresholds=None, **matcher):
     """The default pipeline configuration for a width x height pair (what the command line,
     ``make sim`` and the register reset values use): the ground reference region at the bottom
-    centre, free-space bands covering the width (:meth:`FreeSpaceParams.for_width`), Sobel
-    thresholds :data:`LEFT_THRESHOLD` / :data:`RIGHT_THRESHOLD`, and the matcher
-    defaults with ``widen`` on (overridable by keyword). ``version=2``: matcher version 2
-    (:func:`golden.matcher.v2_params`) with both thresholds :data:`V2_THRESHOLD`; the RTL
-    implements version 1."""
+    centre, free-space bands covering the width (:meth:`FreeSpaceParams.for_width`), and by
+    ``version`` (matcher keywords override; ``thresholds = (left, right)`` overrides the Sobel
+    thresholds):
+
+    * ``"rtl"`` (the default): what the RTL runs, :data:`golden.matcher.RTL` (version 2's census
+      cost, candidates and uniqueness without its post-steps), thresholds
+      :data:`RTL_THRESHOLDS`;
+    * ``2``: matcher version 2 (:func:`golden.matcher.v2_params`), both thresholds
+      :data:`V2_THRESHOLD`;
+    * ``1``: matcher version 1 (SAD of luminance, same-sign candidates widened by 1), Sobel
+      thresholds :data:`LEFT_THRESHOLD` / :data:`RIGHT_THRESHOLD`."""
     mode = {"hue": GroundMode.HUE, "luma": GroundMode.LUMA, "off": GroundMode.OFF}[ground]
     gp = GroundParams.bottom_centre(width, height, mode=mode)
     free = FreeSpaceParams.for_width(width)
-    if version == 2:
-        return PipelineParams(FrontEndParams(gp, SobelParams(threshold=V2_THRESHOLD), free),
-                              v2_params(**matcher), right_threshold=V2_THRESHOLD)
-    if version != 1:
-        raise ValueError(f"matcher version must be 1 or 2, not {version!r}")
-    matcher = {"widen": True, **matcher}
-    return PipelineParams(FrontEndParams(gp, SobelParams(threshold=LEFT_THRESHOLD), free),
-                          MatcherParams(**matcher), right_threshold=RIGHT_THRESHOLD)
+    if version == "rtl":
+        mp, default = MatcherParams(**{**RTL, **matcher}), RTL_THRESHOLDS
+    elif version == 2:
+        mp, default = v2_params(**matcher), (V2_THRESHOLD, V2_THRESHOLD)
+    elif version == 1:
+        mp, default = MatcherParams(**{"widen": True, **matcher}), (LEFT_THRESHOLD, RIGHT_THRESHOLD)
+    else:
+        raise ValueError(f"matcher version must be 'rtl', 1 or 2, not {version!r}")
+    left, right = thresholds or default
+    return PipelineParams(FrontEndParams(gp, SobelParams(threshold=left), free), mp,
+                          right_threshold=right)
 
 
 class PipelineModel:

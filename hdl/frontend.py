@@ -24,7 +24,8 @@ class FrontEnd(FramedUnit):
     i : In(stream of :data:`RGBPixel`)
         Camera pixels; backpressure from ``o`` propagates through every stage.
     o : Out(stream of :data:`EdgePixel`)
-        Luminance, vertical obstacle edge bit and Gx sign, one per input pixel. Latency: the
+        Luminance (its census word with ``census``, see :class:`hdl.sobel.SobelEdges`),
+        vertical obstacle edge bit and Gx sign, one per input pixel. Latency: the
         colour converter's 7 cycles + the classifier's 3 + the Sobel unit's one line and 8
         cycles + 3 for the registered-ready buffers between the units and at the output.
     free : Out(stream of :data:`FreeBand`)
@@ -46,6 +47,10 @@ class FrontEnd(FramedUnit):
         Free-space result frames lost (:attr:`hdl.freespace.FreeSpace.lost`).
     """
 
+    def __init__(self, *, max_width=1024, max_height=1024, census=False):
+        self._census = census
+        super().__init__(max_width=max_width, max_height=max_height)
+
     i: In(stream.Signature(RGBPixel))
     o: Out(stream.Signature(EdgePixel))
     free: Out(stream.Signature(FreeBand))
@@ -66,7 +71,7 @@ class FrontEnd(FramedUnit):
         size = dict(max_width=self._max_width, max_height=self._max_height)
         m.submodules.color = color = ColorConvert(**size)
         m.submodules.ground = ground = GroundClassifier(**size)
-        m.submodules.sobel = sobel = SobelEdges(**size)
+        m.submodules.sobel = sobel = SobelEdges(**size, census=self._census)
         # registered-ready buffers at the unit boundaries: no combinational ready path runs
         # through more than one unit
         m.submodules.skid_cg = skid_cg = SkidBuffer(YHSPixel)

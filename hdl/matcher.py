@@ -1,4 +1,5 @@
-"""SAD block matcher with adaptive candidates (specification: ``golden/matcher.py``).
+"""Block matcher with adaptive candidates, census or SAD cost (specification:
+``golden/matcher.py``).
 
 Organisation
 ============
@@ -6,7 +7,11 @@ Two camera inputs, a *scanner* and an *engine*, decoupled by a queue::
 
     left  --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+
                                                                     +--> scanner --queue--> engine --> o
-    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+    (one sliding-window SAD lane)
+    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+    (one sliding-window cost lane)
+
+``Y`` is what the front end sends in the pixel's ``y`` field: its 3x3 census word with the
+census cost (``cost = "census"``, the pipeline's default: the Sobel unit computes it), its
+luminance with ``cost = "sad"``. The line store is the same either way (8 bits a pixel).
 
 Row slots. Each camera keeps its last ``ROWS = window + 1 + extra_rows`` lines (ROWS even) in
 line slots, packed two lines per memory: pair memory ``q`` (``max_width`` x 16 bits: one RAMB16
@@ -32,7 +37,8 @@ Scanner. Once both cameras have received lines up to ``s + r`` (or have ended), 
 row ``s`` one column per cycle, reading only the flag memories (the right one at column
 ``c - d_min``): the right row's edges go into two shift registers (Gx positive / negative) so
 that the candidate set of the left pixel at ``x`` is a fixed window of bits
-(``k -> x - d_min - k``, widened by one bit each side when ``widen``), masked with
+(``k -> x - d_min - k``, widened by ``widen`` bits each side; with ``sign_any`` both masks
+ORed, else the one of the left edge's sign), masked with
 ``k <= d_max - d_min`` (a registered mask) and ``d_min + k <= x - r`` (a thermometer shifted
 one bit per column). Three stages (flags, candidate mask, count and push) advance together while the queue
 has room. It counts left edges (``edge_pixels``, ``border``, ``no_candidate``) and pushes one
@@ -52,8 +58,9 @@ in flight: ``credits``):
   ``x - e - r``; the columns shift into a W x W right window ``rwin``, so consecutive
   candidates cost one column each and an isolated one W columns. When the job's first column
   reaches ``rwin`` the shadow moves to the left window ``lwin``;
-* *SAD lane* (:class:`~hdl.matcher_sad.SadTree`): for a position that is a candidate, the
-  full W x W SAD of ``lwin`` and ``rwin``, registered absolute differences and a pipelined
+* *cost lane* (:class:`~hdl.matcher_sad.SadTree`): for a position that is a candidate, the
+  full W x W cost of ``lwin`` and ``rwin`` (Hamming distances of census words, or absolute
+  differences of luminance), registered per-pixel terms and a pipelined
   adder tree;
 * *winner* (:class:`~hdl.matcher_winner.Winner`): the streaming winner/uniqueness update in
   increasing ``d``, one candidate a cycle (see ``golden/matcher.py``);
@@ -142,11 +149,14 @@ from .types import EdgePixel
 from .counter import saturating_sum, wide_accumulator, wide_counter
 from .framing import FrameTracker
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
-from .matcher_sad import SadTree
+from .matcher_sad import SadTree, term_max
 from .matcher_winner import Winner
 from .skid import SkidBuffer
 
-__all__ = ["Matcher", "match_record_layout"]
+__all__ = ["Matcher", "match_record_layout", "MATCHER_WIDEN"]
+
+#: The largest candidate spread ``widen`` the scanner implements (golden/matcher.py step 2).
+MATCHER_WIDEN = 2
 
 
 def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY):
@@ -166,7 +176,7 @@ def _sat_inc(counter, by=1):
 
 
 class Matcher(wiring.Component):
-    """Sparse SAD block matcher (see the module docstring for the organisation).
+    """Sparse block matcher (see the module docstring for the organisation).
 
     Ports
     -----
@@ -184,8 +194,12 @@ class Matcher(wiring.Component):
         change applies from the next frame that starts after it.
     uniqueness : In(8)
         Uniqueness margin u (1/256 units).
-    mode_full, widen, drop_mode : In(1)
-        Full mode (every d is a candidate); widen candidates by one pixel; camera mode.
+    mode_full, sign_any, drop_mode : In(1)
+        Full mode (every d is a candidate); candidates from right edges of either Gx sign
+        (``sign = "any"``; 0: only of the left edge's sign); camera mode.
+    widen : In(range(MATCHER_WIDEN + 1))
+        Candidate spread: a right edge within ``widen`` pixels makes a candidate (0..2; 3 acts
+        as 2).
     frame_<stat> : Out(32)
         Statistics of the last finished frame, see :data:`STAT_KEYS` (counted in as many bits
         as a frame of ``max_width`` x ``max_height`` needs; the upper bits are 0).
@@ -194,13 +208,19 @@ class Matcher(wiring.Component):
     errors : Out(16), dropped : Out(32)
         Malformed-stream events of both inputs plus frames of unequal sizes; beats dropped by
         both trackers (saturating, cleared by reset; both two cycles after the events).
+
+    Elaboration parameters: ``max_width``, ``max_height``, ``max_disparity``, ``window``,
+    ``queue_depth``, ``out_depth``, ``extra_rows`` (see the module docstring), and ``cost``:
+    ``"census"`` (the inputs' ``y`` carries census words; costs are sums of Hamming distances,
+    at most ``8 W^2``) or ``"sad"`` (luminance; sums of absolute differences).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, out_depth=8, extra_rows=0):
+                 queue_depth=16, out_depth=8, extra_rows=0, cost="sad"):
         try:
             self._check(max_width, max_height, max_disparity, window, queue_depth, out_depth,
                         extra_rows)
+            term_max(cost)
         except ValueError:
             self._MustUse__silence = True        # no "created but never used" warning
             raise
@@ -211,6 +231,7 @@ class Matcher(wiring.Component):
         self._window = window
         self._queue_depth = queue_depth
         self._out_depth = out_depth
+        self._cost = cost
         self.max_disparity = max_disparity
         self.window = window
         self.record = match_record_layout(max_width, max_height, max_disparity)
@@ -221,7 +242,8 @@ class Matcher(wiring.Component):
             "d_min": In(bits_for(max_disparity)),
             "d_max": In(bits_for(max_disparity), init=min(max_disparity, DISPARITY_SPAN - 1)),
             "uniqueness": In(8),
-            "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
+            "mode_full": In(1), "widen": In(range(MATCHER_WIDEN + 1)), "sign_any": In(1),
+            "drop_mode": In(1),
             "frames": Out(32), "errors": Out(16), "dropped": Out(32),
         }
         for name in STAT_KEYS:
@@ -256,7 +278,7 @@ class Matcher(wiring.Component):
         XB = ceil_log2(MW) if MW > 1 else 1
         XW = bits_for(MW)                  # holds 0..max_width
         YW = bits_for(self._max_height)
-        CB = bits_for(255 * W * W) + 1     # cost width with room for INF
+        CB = bits_for(term_max(self._cost) * W * W) + 1     # cost width with room for INF
         INF = (1 << CB) - 1
         SB = bits_for(ROWS - 1)
 
@@ -450,23 +472,30 @@ class Matcher(wiring.Component):
         # ---------------------------------------------------------------- scanner
         # Three stages, all advancing together while the queue has room (or in drop mode):
         # 1 reads the flags of column c1 (right edges shift into pos/neg masks), 2 forms the
-        # candidate mask of left pixel c2 - 1, 3 counts it and pushes its job.
+        # candidate mask of left pixel c2 - WD, 3 counts it and pushes its job. The left pixel
+        # is WD = MATCHER_WIDEN columns behind the right one, so that the masks already hold
+        # the right edges up to WD columns to the right of its candidates; the scan runs WD
+        # columns past the row's end (columns beyond it are not edges).
+        WD = MATCHER_WIDEN
+        XS = bits_for(MW + WD)            # scanner columns 0 .. width + WD
         s_row = Signal(YW)
         s_slot = Signal(SB)
         s_inside_row = Signal()
         s_width = Signal(XW)
-        ca = Signal(XW)                   # column address issued
-        # Right column address: ca - d_min (two's complement, XW + 1 bits; negative = outside)
-        CW = max(XW, DB) + 1
+        s_last = Signal(XS)               # s_width + WD - 1: the last column read
+        ca = Signal(XS)                   # column address issued
+        # Right column address: ca - d_min (two's complement, XS + 1 bits; negative = outside)
+        CW = max(XS, DB) + 1
         car = Signal(CW)
         v1 = Signal()                     # stage 1 holds the data of column c1
-        c1 = Signal(XW)
+        c1 = Signal(XS)
         c1r = Signal(CW)                  # c1 - d_min
-        # bit k: right column (c1 - d_min - k) is a positive edge
-        pos_mask = Signal(ND + 2)
-        neg_mask = Signal(ND + 2)
-        l_edge = Signal()                 # left pixel c1 - 1 (delayed one column)
-        l_neg = Signal()
+        # bit j: right column (c1 - d_min - j) is a positive (negative) edge
+        pos_mask = Signal(ND + 2 * WD)
+        neg_mask = Signal(ND + 2 * WD)
+        # left pixels c1 - 1 .. c1 - WD (delayed by one column each)
+        l_edge = [Signal(name=f"l_edge{k}") for k in range(WD)]
+        l_neg = [Signal(name=f"l_neg{k}") for k in range(WD)]
         # per-frame statistics as wide as a frame's counts can be (at most one per pixel; SAD
         # evaluations at most ND + 2 per pixel, the widened candidates): no bit that is always
         # 0 in a counter or in the register block's read multiplexer
@@ -491,27 +520,32 @@ class Matcher(wiring.Component):
         r_neg = Signal()
         m.d.comb += [r_edge.eq(rp_rf.data[0] & rr_in_row), r_neg.eq(rp_rf.data[1] & rr_in_row)]
 
-        # Stage 2: left pixel c2 - 1 against the masks of right columns c2, c2 - 1, ...
-        v2 = Signal(); c2 = Signal(XW); le2 = Signal(); ln2 = Signal()
+        # Stage 2: left pixel c2 - WD against the masks of right columns c2, c2 - 1, ...
+        v2 = Signal(); c2 = Signal(XS); le2 = Signal(); ln2 = Signal()
         # bit k: xl2 >= d_min + k + r (a thermometer, shifted per column)
         xmask = Signal(ND)
         # bit k: d_min + k <= d_max. Registered in two steps from the (static) registers.
         span = Signal(DB + 1)             # d_max - d_min, negative: empty window
-        xmin = Signal(DB + 1)             # d_min + r: the smallest x with a candidate
+        xmin = Signal(DB + 2)             # d_min + r + WD - 1: column c2 - 1 of that x
         rng = Signal(ND)
-        m.d.sync += [span.eq(f_dmax - f_dmin), xmin.eq(f_dmin + r),
+        m.d.sync += [span.eq(f_dmax - f_dmin), xmin.eq(f_dmin + r + WD - 1),
                      rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
-        xl2 = Signal(XW)
-        m.d.comb += xl2.eq(c2 - 1)
-        same = Signal(ND + 2)
-        m.d.comb += same.eq(Mux(ln2, neg_mask, pos_mask))
-        exact = Signal(ND)
-        wide = Signal(ND)
-        m.d.comb += [exact.eq(same[1:ND + 1]),
-                     wide.eq(same[0:ND] | same[1:ND + 1] | same[2:ND + 2])]
+        xl2 = Signal(XS)
+        m.d.comb += xl2.eq(c2 - WD)
+        # the right edges that make candidates: of the left edge's Gx sign, or of either
+        same = Signal(ND + 2 * WD)
+        m.d.comb += same.eq(Mux(self.sign_any, pos_mask | neg_mask,
+                                Mux(ln2, neg_mask, pos_mask)))
+        # candidate k: right column xl2 - d_min - k (bit k + WD) or, widened by w, any of the
+        # bits k + WD - w .. k + WD + w
+        spread = [same[WD:WD + ND]]
+        for w in range(1, WD + 1):
+            spread.append(spread[-1] | same[WD - w:WD - w + ND] | same[WD + w:WD + w + ND])
+        adaptive = spread[WD]             # widen >= WD: the widest spread
+        for w in reversed(range(WD)):
+            adaptive = Mux(self.widen == w, spread[w], adaptive)
         cand2 = Signal(ND)
-        m.d.comb += cand2.eq(rng & xmask & Mux(self.mode_full, (1 << ND) - 1,
-                                               Mux(self.widen, wide, exact)))
+        m.d.comb += cand2.eq(rng & xmask & Mux(self.mode_full, (1 << ND) - 1, adaptive))
         # Stage 3: count and push.
         v3 = Signal(); edge3 = Signal(); border3 = Signal(); cand3 = Signal(ND)
         x3 = Signal(XW); last3 = Signal()
@@ -557,29 +591,33 @@ class Matcher(wiring.Component):
                 with m.If(sc_end):
                     m.next = "FRAME_END"
                 with m.Elif(sc_go):
-                    m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width), ca.eq(0),
+                    m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width),
+                                 s_last.eq(L.width + WD - 1), ca.eq(0),
                                  car.eq(-f_dmin), c1r.eq(-f_dmin),
                                  v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
-                                 pos_mask.eq(0), neg_mask.eq(0), l_edge.eq(0)]
+                                 pos_mask.eq(0), neg_mask.eq(0)]
+                    m.d.sync += [e.eq(0) for e in l_edge]
                     m.next = "SCAN"
             with m.State("SETTLE"):
                 m.next = "WAIT"
             with m.State("SCAN"):
                 with m.If(adv):
-                    with m.If(ca <= s_width):
+                    with m.If(ca <= s_last):
                         m.d.sync += [ca.eq(ca + 1), car.eq(car + 1)]
-                    m.d.sync += [v1.eq(ca <= s_width), c1.eq(ca), c1r.eq(car)]
+                    m.d.sync += [v1.eq(ca <= s_last), c1.eq(ca), c1r.eq(car)]
                     with m.If(v1):
                         m.d.sync += [pos_mask.eq(Cat(r_edge & ~r_neg, pos_mask[:-1])),
                                      neg_mask.eq(Cat(r_edge & r_neg, neg_mask[:-1])),
-                                     l_edge.eq(rp_lf.data[0] & r_in_row),
-                                     l_neg.eq(rp_lf.data[1])]
-                    m.d.sync += [v2.eq(v1), c2.eq(c1), le2.eq(l_edge), ln2.eq(l_neg)]
+                                     l_edge[0].eq(rp_lf.data[0] & r_in_row),
+                                     l_neg[0].eq(rp_lf.data[1])]
+                        m.d.sync += [l_edge[k].eq(l_edge[k - 1]) for k in range(1, WD)]
+                        m.d.sync += [l_neg[k].eq(l_neg[k - 1]) for k in range(1, WD)]
+                    m.d.sync += [v2.eq(v1), c2.eq(c1), le2.eq(l_edge[-1]), ln2.eq(l_neg[-1])]
                     with m.If(v2):
                         m.d.sync += xmask.eq(Cat(c2 >= xmin, xmask[:-1]))
-                    m.d.sync += [v3.eq(v2 & (c2 >= 1)), edge3.eq(v2 & (c2 >= 1) & le2),
+                    m.d.sync += [v3.eq(v2 & (c2 >= WD)), edge3.eq(v2 & (c2 >= WD) & le2),
                                  border3.eq(~s_inside_row | (xl2 < r) | (xl2 + r >= s_width)),
-                                 cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_width))]
+                                 cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_last))]
                     with m.If(edge3):
                         m.d.sync += ev["edge_pixels"].eq(1)
                         with m.If(border3):
@@ -793,7 +831,7 @@ class Matcher(wiring.Component):
         # D5: SAD tree over (lwin, rwin) for the positions that are candidates.
         tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": KB,
                                         "d1": KB + 1, "x": XW, "y": YW, "doomed": 1})
-        m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size)
+        m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size, cost=self._cost)
         t5_tag = Signal(tag_layout)
         m.d.sync += [t5_tag.fire.eq(t4["fire"]), t5_tag.ff.eq(t4["ff"]),
                      t5_tag.last.eq(t4["last"]), t5_tag.frame.eq(t4["mk"] == KIND_FRAME),

@@ -1,17 +1,26 @@
-"""Full-window SAD lane of the matcher: ``sum |L - R|`` over two W x W windows of bytes, one
+"""Full-window cost lane of the matcher: the window cost of two W x W windows of bytes, one
 window pair a cycle, pipelined (specification: ``golden/matcher.py``, step 3).
 
-Stage 1 registers the W^2 absolute differences, then each stage adds pairs of the previous
-stage's sums (one carry chain of at most 14 bits a stage), so the latency is
-``1 + ceil(log2(W^2))`` cycles (7 for W = 7) and nothing stalls: a ``tag`` travels beside each
-window pair and comes out with its sum, ``valid`` marks the pairs that carry one.
+Two costs, chosen at elaboration:
+
+* ``sad``: ``sum |L - R|`` of luminance bytes (at most ``255 W^2``: 14 bits for W = 7);
+* ``census``: ``sum popcount(L ^ R)`` of census words (golden/census.py; the front end's Sobel
+  unit computes them, :class:`hdl.sobel.SobelEdges` ``census``): at most ``8 W^2`` (9 bits).
+
+Stage 1 registers the W^2 per-pixel terms (an 8-bit absolute difference, or the 4-bit popcount
+of an 8-bit XOR: two LUT levels, no carry), then each stage adds pairs of the previous stage's
+sums (one carry chain of at most 14 bits a stage), so the latency is ``1 + ceil(log2(W^2))``
+cycles (7 for W = 7) and nothing stalls: a ``tag`` travels beside each window pair and comes
+out with its sum, ``valid`` marks the pairs that carry one.
 """
 from amaranth.hdl import Module, Signal, Mux
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
-__all__ = ["SadTree", "sad_latency"]
+from golden.matcher import COSTS
+
+__all__ = ["SadTree", "sad_latency", "term_max"]
 
 
 def sad_latency(window):
@@ -21,15 +30,30 @@ def sad_latency(window):
     return stages
 
 
+def term_max(cost):
+    """The largest per-pixel term of a cost: 255 (``sad``) or 8 (``census``)."""
+    if cost not in COSTS:
+        raise ValueError(f"cost must be one of {COSTS}, not {cost!r}")
+    return 255 if cost == "sad" else 8
+
+
+def _popcount8(v):
+    """popcount of an 8-bit value: four 2-bit pair sums, two 3-bit sums, the 4-bit total."""
+    pairs = [v[2 * k] + v[2 * k + 1] for k in range(4)]
+    return (pairs[0] + pairs[1]) + (pairs[2] + pairs[3])
+
+
 class SadTree(wiring.Component):
     """Ports: ``valid``, ``tag``, ``left`` and ``right`` (``window**2`` bytes each, index
-    ``column * window + line``) in; ``o_valid``, ``o_tag``, ``sad`` out, :func:`sad_latency`
-    cycles later."""
+    ``column * window + line``) in; ``o_valid``, ``o_tag``, ``sad`` (the window cost) out,
+    :func:`sad_latency` cycles later. ``cost``: ``"sad"`` or ``"census"``."""
 
-    def __init__(self, window=7, tag_width=1):
+    def __init__(self, window=7, tag_width=1, cost="sad"):
         self.window = window
+        self.cost = cost
         self.latency = sad_latency(window)
-        self.sad_width = bits_for(255 * window * window)
+        self.term_max = term_max(cost)
+        self.sad_width = bits_for(self.term_max * window * window)
         n = window * window
         super().__init__({
             "valid": In(1), "tag": In(tag_width),
@@ -43,9 +67,12 @@ class SadTree(wiring.Component):
         terms = []
         for i in range(n):
             a, b = self.left[8 * i:8 * i + 8], self.right[8 * i:8 * i + 8]
-            t = Signal(8, name=f"ad{i}")
-            m.d.sync += t.eq(Mux(a >= b, a - b, b - a))
-            terms.append((t, 255))
+            t = Signal(bits_for(self.term_max), name=f"ad{i}")
+            if self.cost == "sad":
+                m.d.sync += t.eq(Mux(a >= b, a - b, b - a))
+            else:
+                m.d.sync += t.eq(_popcount8(a ^ b))
+            terms.append((t, self.term_max))
         v, tag = self.valid, self.tag
         vs, ts = Signal(name="v1"), Signal(len(tag), name="t1")
         m.d.sync += [vs.eq(v), ts.eq(tag)]

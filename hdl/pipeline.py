@@ -11,7 +11,7 @@ from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .freespace import free_config_ports
 from .frontend import FrontEnd
 from .ground import GroundConfig
-from .matcher import Matcher, match_record_layout
+from .matcher import MATCHER_WIDEN, Matcher, match_record_layout
 from .types import RGBPixel, FreeBand
 
 __all__ = ["StereoPipeline"]
@@ -37,8 +37,8 @@ class StereoPipeline(wiring.Component):
     right_threshold : In
         The right camera's Sobel threshold (its edges only select candidates; see
         ``golden.pipeline.RIGHT_THRESHOLD``).
-    d_min, d_max, uniqueness, mode_full, widen, drop_mode : In
-        Matcher parameters.
+    d_min, d_max, uniqueness, mode_full, widen, sign_any, drop_mode : In
+        Matcher parameters (:class:`hdl.matcher.Matcher`).
     frame_<stat>, frames : Out(32)
         Matcher statistics of the last finished frame (:data:`~golden.matcher.STAT_KEYS`).
     left_errors, left_dropped, right_errors, right_dropped : Out(16), Out(32)
@@ -51,14 +51,17 @@ class StereoPipeline(wiring.Component):
         Free-space result frames lost because ``free_*`` was not drained in time.
 
     Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
-    ``window``, ``queue_depth`` (edge jobs buffered).
+    ``window``, ``queue_depth`` (edge jobs buffered), ``cost``: the matcher's window cost,
+    ``"census"`` (the default: the front ends' Sobel units send census words, the matcher sums
+    their Hamming distances) or ``"sad"`` (luminance, sum of absolute differences); it must
+    equal the golden ``matcher.cost`` the pipeline is compared with.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16):
+                 queue_depth=16, cost="census"):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._matcher = dict(max_disparity=max_disparity, window=window,
-                             queue_depth=queue_depth)
+                             queue_depth=queue_depth, cost=cost)
         self.max_width, self.max_height = max_width, max_height
         self.max_disparity = max_disparity
         self.window = window
@@ -73,7 +76,8 @@ class StereoPipeline(wiring.Component):
             "d_min": In(bits_for(max_disparity)),
             "d_max": In(bits_for(max_disparity), init=min(max_disparity, DISPARITY_SPAN - 1)),
             "uniqueness": In(8),
-            "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
+            "mode_full": In(1), "widen": In(range(MATCHER_WIDEN + 1)), "sign_any": In(1),
+            "drop_mode": In(1),
             **free_config_ports(),
             "frames": Out(32),
             "match_errors": Out(16), "match_dropped": Out(32),
@@ -93,7 +97,7 @@ class StereoPipeline(wiring.Component):
         m = Module()
         m.submodules.matcher = matcher = Matcher(**self._size, **self._matcher)
         for side in ("left", "right"):
-            fe = FrontEnd(**self._size)
+            fe = FrontEnd(**self._size, census=self._matcher["cost"] == "census")
             m.submodules[f"{side}_frontend"] = fe
             wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
             wiring.connect(m, fe.o, getattr(matcher, side))
@@ -110,7 +114,8 @@ class StereoPipeline(wiring.Component):
             ]
             wiring.connect(m, fe.free, wiring.flipped(getattr(self, f"free_{side}")))
         wiring.connect(m, matcher.o, wiring.flipped(self.o))
-        for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "drop_mode"):
+        for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "sign_any",
+                     "drop_mode"):
             m.d.comb += getattr(matcher, name).eq(getattr(self, name))
         m.d.comb += [
             self.frames.eq(matcher.frames),

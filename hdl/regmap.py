@@ -45,7 +45,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 7
+MAP_VERSION = 8
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -181,10 +181,14 @@ REGISTERS: tuple[Register, ...] = (
         F("candidate_mode", 24, 1, 0 if _M.mode == "adaptive" else 1,
           "0 adaptive (only right-image edge columns), 1 full range",
           param="matcher.mode=adaptive,full", port="mode_full"),
-        F("widen", 25, 1, int(_M.widen), "1: also try the neighbours (d-1, d+1) of each adaptive candidate",
+        F("widen", 25, 2, int(_M.widen), "candidate spread: a right-image edge within widen "
+                                         "pixels of x - d makes d a candidate (0..2; 3 acts as 2)",
           param="matcher.widen", port="widen"),
-        F("camera_mode_drop", 26, 1, 0, "1: camera inputs that cannot stall: the matcher drops "
+        F("camera_mode_drop", 27, 1, 0, "1: camera inputs that cannot stall: the matcher drops "
                                         "(and counts) edges it has no time for (hdl/matcher.py drop_mode)", port="drop_mode"),
+        F("sign", 28, 1, int(_M.sign == "any"), "which right-image edges make candidates: 0 "
+                                                "those of the left edge's Gx sign, 1 either sign",
+          param="matcher.sign=same,any", port="sign_any"),
     )),
     Register("GROUND_CLIP", 0x24, "rw", "Ground model v2: luminance clip levels (golden/ground.py).", (
         GF("y_lo", 0, 8, "lowest luma code with a reliable hue; darker luma bins are never ground"),

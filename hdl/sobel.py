@@ -65,6 +65,7 @@ from amaranth.hdl import Module, Signal, Mux, Cat
 from amaranth.lib import stream, memory, data
 from amaranth.lib.wiring import In, Out
 
+from golden.census import NEIGHBOURS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .types import GroundPixel, EdgePixel
 from .framing import FramedUnit
@@ -100,10 +101,17 @@ class SobelEdges(FramedUnit):
         Saturating counts of malformed-stream events and dropped beats (:mod:`hdl.framing`).
 
     Keyword-only parameters: ``max_width``, ``max_height`` (at least 1) bound the frame size;
-    the line buffer holds ``max_width`` words of 17 bits.
+    the line buffer holds ``max_width`` words of 17 bits. ``census``: the output's ``y`` is the
+    pixel's 3x3 census word (golden/census.py, from the unit's own window: eight 8-bit
+    comparisons, 0 on the border), what a matcher with the census cost stores and compares,
+    instead of its luminance.
     """
     LATENCY = 8
     FLUSH_EXTRA = 8
+
+    def __init__(self, *, max_width=1024, max_height=1024, census=False):
+        self._census = census
+        super().__init__(max_width=max_width, max_height=max_height)
 
     i: In(stream.Signature(GroundPixel))
     o: Out(stream.Signature(EdgePixel))
@@ -213,8 +221,17 @@ class SobelEdges(FramedUnit):
         g_y = Signal(8)
         g_gnd = Signal()
         g_tag = Signal(_Tag)
+        if self._census:
+            # golden/census.py: bit b is neighbour b < centre, neighbours in raster order;
+            # 0 where the centre is not interior (the same border rule as the gradients)
+            window = {(-1, -1): c0.t, (0, -1): c1.t, (1, -1): c2.t, (-1, 0): c0.m,
+                      (1, 0): c2.m, (-1, 1): c0.b, (0, 1): c1.b, (1, 1): c2.b}
+            word = Cat(*[window[nb] < c1.m for nb in NEIGHBOURS])
+            value = Mux(c1.tag.inter, word, 0)
+        else:
+            value = c1.m
         with m.If(step):
-            m.d.sync += [g_gx.eq(gx), g_gy.eq(gy), g_y.eq(c1.m), g_gnd.eq(c1.g)]
+            m.d.sync += [g_gx.eq(gx), g_gy.eq(gy), g_y.eq(value), g_gnd.eq(c1.g)]
         advance(g_tag, c1.tag)
 
         # 4. Magnitude pipeline: |Gx|, |Gy| registered, then the ratio product and the

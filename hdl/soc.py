@@ -53,9 +53,10 @@ class StereoSoC(wiring.Component):
     the last clear, so the pipeline's own counters never need a reset.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=512, clk_div=125):
+    def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=512, clk_div=125,
+                 cost="census"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
-        self._pipeline = dict(max_width=max_width, max_height=max_height)
+        self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
         super().__init__({
@@ -130,7 +131,8 @@ class SystemSoC(wiring.Component):
     ``lines`` (active lines per field), ``camera_fifo_depth`` (each camera port's clock-domain
     FIFO, distributed RAM), ``buffer_depth`` (each camera's queue in the shared block RAM of
     :class:`hdl.camera_buffer.PairBuffer`), ``skew`` (pairing), ``fifo_depth`` (results),
-    ``clk_div`` (IIC), ``uart_divisor``.
+    ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
+    :class:`hdl.pipeline.StereoPipeline`).
 
     Camera buffering: a pixel waits in its port's FIFO (64), its queue (256) and a few
     registers, about 330 pixels or 24 us of one camera, for its partner's field start (the
@@ -142,9 +144,9 @@ class SystemSoC(wiring.Component):
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=64, buffer_depth=256, skew=1024, fifo_depth=512,
-                 clk_div=125, uart_divisor=434):
+                 clk_div=125, uart_divisor=434, cost="census"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
-        self._pipeline = dict(max_width=max_width, max_height=max_height)
+        self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
         self._buffer_depth = buffer_depth

@@ -40,14 +40,12 @@ def depth_table():
     """``{scene: figures}`` as described in the module docstring."""
     from golden.pipeline import default_params, pipeline_frames
     from sim.camera import contour_depth, depth_error, scene_camera
-    from sim.scenes import LABEL_OBSTACLE0, NEAR_SCENES, make_scene, scene_names, scene_window
+    from sim.scenes import LABEL_OBSTACLE0, NEAR_SCENES, make_scene, scene_names, scene_settings
     cam = scene_camera(*SIZE)
     rows = {}
     for name in scene_names() + list(NEAR_SCENES):
         frame = make_scene(name, *SIZE)
-        window = scene_window(name)
-        extra = {} if window is None else dict(d_min=window[0], d_max=window[1])
-        params = default_params(*SIZE, **extra)
+        params = default_params(*SIZE, **scene_settings(name))
         rec = pipeline_frames([frame.left] * 2, [frame.right] * 2, params)[-1].records
         err = depth_error(cam, rec, frame.depth)
         z, truth = cam.depth(rec["d"]), contour_depth(frame.depth, rec)

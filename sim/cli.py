@@ -193,9 +193,9 @@ def check_size(w, h, args):
                        f"most {MAX_SIZE[0]}x{MAX_SIZE[1]})")
 
 
-#: Matcher parameters of golden version 2 that the RTL (hdl/matcher.py, version 1) lacks: the
-#: value it implements for each.
-RTL_MATCHER = {"cost": "sad", "sign": "same", "consistency": "none", "subpixel": False}
+#: Matcher parameters of golden version 2 that the RTL (hdl/matcher.py) lacks: the value it
+#: implements for each.
+RTL_MATCHER = {"consistency": "none", "subpixel": False}
 
 
 def rtl_unsupported(mp):
@@ -204,8 +204,9 @@ def rtl_unsupported(mp):
         return {True: "on", False: "off"}.get(v, v) if isinstance(v, bool) else v
     out = [f"--{name} {shown(getattr(mp, name))}" for name, value in RTL_MATCHER.items()
            if getattr(mp, name) != value]
-    if int(mp.widen) > 1:
-        out.append(f"--widen {int(mp.widen)} (the RTL widens by 0 or 1)")
+    from hdl.matcher import MATCHER_WIDEN
+    if int(mp.widen) > MATCHER_WIDEN:
+        out.append(f"--widen {int(mp.widen)} (the RTL widens by 0 to {MATCHER_WIDEN})")
     return out
 
 
@@ -216,9 +217,9 @@ def build_params(args, flags, width, height, grey, ground_default):
     ground = GroundMode(mode).name.lower() if mode is not None else ground_default
     if grey and ground == "hue":
         raise CliError("--ground hue needs colour images; these are grayscale (use luma or off)")
-    from .scenes import scene_window
-    window = None if getattr(args, "left", None) else scene_window(getattr(args, "scene", ""))
-    base = {} if window is None else dict(d_min=window[0], d_max=window[1])  # --scene near
+    from .scenes import scene_settings
+    # --scene near: its window and thresholds
+    base = {} if getattr(args, "left", None) else scene_settings(getattr(args, "scene", ""))
     try:
         params = apply_flags(default_params(width, height, ground=ground, **base), args, flags)
         params.validate(max_disparity=args.max_disparity)
@@ -226,8 +227,8 @@ def build_params(args, flags, width, height, grey, ground_default):
         raise CliError(str(e)) from None
     unsupported = rtl_unsupported(params.matcher)
     if unsupported:
-        raise CliError("the RTL matcher implements version 1 only (golden/matcher.py); not "
-                       "available in RTL: " + ", ".join(unsupported))
+        raise CliError("the RTL matcher has no consistency or subpixel step (golden/matcher.py "
+                       "version 2); not available in RTL: " + ", ".join(unsupported))
     gp = params.frontend.ground
     if gp.ref_x >= width or gp.ref_y >= height:
         raise CliError(f"the ground reference region {gp.ref_w}x{gp.ref_h}+{gp.ref_x}+{gp.ref_y} "

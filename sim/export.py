@@ -324,7 +324,7 @@ def elaboration_params(component):
             continue
         items = value.items() if isinstance(value, dict) else [(key[1:], value)]
         for name, v in items:
-            if isinstance(v, (bool, int)) and not isinstance(v, type):
+            if isinstance(v, (bool, int, str)) and not isinstance(v, type):
                 out[name] = v
     return out
 

@@ -47,8 +47,8 @@ import numpy as np
 
 __all__ = [
     "Rig", "Box", "Cylinder", "Pole", "World", "StereoFrame",
-    "render", "make_scene", "scene_names", "scene_window", "save_frame", "SCENES", "NEAR_SCENES",
-    "NEAR_WINDOW",
+    "render", "make_scene", "scene_names", "scene_settings", "save_frame", "SCENES", "NEAR_SCENES",
+    "NEAR_WINDOW", "NEAR_THRESHOLDS",
     "ground_disparity", "horizon_row", "backproject", "floor_scene", "FLOOR_KINDS",
     "LABEL_SKY", "LABEL_GROUND", "LABEL_BACK_WALL", "LABEL_SIDE_WALL", "LABEL_OBSTACLE0",
 ]
@@ -760,7 +760,14 @@ NEAR_SCENES: dict[str, World] = {
 }
 #: The near window: d 117..180 is 0.40 m .. 0.62 m on the default rig (f B = 72 px m).
 NEAR_WINDOW = (117, 180)
-SCENE_WINDOWS: dict[str, tuple[int, int]] = {"near": NEAR_WINDOW}
+#: The near field's Sobel thresholds (left, right): the near obstacle's outlines are strong,
+#: and a left threshold of 192 keeps most far texture seen through the near window from being
+#: matched at a wrong disparity inside it (at the default 128 the median depth error of the
+#: near scene's matches is 11.6 %, at 192 0.5 %; sim/bench_depth.py).
+NEAR_THRESHOLDS = (192, 96)
+#: ``golden.pipeline.default_params`` keywords of the scenes meant for other settings.
+SCENE_SETTINGS: dict[str, dict] = {"near": dict(d_min=NEAR_WINDOW[0], d_max=NEAR_WINDOW[1],
+                                                thresholds=NEAR_THRESHOLDS)}
 
 
 def scene_names() -> list[str]:
@@ -768,9 +775,10 @@ def scene_names() -> list[str]:
     return list(SCENES)
 
 
-def scene_window(name: str):
-    """The disparity window (d_min, d_max) scene ``name`` is meant for; None: the default."""
-    return SCENE_WINDOWS.get(name)
+def scene_settings(name: str) -> dict:
+    """The ``golden.pipeline.default_params`` keywords scene ``name`` is meant for (its
+    disparity window and thresholds); empty: the defaults."""
+    return dict(SCENE_SETTINGS.get(name, {}))
 
 
 def make_scene(name: str, width: int = 752, height: int = 480, brightness: float = 1.0,

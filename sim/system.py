@@ -248,7 +248,8 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
         raise SystemError_(f"unknown fault {fault!r}: choose from {', '.join(FAULTS)}")
     rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
 
-    soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h)
+    soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
+                      cost=params.matcher.cost)
     libpath, build_s = build(soc_params)
     sysl = C.CDLL(str(libpath))
     sysl.sys_init.argtypes = [C.c_char_p, C.c_uint64, C.c_char_p, C.c_uint64] + [C.c_int64] * 5

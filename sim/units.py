@@ -112,9 +112,15 @@ def _ground(job):
     return GroundClassifier(**_size(job))
 
 
+def _cost(job):
+    """The matcher's window cost the RTL is elaborated for: the golden parameters' (the front
+    end's Sobel unit then sends census words, golden.frontend.FrontEndFrame.output)."""
+    return job.params.matcher.cost
+
+
 def _sobel(job):
     from hdl.sobel import SobelEdges
-    return SobelEdges(**_size(job))
+    return SobelEdges(**_size(job), census=_cost(job) == "census")
 
 
 def records_from_words(layout, words):
@@ -181,18 +187,20 @@ class StereoUnit:
 def _matcher(job):
     from hdl.matcher import Matcher
     mp = job.params.matcher
-    return Matcher(**_size(job), max_disparity=job.max_disparity, window=mp.window)
+    return Matcher(**_size(job), max_disparity=job.max_disparity, window=mp.window,
+                   cost=mp.cost)
 
 
 def _pipeline(job):
     from hdl.pipeline import StereoPipeline
     mp = job.params.matcher
-    return StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window)
+    return StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window,
+                          cost=mp.cost)
 
 
 def _frontend(job):
     from hdl.frontend import FrontEnd
-    return FrontEnd(**_size(job))
+    return FrontEnd(**_size(job), census=_cost(job) == "census")
 
 
 def _freespace(job):
@@ -214,18 +222,19 @@ UNITS = {
                    lambda job: [dict(y=g.left.y, ground=g.left.ground) for g in job.golden],
                    "ground model and classifier"),
     "sobel": Unit("sobel", False, _sobel, types.GroundPixel, types.EdgePixel, _ground_out,
-                  lambda job: [g.left.output() for g in job.golden],
+                  lambda job: [g.left.output(_cost(job)) for g in job.golden],
                   "Sobel vertical-edge unit"),
     "freespace": Unit("freespace", False, _freespace, types.GroundPixel, types.FreeBand,
                       _ground_out, lambda job: [free_frame(g.left.free) for g in job.golden],
                       "free space per column band of the ground mask"),
     "frontend": Unit("frontend", False, _frontend, types.RGBPixel, types.EdgePixel,
                      lambda job: [rgb(f) for f in job.left],
-                     lambda job: [g.left.output() for g in job.golden],
+                     lambda job: [g.left.output(_cost(job)) for g in job.golden],
                      "colour -> ground -> Sobel, one camera; free space", free_streams(free="left")),
     "sad": StereoUnit("sad", _matcher, types.EdgePixel,
-                      lambda job, side: [getattr(g, side).output() for g in job.golden],
-                      "SAD block matcher on the golden front ends' outputs"),
+                      lambda job, side: [getattr(g, side).output(_cost(job))
+                                         for g in job.golden],
+                      "block matcher on the golden front ends' outputs"),
     "pipeline": StereoUnit("pipeline", _pipeline, types.RGBPixel,
                            lambda job, side: [rgb(f) for f in getattr(job, side)],
                            "the whole stereo pipeline",

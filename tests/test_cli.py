@@ -276,8 +276,8 @@ def test_no_command_prints_usage_and_one_error_line():
     (["run", "--camera", "{text}", "--out", "{tmp}"], "is not JSON"),
     (["compare", "--unit", "color"], "required: --left"),
     # golden version 2 settings the RTL matcher lacks
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--cost", "census"], "not available in RTL: --cost census"),
-    (["run", "--subpixel", "on", "--sign", "any", "--out", "{tmp}"], "not available in RTL: --sign any, --subpixel on"),
+    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--consistency", "unique_right"], "not available in RTL: --consistency unique_right"),
+    (["run", "--subpixel", "on", "--widen", "3", "--out", "{tmp}"], "not available in RTL: --subpixel on, --widen 3 (the RTL widens by 0 to 2)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
     names = {k: str(v) for k, v in pair.items()}

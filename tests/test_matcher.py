@@ -14,6 +14,7 @@ and without pressure, elaboration errors. Full frames run under Verilator elsewh
 import numpy as np
 import pytest
 
+from golden.census import census
 from golden.matcher import MatcherParams, match, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher
@@ -92,6 +93,7 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
         ctx.set(dut.uniqueness, params.uniqueness)
         ctx.set(dut.mode_full, params.mode == "full")
         ctx.set(dut.widen, params.widen)
+        ctx.set(dut.sign_any, params.sign == "any")
         ctx.set(dut.drop_mode, drop_mode)
 
     async def write_window(ctx):
@@ -163,10 +165,18 @@ def run_checked(name, make_dut, left_words, right_words, expected, params, **kw)
     return run
 
 
+def stream_words(frames, params):
+    """Input words of front-end frames: with the census cost the front end sends each pixel's
+    census word in place of its luminance (golden.frontend.FrontEndFrame.output)."""
+    if params.cost == "census":
+        frames = [{**f, "y": census(f["y"])} for f in frames]
+    return frames_words(EDGE, frames)
+
+
 def run_and_check(name, make_dut, frames_l, frames_r, params, *, seeds=(0,), idle=0.0,
                   stall=0.0, drop_mode=False):
     expected = [golden_records(fl, fr, params) for fl, fr in zip(frames_l, frames_r)]
-    lw, rw = frames_words(EDGE, frames_l), frames_words(EDGE, frames_r)
+    lw, rw = stream_words(frames_l, params), stream_words(frames_r, params)
     runs = []
     for seed in seeds:
         runs.append(run_checked(f"{name} seed {seed}", make_dut, lw, rw, expected, params,
@@ -211,18 +221,25 @@ def test_synthetic_always_valid():
     assert run.cycles / (2 * 12 * 32) < 2.5
 
 
+CENSUS = {"cost": "census", "sign": "any", "widen": 2, "uniqueness": 64}
+
+
 @pytest.mark.parametrize("window, seed, kw", [
     (3, 5, {}),
     (5, 6, {"widen": True, "uniqueness": 16}),
     (5, 8, {"mode": "full", "d_min": 2, "d_max": 12}),
     (3, 5, {"widen": True, "d_min": 1, "d_max": 9, "uniqueness": 0}),
+    (5, 6, CENSUS),
+    (3, 7, {**CENSUS, "sign": "same", "d_min": 1, "d_max": 9}),
+    (7, 9, {**CENSUS, "widen": 1}),
+    (3, 8, {**CENSUS, "mode": "full", "d_min": 2, "d_max": 12}),
 ])
 def test_synthetic_stalls(window, seed, kw):
     # Odd heights (13 lines) exercise the flush of a last line left without its pair.
     fl, fr = synthetic_frames(2, h=12 + window % 4 // 2, seed=seed)
     params = MatcherParams(**{"d_max": 15, "window": window, **kw})
     runs, expected = run_and_check(f"synth_w{window}_s{seed}",
-                                   lambda: small_matcher(window=window),
+                                   lambda: small_matcher(window=window, cost=params.cost),
                                    fl, fr, params, seeds=(1, 2), idle=0.3, stall=0.3)
     assert sum(st["matches"] for _, st in expected) > 20
 
@@ -264,11 +281,13 @@ def test_window7_default_parameters():
     assert sum(st["matches"] for _, st in expected) > 20
 
 
-def test_motorcycle_crop():
+@pytest.mark.parametrize("kw", [{"widen": True}, CENSUS])
+def test_motorcycle_crop(kw):
     yl, yr = motorcycle_crop(h=12, w=40)
     fl, fr = [front_end(yl, 96)], [front_end(yr, 96)]
-    params = MatcherParams(d_max=15, window=5, widen=True)
-    (run,), expected = run_and_check("motorcycle", lambda: small_matcher(window=5), fl, fr,
+    params = MatcherParams(d_max=15, window=5, **kw)
+    (run,), expected = run_and_check(f"motorcycle_{params.cost}",
+                                     lambda: small_matcher(window=5, cost=params.cost), fl, fr,
                                      params, seeds=(3,), idle=0.2, stall=0.4)
     assert expected[0][1]["matches"] > 10
 

@@ -379,10 +379,15 @@ def test_accuracy_motorcycle_v2_gain():
 
 
 def test_default_params_versions():
-    from golden.pipeline import default_params, V2_THRESHOLD
-    p1, p2 = default_params(64, 48), default_params(64, 48, version=2)
+    from golden.pipeline import default_params, RTL_THRESHOLDS, V2_THRESHOLD
+    p1, p2 = default_params(64, 48, version=1), default_params(64, 48, version=2)
     assert p1.matcher == MatcherParams(widen=True)
     assert p2.matcher == v2_params() and p2.frontend.sobel.threshold == V2_THRESHOLD
+    rtl = default_params(64, 48)
+    assert rtl.matcher == v2_params(consistency="none", subpixel=False)
+    assert (rtl.frontend.sobel.threshold, rtl.right_threshold) == RTL_THRESHOLDS == (128, 96)
+    custom = default_params(64, 48, version=1, thresholds=(50, 40))
+    assert (custom.frontend.sobel.threshold, custom.right_threshold) == (50, 40)
     assert default_params(64, 48, version=2, uniqueness=10).matcher.uniqueness == 10
     with pytest.raises(ValueError, match="version"):
         default_params(64, 48, version=3)

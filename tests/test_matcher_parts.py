@@ -8,6 +8,7 @@ import pytest
 from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
+from golden.census import POPCOUNT8
 from hdl.matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from hdl.matcher_sad import SadTree, sad_latency
 from hdl.matcher_winner import Winner
@@ -48,15 +49,15 @@ def test_bit_logic(n):
     simulate(m, bench, clock=False)
 
 
-@pytest.mark.parametrize("window", [3, 7])
-def test_sad_tree(window):
-    dut = SadTree(window, tag_width=8)
+@pytest.mark.parametrize("window,cost", [(3, "sad"), (7, "sad"), (3, "census"), (7, "census")])
+def test_sad_tree(window, cost):
+    dut = SadTree(window, tag_width=8, cost=cost)
     n = window * window
     rng = np.random.default_rng(window)
     cycles = 60
     lefts = rng.integers(0, 256, (cycles, n))
     rights = rng.integers(0, 256, (cycles, n))
-    lefts[0], rights[0] = 255, 0                       # the largest sum
+    lefts[0], rights[0] = 255, 0                       # the largest sum of either cost
     valid = rng.random(cycles) < 0.6
     pack = lambda a: sum(int(b) << (8 * i) for i, b in enumerate(a))
     got = []
@@ -74,7 +75,13 @@ def test_sad_tree(window):
             if ov:
                 got.append((t - tag, tag, sad))
     simulate(dut, bench)
-    want = [(t, int(np.abs(lefts[t] - rights[t]).sum())) for t in range(cycles) if valid[t]]
+    if cost == "sad":
+        terms = np.abs(lefts - rights)
+    else:
+        terms = POPCOUNT8[np.bitwise_xor(lefts, rights)]
+    want = [(t, int(terms[t].sum())) for t in range(cycles) if valid[t]]
+    assert dut.sad_width == {("sad", 3): 12, ("sad", 7): 14, ("census", 3): 7,
+                             ("census", 7): 9}[cost, window]
     assert [(tag, sad) for _, tag, sad in got] == want
     assert {lat for lat, _, _ in got} == {sad_latency(window)}
     assert sad_latency(window) == dut.latency == (7 if window == 7 else 5)

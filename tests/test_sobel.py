@@ -7,6 +7,7 @@ with a VCD under ``build/waves/`` and names it in the assertion message.
 import numpy as np
 import pytest
 
+from golden.census import census as census_words
 from golden.color import luma
 from golden.sobel import (DEFAULT_THRESHOLD, SobelParams, edge_density, gradients,
                           sobel_edges)
@@ -250,11 +251,11 @@ def split_frames(words):
 
 
 def simulate(segments, *, out_frames, seed=0, idle=0.0, stall=0.0, max_width=32, max_height=32,
-             vcd=None, timeout=3000):
+             vcd=None, timeout=3000, census=False):
     """Run a :class:`SobelEdges` on ``segments``: a list of ``(params, words)``; before the words
     of a segment with ``params`` the unit finishes every frame offered so far and the parameters
     are set (:class:`sim.streams.Configure`). Returns (output words, errors, dropped, cycles)."""
-    dut = SobelEdges(max_width=max_width, max_height=max_height)
+    dut = SobelEdges(max_width=max_width, max_height=max_height, census=census)
 
     def configure(params):
         async def setup(ctx):
@@ -285,10 +286,13 @@ def simulate_checked(name, segments, **kw):
     raise AssertionError(f"deadlock: {message}\nwaveform: {vcd}")
 
 
-def expected(frame, params):
+def expected(frame, params, census=False):
+    """The golden output; with ``census`` the unit sends the census words in ``y``."""
     y, ground = frame
     edge, neg = sobel_edges(y, ground, params)
-    return {"y": y.astype(np.int64), "edge": edge.astype(np.int64), "neg": neg.astype(np.int64)}
+    value = census_words(y) if census else y
+    return {"y": value.astype(np.int64), "edge": edge.astype(np.int64),
+            "neg": neg.astype(np.int64)}
 
 
 def check_frames(name, outs, want, rerun):
@@ -315,14 +319,14 @@ def check_frames(name, outs, want, rerun):
 
 
 def run_and_check(name, frames_params, *, seed=0, idle=0.0, stall=0.0, max_width=32,
-                  max_height=32):
+                  max_height=32, census=False):
     """``frames_params``: list of (frame, params); parameters are set before each frame."""
     segments = [(p, frames_words(PIN, [dict(y=f[0], ground=f[1])])) for f, p in frames_params]
     kw = dict(out_frames=len(frames_params), seed=seed, idle=idle, stall=stall,
-              max_width=max_width, max_height=max_height)
+              max_width=max_width, max_height=max_height, census=census)
     words, errors, dropped, _ = simulate_checked(name, segments, **kw)
     outs, truncated = split_frames(words)
-    check_frames(name, outs, [expected(f, p) for f, p in frames_params],
+    check_frames(name, outs, [expected(f, p, census) for f, p in frames_params],
                  lambda vcd: simulate(segments, vcd=vcd, **kw))
     assert truncated == 0 and errors == 0 and dropped == 0
 
@@ -339,6 +343,22 @@ def test_rtl_random_frames(seed, idle, stall):
               (3, int(rng.integers(5, 17))), (6, 9)]
     frames = [(random_frame(rng, h, w), P) for h, w in shapes]
     run_and_check(f"sobel_random_{seed}", frames, seed=seed, idle=idle, stall=stall)
+
+
+@pytest.mark.parametrize("seed, idle, stall", STALLS[:2])
+def test_rtl_census(seed, idle, stall):
+    """The census words in place of the luminance (``census``): random frames with plateaus
+    of equal neighbours, the degenerate sizes (no interior pixel: all words 0) and the scene
+    crops."""
+    rng = np.random.default_rng(500 + seed)
+    flat = random_frame(rng, 6, 9)
+    flat[0][2:5, 3:7] = 77                            # equal neighbours: bits 0
+    frames = [(random_frame(rng, 5, 3), P), (flat, P), (random_frame(rng, 1, 5), P),
+              (random_frame(rng, 2, 2), P), (motorcycle_crops()[0], SobelParams()),
+              (synthetic_frame(), SobelParams())]
+    assert census_words(flat[0])[3, 4] == 0 and census_words(flat[0]).any()
+    run_and_check(f"sobel_census_{seed}", frames, seed=seed, idle=idle, stall=stall,
+                  census=True)
 
 
 @pytest.mark.parametrize("seed, idle, stall", STALLS[:3])

@@ -8,7 +8,7 @@ import pytest
 
 from golden.frontend import FrontEndParams
 from golden.ground import GroundMode, GroundParams
-from golden.matcher import MatcherParams
+from golden.matcher import RTL, MatcherParams
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.sobel import SobelParams
 from sim.data import crop, motorcycle
@@ -18,7 +18,7 @@ W, H, FRAMES = 64, 16, 5
 PARAMS = PipelineParams(
     FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
                    SobelParams(threshold=64)),
-    MatcherParams(d_max=15, window=7))
+    MatcherParams(d_max=15, window=7, **RTL))
 
 
 def pair():

@@ -10,15 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           7u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           8u           /**< ID.version value */
 #define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540007u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540008u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      7u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      8u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -87,10 +87,10 @@
 
 /* SOBEL (read/write): Vertical-edge detector (golden/sobel.py). */
 #define STEREO_SOBEL_OFFSET                          0x18u        /**< Vertical-edge detector (golden/sobel.py). */
-#define STEREO_SOBEL_RESET                           0x010800C0u  /**< SOBEL value after reset */
+#define STEREO_SOBEL_RESET                           0x01080080u  /**< SOBEL value after reset */
 #define STEREO_SOBEL_EDGE_THRESHOLD_SHIFT            0u           /**< edge_threshold: minimum |Gx| of an edge pixel */
 #define STEREO_SOBEL_EDGE_THRESHOLD_MASK             0x7FFu       /**< edge_threshold mask (11 bits) */
-#define STEREO_SOBEL_EDGE_THRESHOLD_RESET            192u         /**< edge_threshold reset value */
+#define STEREO_SOBEL_EDGE_THRESHOLD_RESET            128u         /**< edge_threshold reset value */
 #define STEREO_SOBEL_RATIO_SHIFT                     16u          /**< ratio: dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy| */
 #define STEREO_SOBEL_RATIO_MASK                      0x000F0000u  /**< ratio mask (4 bits) */
 #define STEREO_SOBEL_RATIO_RESET                     8u           /**< ratio reset value */
@@ -114,7 +114,7 @@
 
 /* MATCH (read/write): Stereo matcher (golden/matcher.py, hdl/matcher.py). */
 #define STEREO_MATCH_OFFSET                          0x1Cu        /**< Stereo matcher (golden/matcher.py, hdl/matcher.py). */
-#define STEREO_MATCH_RESET                           0x02303F00u  /**< MATCH value after reset */
+#define STEREO_MATCH_RESET                           0x14403F00u  /**< MATCH value after reset */
 #define STEREO_MATCH_D_MIN_SHIFT                     0u           /**< d_min: smallest disparity tried */
 #define STEREO_MATCH_D_MIN_MASK                      0xFFu        /**< d_min mask (8 bits) */
 #define STEREO_MATCH_D_MIN_RESET                     0u           /**< d_min reset value */
@@ -123,16 +123,19 @@
 #define STEREO_MATCH_D_MAX_RESET                     63u          /**< d_max reset value */
 #define STEREO_MATCH_UNIQUENESS_SHIFT                16u          /**< uniqueness: margin u in 1/256 units: reject the best d if a candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d) */
 #define STEREO_MATCH_UNIQUENESS_MASK                 0x00FF0000u  /**< uniqueness mask (8 bits) */
-#define STEREO_MATCH_UNIQUENESS_RESET                48u          /**< uniqueness reset value */
+#define STEREO_MATCH_UNIQUENESS_RESET                64u          /**< uniqueness reset value */
 #define STEREO_MATCH_CANDIDATE_MODE_SHIFT            24u          /**< candidate_mode: 0 adaptive (only right-image edge columns), 1 full range */
 #define STEREO_MATCH_CANDIDATE_MODE_MASK             0x01000000u  /**< candidate_mode mask (1 bits) */
 #define STEREO_MATCH_CANDIDATE_MODE_RESET            0u           /**< candidate_mode reset value */
-#define STEREO_MATCH_WIDEN_SHIFT                     25u          /**< widen: 1: also try the neighbours (d-1, d+1) of each adaptive candidate */
-#define STEREO_MATCH_WIDEN_MASK                      0x02000000u  /**< widen mask (1 bits) */
-#define STEREO_MATCH_WIDEN_RESET                     1u           /**< widen reset value */
-#define STEREO_MATCH_CAMERA_MODE_DROP_SHIFT          26u          /**< camera_mode_drop: 1: camera inputs that cannot stall: the matcher drops (and counts) edges it has no time for (hdl/matcher.py drop_mode) */
-#define STEREO_MATCH_CAMERA_MODE_DROP_MASK           0x04000000u  /**< camera_mode_drop mask (1 bits) */
+#define STEREO_MATCH_WIDEN_SHIFT                     25u          /**< widen: candidate spread: a right-image edge within widen pixels of x - d makes d a candidate (0..2; 3 acts as 2) */
+#define STEREO_MATCH_WIDEN_MASK                      0x06000000u  /**< widen mask (2 bits) */
+#define STEREO_MATCH_WIDEN_RESET                     2u           /**< widen reset value */
+#define STEREO_MATCH_CAMERA_MODE_DROP_SHIFT          27u          /**< camera_mode_drop: 1: camera inputs that cannot stall: the matcher drops (and counts) edges it has no time for (hdl/matcher.py drop_mode) */
+#define STEREO_MATCH_CAMERA_MODE_DROP_MASK           0x08000000u  /**< camera_mode_drop mask (1 bits) */
 #define STEREO_MATCH_CAMERA_MODE_DROP_RESET          0u           /**< camera_mode_drop reset value */
+#define STEREO_MATCH_SIGN_SHIFT                      28u          /**< sign: which right-image edges make candidates: 0 those of the left edge's Gx sign, 1 either sign */
+#define STEREO_MATCH_SIGN_MASK                       0x10000000u  /**< sign mask (1 bits) */
+#define STEREO_MATCH_SIGN_RESET                      1u           /**< sign reset value */
 
 /* GROUND_CLIP (read/write): Ground model v2: luminance clip levels (golden/ground.py). */
 #define STEREO_GROUND_CLIP_OFFSET                    0x24u        /**< Ground model v2: luminance clip levels (golden/ground.py). */
@@ -537,6 +540,7 @@
     X(MATCH, CANDIDATE_MODE, candidate_mode, uint8_t) \
     X(MATCH, WIDEN, widen, uint8_t) \
     X(MATCH, CAMERA_MODE_DROP, camera_mode_drop, uint8_t) \
+    X(MATCH, SIGN, sign, uint8_t) \
     X(GROUND_CLIP, Y_LO, y_lo, uint8_t) \
     X(GROUND_CLIP, Y_HI, y_hi, uint8_t) \
     X(GROUND_SET, FRAC, frac, uint8_t) \

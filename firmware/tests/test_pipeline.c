@@ -50,13 +50,13 @@ static void test_configure_roundtrip(void)
     c.ref_x = 2047; c.ref_y = 5; c.ref_w = 1024; c.ref_h = 7;
     c.hue_centre0 = 191; c.luma_centre0 = 255;
     c.edge_threshold = 2000; c.ratio = 15; c.nms = 1; c.right_threshold = 1234;
-    c.d_min = 3; c.d_max = 63; c.uniqueness = 255; c.candidate_mode = 1; c.widen = 1;
-    c.camera_mode_drop = 1;
+    c.d_min = 3; c.d_max = 63; c.uniqueness = 255; c.candidate_mode = 1; c.widen = 2;
+    c.camera_mode_drop = 1; c.sign = 1;
     FWT_CHECK_EQ(pipeline_configure(STEREO_BASEADDR, &c), FW_OK);
     pipeline_read_config(STEREO_BASEADDR, &r);
     FWT_CHECK(memcmp(&c, &r, sizeof c) == 0);
     /* exact bit positions, from the map */
-    FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], 0x07FF3F03u);
+    FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4], 0x1DFF3F03u);
 }
 
 static void test_configure_rejects_bad_values(void)
