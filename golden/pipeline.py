@@ -28,13 +28,16 @@ RIGHT_THRESHOLD = 96
 #: left edges of 128, which gives more points within 2 px than 192 (sim/bench_matcher.py).
 V2_THRESHOLD = 128
 #: Sobel thresholds (left, right) of the RTL's default (``default_params(...)``, matcher
-#: :data:`golden.matcher.RTL`): without version 2's unique_right step, a weaker right threshold
-#: keeps more true matches among the candidates. Measured on the motorcycle pair, ground off,
-#: over the left edges of 128 (sim/bench_matcher.py): right 96 gives bad-2 5.7 %, 8,688 points
-#: within 2 px, 1.59 % of dense evaluations; right 64 / 80 / 112 / 128: bad-2 5.9 / 5.8 / 6.0 /
-#: 6.7 %; left 144 / 160 / 192 with right 96: bad-2 5.5 / 5.4 / 5.2 % but 8,008 / 7,421 / 6,334
-#: points within 2 px.
-RTL_THRESHOLDS = (128, 96)
+#: :data:`golden.matcher.RTL`). A weaker right threshold keeps more true matches among the
+#: candidates; the left one trades points against the matcher's time. Measured on the
+#: motorcycle pair, ground off (sim/bench_matcher.py), left / right: 128 / 96 bad-2 5.7 %,
+#: 8,688 points within 2 px; 144 / 96 5.5 %, 8,008; 160 / 96 5.4 %, 7,421; 192 / 96 5.2 %,
+#: 6,334 (right 64 / 80 / 112 / 128 with left 128: bad-2 5.9 / 5.8 / 6.0 / 6.7 %). The SoC at
+#: NTSC field rate (``python -m sim system --scene motorcycle``, 720 x 240) keeps up with 160
+#: (zero drops, bit-exact) but not with 144 or 128: a row with many left edges takes the
+#: matcher longer than a line time, the line store holds one line of slack and the camera
+#: buffers 330 pixels, and the camera FIFOs overflow.
+RTL_THRESHOLDS = (160, 96)
 
 
 @dataclass(frozen=True)
