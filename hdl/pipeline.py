@@ -9,8 +9,9 @@ from amaranth.utils import bits_for
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .freespace import free_config_ports
-from .frontend import FrontEnd
+from .frontend import SharedSearchFrontEnd
 from .ground import GroundConfig
+from .ground_search import GroundSearch
 from .matcher import Matcher, match_record_layout
 from .types import RGBPixel, FreeBand
 
@@ -92,9 +93,13 @@ class StereoPipeline(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.matcher = matcher = Matcher(**self._size, **self._matcher)
-        for side in ("left", "right"):
-            fe = FrontEnd(**self._size)
+        # one ground search engine for both cameras, between frames (each keeps its own model)
+        m.submodules.ground_search = search = GroundSearch(units=2)
+        m.d.comb += search.config.eq(self.ground)
+        for k, side in enumerate(("left", "right")):
+            fe = SharedSearchFrontEnd(**self._size)
             m.submodules[f"{side}_frontend"] = fe
+            wiring.connect(m, fe.search, getattr(search, f"unit{k}"))
             wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
             wiring.connect(m, fe.o, getattr(matcher, side))
             m.d.comb += [
