@@ -34,7 +34,9 @@ class StereoPipeline(wiring.Component):
         Each camera's free space per column band, 16 beats per frame
         (:class:`hdl.freespace.FreeSpace`); never holds up the pixels.
     ground, threshold, ratio, nms, band_w, run_r : In
-        Front-end parameters, shared by both cameras (each learns its own ground band), except:
+        Front-end parameters, shared by both cameras (each learns its own ground band; the two
+        ground units share one search engine, :class:`hdl.ground_search.GroundSearch`, one
+        camera after the other between frames), except:
     right_threshold : In
         The right camera's Sobel threshold (its edges only select candidates; see
         ``golden.pipeline.RIGHT_THRESHOLD``).
