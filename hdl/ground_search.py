@@ -10,7 +10,8 @@ from amaranth.lib.wiring import In, Out
 from golden.color import HUE_STEPS
 from golden.ground import HIST_BITS, FRAC_SHIFT
 
-__all__ = ["GroundSearchBus", "GroundSearch", "HIST_WORDS", "search_cycles", "CLEAR_CYCLES"]
+__all__ = ["GroundSearchBus", "GroundSearch", "HIST_WORDS", "LUMA_BASE", "search_cycles",
+           "CLEAR_CYCLES"]
 
 HIST_WORDS = 512        # hue bins at 0..191, luma bins at 256..511
 LUMA_BASE = 256
