@@ -7,13 +7,14 @@ from amaranth.lib.wiring import In, Out
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .color import ColorConvert
 from .freespace import FreeSpace, free_config_ports
-from .ground import GroundClassifier, GroundConfig
+from .ground import GroundClassifier, SharedGroundClassifier, GroundConfig
+from .ground_search import GroundSearchBus
 from .sobel import SobelEdges
 from .framing import FramedUnit
 from .skid import SkidBuffer
 from .types import RGBPixel, YHSPixel, GroundPixel, EdgePixel, FreeBand
 
-__all__ = ["FrontEnd"]
+__all__ = ["FrontEnd", "SharedSearchFrontEnd"]
 
 
 class FrontEnd(FramedUnit):
@@ -66,11 +67,15 @@ class FrontEnd(FramedUnit):
     dropped: Out(32)
     free_lost: Out(16)
 
+    def _ground_unit(self, m, size):
+        """The ground classifier, here with a search engine of its own."""
+        return GroundClassifier(**size)
+
     def elaborate(self, platform):
         m = Module()
         size = dict(max_width=self._max_width, max_height=self._max_height)
         m.submodules.color = color = ColorConvert(**size)
-        m.submodules.ground = ground = GroundClassifier(**size)
+        m.submodules.ground = ground = self._ground_unit(m, size)
         m.submodules.sobel = sobel = SobelEdges(**size, census=self._census)
         # registered-ready buffers at the unit boundaries: no combinational ready path runs
         # through more than one unit
@@ -98,3 +103,21 @@ class FrontEnd(FramedUnit):
             self.errors.eq(color.errors), self.dropped.eq(color.dropped),
         ]
         return m
+
+
+class SharedSearchFrontEnd(FrontEnd):
+    """A :class:`FrontEnd` whose ground unit has no search engine of its own
+    (:class:`hdl.ground.SharedGroundClassifier`): the search runs on a
+    :class:`hdl.ground_search.GroundSearch` shared with the other camera's front end, whose
+    ``config`` sets the search's parameters.
+
+    Ports: those of :class:`FrontEnd`, and
+    search : Out(:data:`hdl.ground_search.GroundSearchBus`)
+        The ground unit's search bus.
+    """
+    search: Out(GroundSearchBus)
+
+    def _ground_unit(self, m, size):
+        ground = SharedGroundClassifier(**size)
+        wiring.connect(m, ground.search, wiring.flipped(self.search))
+        return ground

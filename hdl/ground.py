@@ -1,35 +1,20 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
 from amaranth.hdl import Module, Signal, Mux, Cat, Const
-from amaranth.lib import stream, memory, data
+from amaranth.lib import wiring, stream, memory, data
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS
-from golden.ground import GroundParams, HIST_BITS, FRAC_SHIFT
+from golden.ground import GroundParams, HIST_BITS
 from .types import YHSPixel, GroundPixel
 from .framing import FramedUnit
+from .ground_search import (GroundSearch, GroundSearchBus, HIST_WORDS, LUMA_BASE, search_cycles,
+                            CLEAR_CYCLES)
 
-__all__ = ["GroundConfig", "GroundClassifier", "search_cycles", "CLEAR_CYCLES"]
+__all__ = ["GroundConfig", "GroundClassifier", "SharedGroundClassifier", "search_cycles",
+           "CLEAR_CYCLES"]
 
 #: The run-time parameters, one field per :attr:`GroundParams.FIELDS` entry.
 GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
-
-HIST_WORDS = 512        # hue bins at 0..191, luma bins at 256..511
-LUMA_BASE = 256
-
-
-#: Cycles of the clearing pass after reset (or after a frame lost before its search): the blend
-#: pass alone (three cycles of wait, 512 words, its 5-stage pipeline).
-CLEAR_CYCLES = 520
-
-
-def search_cycles(jnd_hue, jnd_luma):
-    """Cycles of the search after the beat that ends the reference region: three for the last
-    update to land, the blend pass over the 512 words (and its 5-stage pipeline), 23 to compute
-    the two thresholds (one after the other: for each an 8-cycle shift-and-add product, the
-    join of its halves, the shift and the clamp), the set pass (one read per bin and window
-    position: 192 x (2 jnd_hue + 1) + 256 x (2 jnd_luma + 1)), its 6-stage pipeline and the
-    hand-over."""
-    return 3 + 512 + 5 + 23 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
 class GroundClassifier(FramedUnit):
@@ -70,12 +55,9 @@ class GroundClassifier(FramedUnit):
     double-buffered: the sets for frame n + 1 are written while frame n is classified with the
     other bank.
 
-    Search, after the beat that ends the reference region: a blend pass over the 512 words
-    (model' = count on the first frame, else ((model << blend_shift) - model + count) >>
-    blend_shift; the count is cleared; 5 pipeline stages so no path has more than one adder or
-    shifter) that also sums the supports, then the thresholds max(1, support x frac >> 10) (in
-    hue fallback the luma one max(1, (support x frac >> 10) >> fallback_shift)) and
-    the set pass: each bin's window sum over +-JND (hue wrapping), one read per window position.
+    Search, after the beat that ends the reference region (blend pass, supports, thresholds,
+    set pass): :class:`hdl.ground_search.GroundSearch`, this unit's own;
+    :class:`SharedGroundClassifier` shares one with another unit.
     """
     LATENCY = 4
 
@@ -87,9 +69,18 @@ class GroundClassifier(FramedUnit):
     errors: Out(16)
     dropped: Out(32)
 
+    def _search_bus(self, m):
+        """The unit's side of its search engine's bus: here an engine of its own."""
+        m.submodules.search = engine = GroundSearch(units=1)
+        bus = GroundSearchBus.create(path=("search",))
+        wiring.connect(m, bus, engine.unit0)
+        m.d.comb += engine.config.eq(self.config)
+        return bus
+
     def elaborate(self, platform):
         m = Module()
         cfg = self.config
+        search = self._search_bus(m)
         p = self.i.payload
         m.submodules.track = track = self.frame_tracker()
         m.d.comb += [track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
@@ -219,53 +210,22 @@ class GroundClassifier(FramedUnit):
                      upd_data.eq(Cat(Mux(inc[HIST_BITS], word[:HIST_BITS], inc[:HIST_BITS]),
                                      word[HIST_BITS:]))]
 
-        # --- search: blend pass (A), thresholds, set pass (B) ---------------------------------
-        wait = Signal(2, init=3)
-        a_run = Signal(); a_idx = Signal(range(HIST_WORDS + 1))
-        a_v1 = Signal(); a_addr1 = Signal(9)                       # read issued
-        a_v2 = Signal(); a_addr2 = Signal(9); a_word2 = Signal(W)  # data registered
-        # the blend ((m << s) - m + n) >> s as m + ((n - m) >> s) (equal: m << s is a multiple
-        # of 2^s), in 16-bit arithmetic: the result lies between m and n
-        a_v3 = Signal(); a_addr3 = Signal(9); a_n3 = Signal(HIST_BITS); a_m3 = Signal(HIST_BITS)
-        a_diff3 = Signal(HIST_BITS); a_neg3 = Signal()             # n - m mod 2^16, n < m
-        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(HIST_BITS); a_n4 = Signal(HIST_BITS)
-        a_m4 = Signal(HIST_BITS)
-        a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
-        # Wide sums as a 16-bit low half and a count of its carries (sum = low + 2^16 carries):
-        # no carry chain longer than 16 bits. Supports: 8-bit carry counts (<= 256 words).
-        sup_h_lo = Signal(16); sup_h_hi = Signal(8); sup_y_lo = Signal(16); sup_y_hi = Signal(8)
-        sup_h = Cat(sup_h_lo, sup_h_hi); sup_y = Cat(sup_y_lo, sup_y_hi)
-        t_step = Signal(3)                                         # threshold computation
-        thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24); f_left = Signal(3)
-        # product support x frac: low 16 bits with a carry count, high 16 bits summed apart
-        # and joined with the carries in one more step
-        prod_lo = Signal(16); prod_hi = Signal(16); prod_c = Signal(4)
-        b_run = Signal(); b_luma = Signal()
-        b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
-        b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
-        b_v1 = Signal(); b_first1 = Signal(); b_last1 = Signal(); b_zero1 = Signal()
-        b_bin1 = Signal(8); b_luma1 = Signal()
-        b_v2 = Signal(); b_first2 = Signal(); b_last2 = Signal(); b_bin2 = Signal(8)
-        b_luma2 = Signal(); b_data2 = Signal(HIST_BITS)
-        # window sum (<= 31 bins of 16 bits): low 16 bits and a 5-bit carry count
-        acc_lo = Signal(16); acc_c = Signal(5)
-        b_v3 = Signal(); b_sum3 = Signal(21); b_bin3 = Signal(8); b_luma3 = Signal()
-        b_v4 = Signal(); b_set4 = Signal(); b_bin4 = Signal(8); b_luma4 = Signal()
-        drain = Signal(4)
-        final = Signal()
-
-        # read port: the scan when searching, else the update
-        with m.If(a_run):
-            m.d.comb += rd.addr.eq(a_idx)
-        with m.Elif(b_run):
-            m.d.comb += rd.addr.eq(Mux(b_luma, LUMA_BASE + b_addr[:8], b_addr[:8]))
+        # --- search (hdl.ground_search): this unit's request and its memories ---------------
+        with m.If(search.rd_own):
+            m.d.comb += rd.addr.eq(search.rd_addr)
         with m.Else():
             m.d.comb += rd.addr.eq(bin0)
-        with m.If(a_v5):
-            m.d.comb += [wr.addr.eq(a_addr5), wr.data.eq(Cat(Const(0, HIST_BITS), a_out5)),
-                         wr.en.eq(1)]
+        with m.If(search.wr_en):
+            m.d.comb += [wr.addr.eq(search.wr_addr),
+                         wr.data.eq(Cat(Const(0, HIST_BITS), search.wr_model)), wr.en.eq(1)]
         with m.Else():
             m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
+        m.d.comb += [search.req.eq(busy), search.commit.eq(commit),
+                     search.model_valid.eq(model_valid), search.hist.eq(rd.data),
+                     hset_wr.addr.eq(Cat(search.set_addr, ~bank)),
+                     hset_wr.data.eq(search.set_data), hset_wr.en.eq(search.hset_en),
+                     lset_wr.addr.eq(Cat(search.set_addr, ~bank)),
+                     lset_wr.data.eq(search.set_data), lset_wr.en.eq(search.lset_en)]
 
         region_end = Signal()
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &
@@ -276,134 +236,27 @@ class GroundClassifier(FramedUnit):
             m.d.sync += searched.eq(region_end)
         with m.Elif(region_end | frame_lost):
             m.d.sync += searched.eq(1)
-
         with m.If(region_end | frame_lost):
-            m.d.sync += [busy.eq(1), wait.eq(3), commit.eq(region_end)]
-        with m.Elif(wait != 0):
-            m.d.sync += wait.eq(wait - 1)
-            with m.If(wait == 1):
-                m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h_lo.eq(0), sup_h_hi.eq(0),
-                             sup_y_lo.eq(0), sup_y_hi.eq(0)]
-        # pass A pipeline
-        with m.If(a_run):
-            m.d.sync += a_idx.eq(a_idx + 1)
-            with m.If(a_idx == HIST_WORDS - 1):
-                m.d.sync += a_run.eq(0)
-        sh = cfg.blend_shift
-        m.d.sync += [
-            a_v1.eq(a_run), a_addr1.eq(a_idx),
-            a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(rd.data),
-            a_v3.eq(a_v2), a_addr3.eq(a_addr2), a_n3.eq(a_word2[:HIST_BITS]),
-            a_m3.eq(a_word2[HIST_BITS:]),
-            a_diff3.eq(a_word2[:HIST_BITS] - a_word2[HIST_BITS:]),
-            a_neg3.eq(a_word2[:HIST_BITS] < a_word2[HIST_BITS:]),
-            a_v4.eq(a_v3), a_addr4.eq(a_addr3),
-            a_u4.eq(a_m3 + (Cat(a_diff3, a_neg3).as_signed() >> sh)[:HIST_BITS]),
-            a_n4.eq(a_n3), a_m4.eq(a_m3),
-            a_v5.eq(a_v4), a_addr5.eq(a_addr4),
-            a_out5.eq(Mux(commit, Mux(model_valid, a_u4, a_n4), Mux(model_valid, a_m4, 0))),
-        ]
-        with m.If(a_v5 & commit):
-            with m.If(a_addr5 < HUE_STEPS):
-                s_h = sup_h_lo + a_out5
-                m.d.sync += [sup_h_lo.eq(s_h[:16]), sup_h_hi.eq(sup_h_hi + s_h[16])]
-            with m.If(a_addr5[8]):
-                s_y = sup_y_lo + a_out5
-                m.d.sync += [sup_y_lo.eq(s_y[:16]), sup_y_hi.eq(sup_y_hi + s_y[16])]
-        a_done = Signal()
-        m.d.comb += a_done.eq(a_v5 & ~a_v4 & busy)
-        # thresholds: max(1, support * frac >> 10) for hue, then for luma, by one shift-and-add
-        # product over 8 cycles each (once per frame: no multiplier); the high half joined
-        # with the low half's carries in one more step; then the hue fallback's threshold
-        m_sup = Signal(32); m_frac = Signal(8); m_left = Signal(4); t_luma = Signal()
-        with m.If(a_done):
+            m.d.sync += [busy.eq(1), commit.eq(region_end)]
+        with m.If(search.done):
+            m.d.sync += busy.eq(0)
             with m.If(commit):
-                m.d.sync += [t_step.eq(1), t_luma.eq(0), model_valid.eq(1), m_left.eq(8),
-                             m_frac.eq(cfg.frac), prod_lo.eq(0), prod_hi.eq(0), prod_c.eq(0)]
-            with m.Else():
-                m.d.sync += busy.eq(0)
-        with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
-            m.d.sync += t_step.eq(Mux(t_step == 5, 0, t_step + 1))
-        support = Mux(t_luma, sup_y, sup_h)
-        with m.If(t_step == 1):
-            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1), m_sup.eq(m_sup << 1),
-                         fallback_next.eq((sup_h_hi == 0) & (sup_h_lo < cfg.min_support))]
-            with m.If(m_left == 8):
-                m.d.sync += m_sup.eq(support << 1)
-            with m.If(m_frac[0]):
-                term = Mux(m_left == 8, support, m_sup)
-                s_lo = prod_lo + term[:16]
-                m.d.sync += [prod_lo.eq(s_lo[:16]), prod_c.eq(prod_c + s_lo[16]),
-                             prod_hi.eq(prod_hi + term[16:32])]
-        with m.If(t_step == 2):
-            m.d.sync += prod_hi.eq(prod_hi + prod_c)
-        with m.If(t_step == 3):
-            with m.If(t_luma):
-                m.d.sync += thr_y.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
-            with m.Else():
-                m.d.sync += thr_h.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
-        with m.If((t_step == 4) & ~t_luma):
-            # the hue threshold done: the luma product next
-            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), t_step.eq(1), t_luma.eq(1),
-                         m_left.eq(8), m_frac.eq(cfg.frac), prod_lo.eq(0), prod_hi.eq(0),
-                         prod_c.eq(0)]
-        with m.Elif(t_step == 4):
-            m.d.sync += [thr_y.eq(Mux(thr_y == 0, 1, thr_y)), thr_f.eq(thr_y),
-                         f_left.eq(cfg.fallback_shift)]
-        # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
-        # 192 cycles), taken as the luma threshold when the luma bins start
-        with m.Elif(f_left != 0):
-            m.d.sync += [thr_f.eq(thr_f >> 1), f_left.eq(f_left - 1)]
-        with m.If(t_step == 5):
-            hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
-            m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
-                         b_addr.eq(hue_start), b_start.eq(hue_start)]
-        # pass B: per bin, the 2 J + 1 window positions, one read each; b_start is where the
-        # current bin's window starts (bin - J, wrapped on the hue circle)
-        m.d.comb += next_start.eq(Mux(~b_luma & (b_start == HUE_STEPS - 1), 0, b_start + 1))
-        jnd = Mux(b_luma, cfg.jnd_luma, cfg.jnd_hue)
-        last_d = b_d == (jnd << 1)
-        last_bin = b_bin == Mux(b_luma, 255, HUE_STEPS - 1)
-        with m.If(b_run):
-            with m.If(~last_d):
-                m.d.sync += [b_d.eq(b_d + 1),
-                             b_addr.eq(Mux(~b_luma & (b_addr == HUE_STEPS - 1), 0, b_addr + 1))]
-            with m.Elif(~last_bin):
-                # next bin: its window starts one further (hue wraps)
-                m.d.sync += [b_bin.eq(b_bin + 1), b_d.eq(0), b_start.eq(next_start),
-                             b_addr.eq(next_start)]
-            with m.Elif(~b_luma):
-                m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma),
-                             b_start.eq(-cfg.jnd_luma)]
-                with m.If((cfg.mode == 2) & fallback_next):
-                    m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
-            with m.Else():
-                m.d.sync += [b_run.eq(0), drain.eq(6)]
-        m.d.sync += [
-            b_v1.eq(b_run), b_first1.eq(b_d == 0), b_last1.eq(last_d), b_bin1.eq(b_bin[:8]),
-            b_luma1.eq(b_luma), b_zero1.eq(b_luma & ((b_addr < 0) | (b_addr > 255))),
-            b_v2.eq(b_v1), b_first2.eq(b_first1), b_last2.eq(b_last1), b_bin2.eq(b_bin1),
-            b_luma2.eq(b_luma1), b_data2.eq(Mux(b_zero1, 0, rd.data[HIST_BITS:])),
-        ]
-        acc_next = Signal(21)
-        s_acc = Mux(b_first2, 0, acc_lo) + b_data2
-        m.d.comb += acc_next.eq(Cat(s_acc[:16], Mux(b_first2, 0, acc_c) + s_acc[16]))
-        with m.If(b_v2):
-            m.d.sync += [acc_lo.eq(acc_next[:16]), acc_c.eq(acc_next[16:])]
-        # sum >= threshold from the two halves' compares (16 and 8 bits, side by side)
-        thr = Mux(b_luma3, thr_y, thr_h)
-        m.d.sync += [b_v3.eq(b_v2 & b_last2), b_sum3.eq(acc_next), b_bin3.eq(b_bin2),
-                     b_luma3.eq(b_luma2),
-                     b_v4.eq(b_v3), b_bin4.eq(b_bin3), b_luma4.eq(b_luma3),
-                     b_set4.eq((b_sum3[16:] > thr[16:]) |
-                               ((b_sum3[16:] == thr[16:]) & (b_sum3[:16] >= thr[:16])))]
-        m.d.comb += [hset_wr.addr.eq(Cat(b_bin4, ~bank)), hset_wr.data.eq(b_set4),
-                     hset_wr.en.eq(b_v4 & ~b_luma4),
-                     lset_wr.addr.eq(Cat(b_bin4, ~bank)), lset_wr.data.eq(b_set4),
-                     lset_wr.en.eq(b_v4 & b_luma4)]
-        with m.If(drain != 0):
-            m.d.sync += drain.eq(drain - 1)
-        m.d.comb += final.eq(drain == 1)
-        with m.If(final):
-            m.d.sync += [busy.eq(0), sets_pending.eq(1)]
+                m.d.sync += [sets_pending.eq(1), model_valid.eq(1),
+                             fallback_next.eq(search.fallback)]
         return m
+
+
+class SharedGroundClassifier(GroundClassifier):
+    """A :class:`GroundClassifier` without a search engine of its own: its search runs on a
+    :class:`hdl.ground_search.GroundSearch` shared with another unit, behind port ``search``
+    (the engine's ``config`` then sets the search's parameters). Bit-exact with the
+    classifier; only the time its input waits for the search grows, when the engine serves the
+    other unit first (at most ``search_cycles`` more).
+
+    Ports: those of :class:`GroundClassifier`, and
+    search : Out(:data:`hdl.ground_search.GroundSearchBus`)
+    """
+    search: Out(GroundSearchBus)
+
+    def _search_bus(self, m):
+        return self.search

@@ -9,8 +9,9 @@ from amaranth.utils import bits_for
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .freespace import free_config_ports
-from .frontend import FrontEnd
+from .frontend import SharedSearchFrontEnd
 from .ground import GroundConfig
+from .ground_search import GroundSearch
 from .matcher import MATCHER_WIDEN, Matcher, match_record_layout
 from .types import RGBPixel, FreeBand
 
@@ -33,7 +34,9 @@ class StereoPipeline(wiring.Component):
         Each camera's free space per column band, 16 beats per frame
         (:class:`hdl.freespace.FreeSpace`); never holds up the pixels.
     ground, threshold, ratio, nms, band_w, run_r : In
-        Front-end parameters, shared by both cameras (each learns its own ground band), except:
+        Front-end parameters, shared by both cameras (each learns its own ground band; the two
+        ground units share one search engine, :class:`hdl.ground_search.GroundSearch`, one
+        camera after the other between frames), except:
     right_threshold : In
         The right camera's Sobel threshold (its edges only select candidates; see
         ``golden.pipeline.RIGHT_THRESHOLD``).
@@ -96,9 +99,13 @@ class StereoPipeline(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.matcher = matcher = Matcher(**self._size, **self._matcher)
-        for side in ("left", "right"):
-            fe = FrontEnd(**self._size, census=self._matcher["cost"] == "census")
+        # one ground search engine for both cameras, between frames (each keeps its own model)
+        m.submodules.ground_search = search = GroundSearch(units=2)
+        m.d.comb += search.config.eq(self.ground)
+        for k, side in enumerate(("left", "right")):
+            fe = SharedSearchFrontEnd(**self._size, census=self._matcher["cost"] == "census")
             m.submodules[f"{side}_frontend"] = fe
+            wiring.connect(m, fe.search, getattr(search, f"unit{k}"))
             wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
             wiring.connect(m, fe.o, getattr(matcher, side))
             m.d.comb += [
