@@ -194,6 +194,8 @@ class Matcher(wiring.Component):
     errors : Out(16), dropped : Out(32)
         Malformed-stream events of both inputs plus frames of unequal sizes; beats dropped by
         both trackers (saturating, cleared by reset; both two cycles after the events).
+    frame_abort, in_frame : In(1), Out(1)
+        As :class:`hdl.framing.FramedUnit`'s, for both inputs' trackers.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
@@ -223,6 +225,7 @@ class Matcher(wiring.Component):
             "uniqueness": In(8),
             "mode_full": In(1), "widen": In(1), "drop_mode": In(1),
             "frames": Out(32), "errors": Out(16), "dropped": Out(32),
+            "frame_abort": In(1), "in_frame": Out(1),     # hdl.framing.FramedUnit
         }
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
@@ -279,7 +282,8 @@ class Matcher(wiring.Component):
             p = port.payload
             c = type("Cam", (), {})()
             cams[name] = c
-            c.track = track = FrameTracker(max_width=MW, max_height=self._max_height)
+            c.track = track = FrameTracker(max_width=MW, max_height=self._max_height,
+                                           abort=self.frame_abort)
             m.submodules[f"track_{name}"] = track
             c.open = Signal(name=f"{name}_open")       # joined the current matcher frame
             c.ended = Signal(name=f"{name}_ended")     # its frame has ended (no more writes)
@@ -405,7 +409,7 @@ class Matcher(wiring.Component):
                     with m.If(c.width == 0):
                         m.d.sync += c.width.eq(track.x + 1)
             # The camera's frame ends at its eof, at a broken rule, or at a sof before its eof.
-            with m.If(c.open & ((track.accept & p.eof & ~p.sof) | (track.abandon & ~p.sof) |
+            with m.If(c.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
                                 (port.valid & p.sof & ~c.ended))):
                 m.d.sync += c.ended.eq(1)
             with m.If(track.accept & p.eof & p.sof & ~c.open):   # one-pixel frame
@@ -413,6 +417,7 @@ class Matcher(wiring.Component):
             c.writable = writable
 
         L, R = cams["left"], cams["right"]
+        m.d.comb += self.in_frame.eq(L.track.in_frame | R.track.in_frame)
         # The disparity window of the frame: follows d_min / d_max between frames and holds
         # from the first sof a camera delivers until the frame is complete, so a register
         # write takes effect at the next frame whenever it happens.

@@ -12,7 +12,7 @@ The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/cosim``).
 """
-from amaranth.hdl import ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
+from amaranth.hdl import Cat, ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
@@ -207,12 +207,20 @@ class SystemSoC(wiring.Component):
         wiring.connect(m, ports[1].o, buffer.i1)
         wiring.connect(m, buffer.o0, pairing.left_i)
         wiring.connect(m, buffer.o1, pairing.right_i)
+        bufs = []
         for side in ("left", "right"):      # registered buffers: pairing and pipeline logic
             buf = SyncFIFOBuffered(width=RGBPixel.size, depth=2)     # do not chain
+            bufs.append(buf)
             m.submodules[f"{side}_buffer"] = ResetInserter(video_rst)(buf)
             src, dst = getattr(pairing, f"{side}_o"), getattr(pipe, side)
             m.d.comb += [buf.w_en.eq(src.valid), buf.w_data.eq(src.payload), src.ready.eq(buf.w_rdy),
                          dst.valid.eq(buf.r_rdy), dst.payload.eq(buf.r_data), buf.r_en.eq(dst.ready)]
+        # An abandoned pair ends in the pipeline at once (golden.pairing rule 4); the next pair
+        # starts only when no unit is inside a frame, nothing waiting in the buffers above
+        busy = Signal()
+        m.d.comb += pipe.frame_abort.eq(pairing.frame_abort)
+        m.d.sync += busy.eq(pipe.in_frame | Cat(b.r_rdy for b in bufs).any())
+        m.d.comb += pairing.busy.eq(busy)
         _connect_parameters(m, regs, pipe)
 
         # Records and end-of-frame markers into the result FIFO. A restart of the video path
