@@ -132,16 +132,18 @@ class SystemSoC(wiring.Component):
     :class:`hdl.camera_buffer.PairBuffer`), ``skew`` (pairing), ``fifo_depth`` (results),
     ``clk_div`` (IIC), ``uart_divisor``.
 
-    Camera buffering: a pixel waits in its port's FIFO (64), its queue (256) and a few
-    registers, about 330 pixels or 24 us of one camera, for its partner's field start (the
-    cameras' phase difference, up to ``skew`` = 1,024 core cycles = 276 pixel times) and for
-    the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
+    Camera buffering: a pixel waits in its port's FIFO (16), its queue (256) and a few
+    registers, about 277 pixels or 20 us of one camera, for its partner's field start (the
+    cameras' phase difference, up to ``skew`` = 896 core cycles = 242 pixel times: a lonely
+    field start waits that long before its frame is dropped, so the buffer must hold it) and
+    for the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
     once; its per-frame work, the ground search and the Sobel flush, falls in the 22 lines of
-    vertical blanking).
+    vertical blanking, and that of a pair abandoned in the middle of its frames, the ground
+    clear and the matcher's last rows, runs at once: ``golden.pairing`` rule 4).
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
-                 camera_fifo_depth=64, buffer_depth=256, skew=1024, fifo_depth=512,
+                 camera_fifo_depth=16, buffer_depth=256, skew=896, fifo_depth=512,
                  clk_div=125, uart_divisor=434):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height)
