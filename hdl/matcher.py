@@ -408,7 +408,8 @@ class Matcher(wiring.Component):
                                  c.slot.eq(Mux(slot_now == ROWS - 1, 0, slot_now + 1))]
                     with m.If(c.width == 0):
                         m.d.sync += c.width.eq(track.x + 1)
-            # The camera's frame ends at its eof, at a broken rule, or at a sof before its eof.
+            # The camera's frame ends at its eof, at a broken rule, at a sof before its eof, or
+            # at the frame abort (in the tracker's abandon).
             with m.If(c.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
                                 (port.valid & p.sof & ~c.ended))):
                 m.d.sync += c.ended.eq(1)
