@@ -1,9 +1,21 @@
 """The frame tracker's abort (hdl/framing.py, golden/pairing.py rule 4): a frame the pairing
 abandons ends at once, without an error; every beat is dropped while the abort is high; the next
-``sof`` after it starts a frame normally."""
+``sof`` after it starts a frame normally. And the pipeline with a cut pair: with the abort the
+next pairs go in at one pixel a cycle and equal golden without the cut pair; without it they
+wait for the ground's clear (golden/pipeline.py, abandoned pairs)."""
+import numpy as np
+from amaranth.lib import data
 from amaranth.sim import Simulator
 
+from golden.pipeline import default_params, pipeline_frames
 from hdl.framing import FrameTracker
+from hdl.ground import CLEAR_CYCLES
+from hdl.pipeline import StereoPipeline
+from hdl.types import RGBPixel
+from sim.config import apply_config
+from sim.data import crop, motorcycle
+from sim.streams import Packer, frame_words, stream_get
+from sim.units import records_from_words, rgb
 
 
 IDLE_ABORT = "idle, abort"
@@ -93,14 +105,6 @@ def run_pipeline_with_cut_pair(abort, *, gap=700):
     the output frames, the golden frames of the good pairs and a dict: the cycles each input
     took for the first :data:`FIRST_WORDS` words of the good pairs (``first_words``), and the
     cycles from the abort to the pipeline leaving the frame (``leave``)."""
-    import numpy as np
-    from golden.pipeline import default_params
-    from hdl.pipeline import StereoPipeline
-    from hdl.types import RGBPixel
-    from sim.config import apply_config
-    from sim.data import crop, motorcycle
-    from sim.streams import Packer, frame_words, stream_get
-    from sim.units import records_from_words, rgb
 
     left, right, _ = motorcycle()
     w, h = 40, 10
@@ -164,7 +168,7 @@ def run_pipeline_with_cut_pair(abort, *, gap=700):
         out["o"] = await stream_get(ctx, dut.o, until_eof=3,
                                     eof_bit=_eof_bit(dut), timeout=20000)
 
-    async def drain_free(ctx):
+    async def drain_free(ctx):            # the free-space results are not looked at
         for side in ("free_left", "free_right"):
             ctx.set(getattr(dut, side).ready, 1)
 
@@ -176,20 +180,17 @@ def run_pipeline_with_cut_pair(abort, *, gap=700):
     sim.add_testbench(control, background=True)
     sim.add_testbench(consumer)
     sim.run()
-    from golden.pipeline import pipeline_frames
     golden = pipeline_frames([good_l] * 2, [good_r] * 2, params)
     got = records_from_words(dut.o.payload.shape(), out["o"])
     return got, golden, state
 
 
 def _eof_bit(dut):
-    from amaranth.lib import data
     layout = data.Layout.cast(dut.o.payload.shape())
     return layout["eof"].offset
 
 
 def test_pipeline_abort_ends_the_cut_pair_at_once():
-    import numpy as np
     got, golden, state = run_pipeline_with_cut_pair(True)
     assert state["leave"] is not None and state["leave"] <= 4
     # the ground clear and the matcher's last rows ran in the gap: the next pair flows at once
@@ -205,8 +206,6 @@ def test_pipeline_abort_ends_the_cut_pair_at_once():
 def test_pipeline_without_abort_holds_the_next_sof():
     """The same stream without the abort: the cut frame ends only when the next ``sof`` reaches
     each unit, which then waits for the ground's clear (what the abort takes off)."""
-    import numpy as np
-    from hdl.ground import CLEAR_CYCLES
     got, golden, state = run_pipeline_with_cut_pair(False)
     assert min(state["first_words"].values()) >= FIRST_WORDS + CLEAR_CYCLES, state["first_words"]
     for g, frame in zip(got[-2:], golden):
