@@ -8,7 +8,7 @@ events* (the ``sof`` beats):
 
 1. A side waits for a ``sof`` (beats before it are discarded). It then holds that ``sof`` at the
    head of its FIFO until the other side also holds one; both frames are then forwarded
-   together as one pair.
+   together as one pair (once the pipeline has ended the previous pair's frames, rule 4).
 2. A held ``sof`` whose partner does not come within ``skew`` cycles of the other side being
    idle (not forwarding and not holding a ``sof``) belongs to a frame without partner: the whole
    frame is discarded and counted in ``dropped``. ``skew`` bounds the start-time difference of
@@ -20,6 +20,17 @@ events* (the ``sof`` beats):
    next ``sof`` (a ``sof`` that cut the frame short is kept: it starts the
    side's next frame). The pair counts in ``mispaired``; a pair whose two frames both end with
    ``eof`` counts in ``pairs_ok``.
+
+4. An abandoned pair ends for the pipeline at once: from the cycle after the first bad beat
+   until the next pair starts, the pairing raises ``frame_abort``, and every unit of the
+   pipeline ends the frame it is in and drops every beat it receives (:mod:`hdl.framing`).
+   So the work a frame end brings (a ground model clearing the lost frame's counts, the
+   matcher scanning its last rows) runs now, while the pairing discards the rest of the cut
+   frames, and not at the next field start, where it would stall the cameras of the next pair.
+   A pair starts only when no unit of the pipeline is inside a frame (and nothing waits
+   between the pairing and the pipeline), so a ``frame_abort`` reaches only the frames of the
+   pair it cuts. What an abandoned pair leaves in the pipeline: ``golden.pipeline`` (module
+   documentation).
 
 So a camera that loses or gains a field start, or delivers an over-long line or noise, costs at
 most the pair it happens in and the partnerless frames it creates; the next pair is again

@@ -1,5 +1,18 @@
 """The stereo pipeline: two front ends (each with its own ground model state) and the SAD
-matcher. The chained golden model the pipeline RTL is compared with, frame after frame."""
+matcher. The chained golden model the pipeline RTL is compared with, frame after frame.
+
+Abandoned pairs (``golden.pairing`` rules 3 and 4): :class:`PipelineModel` steps over the pairs
+that reach the pipeline whole, and an abandoned pair is no step. That is exact for the state
+the pipeline carries from frame to frame, the ground models: a frame cut before the end of its
+reference region teaches nothing (the RTL clears its counts when the pairing's ``abort``
+arrives), and the default region (:meth:`golden.ground.GroundParams.bottom_centre`) ends with
+the frame's last beat, which a cut frame never has. (A region that ends higher up and is
+complete when the abort reaches the ground unit makes the cut frame teach the model as a whole
+frame would.) What the matcher emits for the cut frames, records of their first lines matched
+as frames cropped to those lines and an ``eof`` record, is not specified here (how many lines
+each unit had when the abort came depends on the beats in flight); the pair counts as
+mispaired (HEALTH_PAIRS).
+"""
 from dataclasses import dataclass, field, replace
 
 import numpy as np

@@ -63,7 +63,7 @@ class CameraPort(wiring.Component):
     lines : int
         Active lines per field (240 for NTSC).
     fifo_depth : int
-        Pixels of the clock-domain FIFO (a power of two). The SoC uses 64 (distributed RAM)
+        Pixels of the clock-domain FIFO (a power of two). The SoC uses 16 (distributed RAM)
         and buffers frames in the core domain (:class:`hdl.camera_buffer.PairBuffer`).
 
     Ports

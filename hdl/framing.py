@@ -14,9 +14,16 @@ Rules (identical for every unit, see also ``sim/streams.py`` for the test side):
   too many lines) is dropped with everything after it up to the next ``sof``. A ``sof`` that cuts
   a frame short starts the new frame normally. Each such event adds one to ``errors``; every
   dropped beat adds one to ``dropped``. Both counters saturate and are cleared only by reset.
+* An abort (the tracker's ``abort``, the unit's ``frame_abort`` port: a level from the frame
+  pairing, :mod:`hdl.pairing`, meaning the pair this frame belongs to was abandoned) ends the
+  current frame at once, as a broken rule would but without an error, and while it is high
+  every beat is dropped (counted in ``dropped``): the unit does the work of a frame end now,
+  not when the next ``sof`` reaches it. The beats of the cut frame still in flight from
+  upstream are dropped after it, also without an error.
 """
 from amaranth.hdl import Elaboratable, Module, Signal, Mux
 from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
 from .counter import saturating_inc, wide_counter
@@ -38,20 +45,22 @@ class FrameTracker(Elaboratable):
     """Coordinates and well-formedness of the beats of one stream.
 
     Inputs (drive them from the unit): ``beat`` (a transfer happens this cycle), ``sof``,
-    ``eol``, ``eof`` (the payload flags of that beat).
+    ``eol``, ``eof`` (the payload flags of that beat); ``abort`` (end the frame now, drop every
+    beat while high; the signal given to the constructor, else a new one).
 
     Combinational outputs, valid in the cycle of the beat: ``x``, ``y`` (its coordinates),
     ``accept`` (the beat is part of a well-formed frame: process it), ``frame_end`` (accepted
-    beat with ``eof``), ``abandon`` (this beat ends the current frame abnormally: a rule was
-    broken, or a ``sof`` arrived before the ``eof``).
+    beat with ``eof``), ``abandon`` (the current frame ends abnormally in this cycle: a rule was
+    broken, a ``sof`` arrived before the ``eof``, or ``abort``).
 
-    Registered outputs: ``in_frame`` (between an accepted ``sof`` and the end of that frame),
+    Registered outputs: ``in_frame`` (between an accepted ``sof`` and the end of that frame; the
+    signal given to the constructor, else a new one),
     ``width`` (learned line length of the current frame, 0 until its first ``eol``),
     ``errors`` (16-bit) and ``dropped`` (32-bit, :func:`hdl.counter.wide_counter`: 16-bit carry
     chains) saturating counters.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024):
+    def __init__(self, *, max_width=1024, max_height=1024, abort=None, in_frame=None):
         check_frame_size(self, max_width, max_height)
         self.max_width = max_width
         self.max_height = max_height
@@ -59,6 +68,7 @@ class FrameTracker(Elaboratable):
         self.sof = Signal()
         self.eol = Signal()
         self.eof = Signal()
+        self.abort = Signal() if abort is None else abort
 
         self.x = Signal(range(max_width))
         self.y = Signal(range(max_height))
@@ -66,7 +76,7 @@ class FrameTracker(Elaboratable):
         self.frame_end = Signal()
         self.abandon = Signal()
 
-        self.in_frame = Signal()
+        self.in_frame = Signal() if in_frame is None else in_frame
         self.width = Signal(range(max_width + 1))
         self.errors = Signal(16)
         self.dropped = Signal(32)
@@ -94,9 +104,9 @@ class FrameTracker(Elaboratable):
             bad.eq(too_long |
                    (width_known & self.eol & ~at_last) |
                    (self.eof & ~self.eol)),
-            self.accept.eq(self.beat & (self.sof | self.in_frame) & ~bad),
+            self.accept.eq(self.beat & (self.sof | self.in_frame) & ~self.abort & ~bad),
             self.frame_end.eq(self.accept & self.eof),
-            self.abandon.eq(self.beat & self.in_frame & (self.sof | bad)),
+            self.abandon.eq(self.in_frame & (self.abort | (self.beat & (self.sof | bad)))),
         ]
 
         with m.If(self.beat):
@@ -117,8 +127,10 @@ class FrameTracker(Elaboratable):
                     m.d.sync += saturating_inc(self.errors)
             with m.Else():
                 m.d.sync += [dropping.eq(1), self.in_frame.eq(0)]
-                with m.If(~dropping | self.in_frame):
+                with m.If((~dropping | self.in_frame) & ~self.abort):
                     m.d.sync += saturating_inc(self.errors)
+        with m.Elif(self.abort):
+            m.d.sync += [dropping.eq(1), self.in_frame.eq(0)]
         wide_counter(m, self.dropped, self.beat & ~self.accept)
         return m
 
@@ -126,7 +138,17 @@ class FrameTracker(Elaboratable):
 class FramedUnit(wiring.Component):
     """Base of the pixel units: the keyword-only frame limits ``max_width`` and ``max_height``
     (checked at construction, kept as ``self._max_width`` / ``self._max_height``) and the
-    :class:`FrameTracker` sized by them. Each unit declares its own ports."""
+    :class:`FrameTracker` sized by them, with the two ports every unit has:
+
+    frame_abort : In(1)
+        The frame pairing abandoned the current pair: end the frame now (the tracker's rule).
+    in_frame : Out(1)
+        The tracker is inside a frame (the pairing starts a pair only when no unit is).
+
+    Each unit declares its other ports."""
+
+    frame_abort: In(1)
+    in_frame: Out(1)
 
     def __init__(self, *, max_width=1024, max_height=1024):
         check_frame_size(self, max_width, max_height)
@@ -135,4 +157,6 @@ class FramedUnit(wiring.Component):
         super().__init__()
 
     def frame_tracker(self):
-        return FrameTracker(max_width=self._max_width, max_height=self._max_height)
+        """The unit's tracker, on the unit's ``frame_abort`` and ``in_frame`` ports."""
+        return FrameTracker(max_width=self._max_width, max_height=self._max_height,
+                            abort=self.frame_abort, in_frame=self.in_frame)

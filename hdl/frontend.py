@@ -1,6 +1,6 @@
 """Per-camera front end: colour conversion -> ground classifier -> Sobel vertical edges, and the
 free space per column band of the ground mask (specification: ``golden/frontend.py``)."""
-from amaranth.hdl import Module
+from amaranth.hdl import Cat, Module
 from amaranth.lib import wiring, stream
 from amaranth.lib.wiring import In, Out
 
@@ -46,6 +46,9 @@ class FrontEnd(FramedUnit):
         stages only see frames the first stage already cut, and resynchronise with it.
     free_lost : Out(16)
         Free-space result frames lost (:attr:`hdl.freespace.FreeSpace.lost`).
+    frame_abort, in_frame : In(1), Out(1)
+        To and from every unit (:class:`hdl.framing.FramedUnit`): end the frame at once; some
+        unit is inside a frame.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, census=False):
@@ -96,6 +99,11 @@ class FrontEnd(FramedUnit):
                      free.band_w.eq(self.band_w), free.run_r.eq(self.run_r),
                      self.free_lost.eq(free.lost)]
         wiring.connect(m, free.o, wiring.flipped(self.free))
+        # an abandoned pair ends the frame in every unit at once (hdl.framing); the front end is
+        # inside a frame while any of them is
+        units = (color, ground, sobel, free)
+        m.d.comb += [unit.frame_abort.eq(self.frame_abort) for unit in units]
+        m.d.comb += self.in_frame.eq(Cat(unit.in_frame for unit in units).any())
         m.d.comb += [
             ground.config.eq(self.ground),
             sobel.threshold.eq(self.threshold), sobel.ratio.eq(self.ratio), sobel.nms.eq(self.nms),

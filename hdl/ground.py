@@ -231,7 +231,9 @@ class GroundClassifier(FramedUnit):
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &
                                   (p.sof | ~searched))
         frame_lost = Signal()
-        m.d.comb += frame_lost.eq(~searched & track.in_frame & (hold_sof | (track.abandon & ~p.sof)))
+        # a frame lost before its search: cut by a sof (held), by a broken rule, or aborted
+        m.d.comb += frame_lost.eq(~searched & track.in_frame &
+                                  (hold_sof | self.frame_abort | (track.abandon & ~p.sof)))
         with m.If(track.accept & p.sof):
             m.d.sync += searched.eq(region_end)
         with m.Elif(region_end | frame_lost):

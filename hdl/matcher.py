@@ -208,6 +208,8 @@ class Matcher(wiring.Component):
     errors : Out(16), dropped : Out(32)
         Malformed-stream events of both inputs plus frames of unequal sizes; beats dropped by
         both trackers (saturating, cleared by reset; both two cycles after the events).
+    frame_abort, in_frame : In(1), Out(1)
+        As :class:`hdl.framing.FramedUnit`'s, for both inputs' trackers.
 
     Elaboration parameters: ``max_width``, ``max_height``, ``max_disparity``, ``window``,
     ``queue_depth``, ``out_depth``, ``extra_rows`` (see the module docstring), and ``cost``:
@@ -245,6 +247,7 @@ class Matcher(wiring.Component):
             "mode_full": In(1), "widen": In(range(MATCHER_WIDEN + 1)), "sign_any": In(1),
             "drop_mode": In(1),
             "frames": Out(32), "errors": Out(16), "dropped": Out(32),
+            "frame_abort": In(1), "in_frame": Out(1),     # hdl.framing.FramedUnit
         }
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
@@ -301,7 +304,8 @@ class Matcher(wiring.Component):
             p = port.payload
             c = type("Cam", (), {})()
             cams[name] = c
-            c.track = track = FrameTracker(max_width=MW, max_height=self._max_height)
+            c.track = track = FrameTracker(max_width=MW, max_height=self._max_height,
+                                           abort=self.frame_abort)
             m.submodules[f"track_{name}"] = track
             c.open = Signal(name=f"{name}_open")       # joined the current matcher frame
             c.ended = Signal(name=f"{name}_ended")     # its frame has ended (no more writes)
@@ -426,8 +430,9 @@ class Matcher(wiring.Component):
                                  c.slot.eq(Mux(slot_now == ROWS - 1, 0, slot_now + 1))]
                     with m.If(c.width == 0):
                         m.d.sync += c.width.eq(track.x + 1)
-            # The camera's frame ends at its eof, at a broken rule, or at a sof before its eof.
-            with m.If(c.open & ((track.accept & p.eof & ~p.sof) | (track.abandon & ~p.sof) |
+            # The camera's frame ends at its eof, at a broken rule, at a sof before its eof, or
+            # at the frame abort (in the tracker's abandon).
+            with m.If(c.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
                                 (port.valid & p.sof & ~c.ended))):
                 m.d.sync += c.ended.eq(1)
             with m.If(track.accept & p.eof & p.sof & ~c.open):   # one-pixel frame
@@ -435,6 +440,7 @@ class Matcher(wiring.Component):
             c.writable = writable
 
         L, R = cams["left"], cams["right"]
+        m.d.comb += self.in_frame.eq(L.track.in_frame | R.track.in_frame)
         # The disparity window of the frame: follows d_min / d_max between frames and holds
         # from the first sof a camera delivers until the frame is complete, so a register
         # write takes effect at the next frame whenever it happens.

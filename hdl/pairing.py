@@ -33,6 +33,12 @@ class FramePairing(wiring.Component):
         Counts of rule 3, rule 3 and rule 2 (wrapping).
     pairing : Out(1)
         A pair is being forwarded.
+    frame_abort : Out(1)
+        Rule 4: registered, high from the cycle after a pair is abandoned until the next pair
+        starts; to the pipeline's units (:mod:`hdl.framing`), which end the frame at once.
+    busy : In(1)
+        The pipeline is inside a frame (its units' ``in_frame``): a pair starts only when it is
+        low (rule 4), so a ``frame_abort`` never reaches a unit still in the previous frame.
     """
 
     def __init__(self, *, skew=1024, max_width=1024, max_height=1024):
@@ -47,6 +53,7 @@ class FramePairing(wiring.Component):
             "left_i": In(stream.Signature(RGBPixel)), "right_i": In(stream.Signature(RGBPixel)),
             "left_o": Out(stream.Signature(RGBPixel)), "right_o": Out(stream.Signature(RGBPixel)),
             "pairs_ok": Out(16), "mispaired": Out(16), "dropped": Out(16), "pairing": Out(1),
+            "frame_abort": Out(1), "busy": In(1),
         })
 
     def elaborate(self, platform):
@@ -75,8 +82,8 @@ class FramePairing(wiring.Component):
         def inc(counter):
             return counter.eq(counter + 1)          # 16 bits, wrapping
 
-        start = L["held"] & R["held"]
-        fault = Signal()            # the pair being forwarded was abandoned
+        start = L["held"] & R["held"] & ~self.busy
+        fault = self.frame_abort    # the pair being forwarded was abandoned (rule 4)
         abandon = Signal()
         m.d.comb += abandon.eq(L["tracker"].abandon | R["tracker"].abandon)
         for me in (L, R):       # a sof that cuts a frame short is accepted as a start: not here

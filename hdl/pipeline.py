@@ -1,6 +1,6 @@
 """Stereo pipeline top: two per-camera front ends and the SAD matcher
 (specification: ``golden/pipeline.py``)."""
-from amaranth.hdl import Module
+from amaranth.hdl import Cat, Module
 from amaranth.lib import wiring, stream
 from amaranth.lib.wiring import In, Out
 
@@ -52,6 +52,11 @@ class StereoPipeline(wiring.Component):
         Ground model status of each camera's current frame.
     left_free_lost, right_free_lost : Out(16)
         Free-space result frames lost because ``free_*`` was not drained in time.
+    frame_abort : In(1)
+        The frame pairing abandoned the pair: every unit ends its frame at once and drops beats
+        while it is high (:mod:`hdl.framing`; ``golden.pairing`` rule 4).
+    in_frame : Out(1)
+        Some unit is inside a frame (the pairing starts the next pair only when none is).
 
     Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
     ``window``, ``queue_depth`` (edge jobs buffered), ``cost``: the matcher's window cost,
@@ -84,6 +89,7 @@ class StereoPipeline(wiring.Component):
             **free_config_ports(),
             "frames": Out(32),
             "match_errors": Out(16), "match_dropped": Out(32),
+            "frame_abort": In(1), "in_frame": Out(1),
         }
         for side in ("left", "right"):
             ports[f"{side}_errors"] = Out(16)
@@ -99,6 +105,8 @@ class StereoPipeline(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.matcher = matcher = Matcher(**self._size, **self._matcher)
+        m.d.comb += matcher.frame_abort.eq(self.frame_abort)
+        in_frame = [matcher.in_frame]
         # one ground search engine for both cameras, between frames (each keeps its own model)
         m.submodules.ground_search = search = GroundSearch(units=2)
         m.d.comb += search.config.eq(self.ground)
@@ -109,7 +117,7 @@ class StereoPipeline(wiring.Component):
             wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
             wiring.connect(m, fe.o, getattr(matcher, side))
             m.d.comb += [
-                fe.ground.eq(self.ground),
+                fe.ground.eq(self.ground), fe.frame_abort.eq(self.frame_abort),
                 fe.threshold.eq(self.threshold if side == "left" else self.right_threshold),
                 fe.ratio.eq(self.ratio), fe.nms.eq(self.nms),
                 getattr(self, f"{side}_errors").eq(fe.errors),
@@ -120,6 +128,8 @@ class StereoPipeline(wiring.Component):
                 getattr(self, f"{side}_free_lost").eq(fe.free_lost),
             ]
             wiring.connect(m, fe.free, wiring.flipped(getattr(self, f"free_{side}")))
+            in_frame.append(fe.in_frame)
+        m.d.comb += self.in_frame.eq(Cat(in_frame).any())
         wiring.connect(m, matcher.o, wiring.flipped(self.o))
         for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "sign_any",
                      "drop_mode"):

@@ -12,7 +12,7 @@ The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/cosim``).
 """
-from amaranth.hdl import ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
+from amaranth.hdl import Cat, ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
@@ -134,16 +134,18 @@ class SystemSoC(wiring.Component):
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
     :class:`hdl.pipeline.StereoPipeline`).
 
-    Camera buffering: a pixel waits in its port's FIFO (64), its queue (256) and a few
-    registers, about 330 pixels or 24 us of one camera, for its partner's field start (the
-    cameras' phase difference, up to ``skew`` = 1,024 core cycles = 276 pixel times) and for
-    the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
+    Camera buffering: a pixel waits in its port's FIFO (16), its queue (256) and a few
+    registers, about 277 pixels or 20 us of one camera, for its partner's field start (the
+    cameras' phase difference, up to ``skew`` = 896 core cycles = 242 pixel times: a lonely
+    field start waits that long before its frame is dropped, so the buffer must hold it) and
+    for the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
     once; its per-frame work, the ground search and the Sobel flush, falls in the 22 lines of
-    vertical blanking).
+    vertical blanking, and that of a pair abandoned in the middle of its frames, the ground
+    clear and the matcher's last rows, runs at once: ``golden.pairing`` rule 4).
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
-                 camera_fifo_depth=64, buffer_depth=256, skew=1024, fifo_depth=512,
+                 camera_fifo_depth=16, buffer_depth=256, skew=896, fifo_depth=512,
                  clk_div=125, uart_divisor=434, cost="census"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
@@ -209,12 +211,20 @@ class SystemSoC(wiring.Component):
         wiring.connect(m, ports[1].o, buffer.i1)
         wiring.connect(m, buffer.o0, pairing.left_i)
         wiring.connect(m, buffer.o1, pairing.right_i)
+        bufs = []
         for side in ("left", "right"):      # registered buffers: pairing and pipeline logic
             buf = SyncFIFOBuffered(width=RGBPixel.size, depth=2)     # do not chain
+            bufs.append(buf)
             m.submodules[f"{side}_buffer"] = ResetInserter(video_rst)(buf)
             src, dst = getattr(pairing, f"{side}_o"), getattr(pipe, side)
             m.d.comb += [buf.w_en.eq(src.valid), buf.w_data.eq(src.payload), src.ready.eq(buf.w_rdy),
                          dst.valid.eq(buf.r_rdy), dst.payload.eq(buf.r_data), buf.r_en.eq(dst.ready)]
+        # An abandoned pair ends in the pipeline at once (golden.pairing rule 4); the next pair
+        # starts only when no unit is inside a frame, nothing waiting in the buffers above
+        busy = Signal()
+        m.d.comb += pipe.frame_abort.eq(pairing.frame_abort)
+        m.d.sync += busy.eq(pipe.in_frame | Cat(b.r_rdy for b in bufs).any())
+        m.d.comb += pairing.busy.eq(busy)
         _connect_parameters(m, regs, pipe)
 
         # Records and end-of-frame markers into the result FIFO. A restart of the video path

@@ -32,10 +32,10 @@ def _soc(**params):
 
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
-    "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=64),
+    "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=16),
                            "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO as in the SoC (hdl/camera_port.py)",
                            clocks={"cam_clk": ("cam_rst", ("i",))}),
-    "pairing": SystemDesign(_pairing, dict(skew=1024, max_width=1024, max_height=1024),
+    "pairing": SystemDesign(_pairing, dict(skew=896, max_width=1024, max_height=1024),
                             "stereo frame pairing (hdl/pairing.py)"),
     "uart": SystemDesign(_uart, dict(divisor=434), "radio UART on the I/O bus (hdl/uart.py)"),
     "bridge": SystemDesign(_bridge, dict(divisor=434),

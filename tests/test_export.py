@@ -10,9 +10,13 @@ from sim.export import DESIGNS, ROOT, elaborate, export_verilog, ports, register
 def test_color_ports():
     p = ports(registered("color")[0])
     assert [(s.name, s.direction, s.width) for s in p.streams] == [("i", "in", 27), ("o", "out", 27)]
-    assert [(s.name, s.direction, s.width) for s in p.plain] == [("errors", "out", 16), ("dropped", "out", 32)]
+    # frame_abort and in_frame: every unit's (hdl.framing.FramedUnit)
+    assert [(s.name, s.direction, s.width) for s in p.plain] == [
+        ("frame_abort", "in", 1), ("in_frame", "out", 1), ("errors", "out", 16),
+        ("dropped", "out", 32)]
     assert p.stream("o").eof_bit == 26
-    assert p.params == [] and [s.name for s in p.status] == ["errors", "dropped"]
+    assert [s.name for s in p.params] == ["frame_abort"]
+    assert [s.name for s in p.status] == ["in_frame", "errors", "dropped"]
 
 
 def test_header_lists_parameters_tools_and_ports(tmp_path):

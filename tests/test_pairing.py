@@ -62,11 +62,11 @@ def schedule(fault, frames=5, at=1):
     return out
 
 
-def run(fault, *, seed=0, idle=0.0, stall=0.0):
+def run(fault, *, seed=0, idle=0.0, stall=0.0, busy_until=0):
     dut = FramePairing(skew=SKEW, max_width=16, max_height=8)
     sched = schedule(fault)
     got = {"L": [], "R": []}
-    state = {}
+    state = {"aborts": 0, "beats_in_abort": 0, "first_beat": None}
 
     def producer(side, port):
         async def bench(ctx):
@@ -91,9 +91,21 @@ def run(fault, *, seed=0, idle=0.0, stall=0.0):
         return bench
 
     async def clock(ctx):
+        ctx.set(dut.busy, busy_until > 0)
+        was = 0
         for cycle in range(60 + 5 * PERIOD + 200):
             state["cycle"] = cycle
-            await ctx.tick()
+            if cycle == busy_until:
+                ctx.set(dut.busy, 0)
+            _c, _r, abort, lv, lr, rv, rr = await ctx.tick().sample(
+                dut.frame_abort, dut.left_o.valid, dut.left_o.ready, dut.right_o.valid,
+                dut.right_o.ready)
+            state["aborts"] += abort & ~was & 1
+            was = abort
+            moved = (lv and lr) or (rv and rr)
+            state["beats_in_abort"] += bool(abort and moved)
+            if moved and state["first_beat"] is None:
+                state["first_beat"] = cycle
         state["counts"] = {k: ctx.get(getattr(dut, k)) for k in ("pairs_ok", "mispaired", "dropped")}
 
     sim = Simulator(dut)
@@ -106,7 +118,7 @@ def run(fault, *, seed=0, idle=0.0, stall=0.0):
     sim.run()
     gold = pair_frames([f for _, _, f in sched["L"] if f], [f for _, _, f in sched["R"] if f],
                        skew=SKEW)
-    return got, state["counts"], gold, sched
+    return got, state["counts"], gold, sched, state
 
 
 def split(beats):
@@ -130,7 +142,7 @@ def test_bad_parameters():
 
 @pytest.mark.parametrize("fault", FAULTS)
 def test_faults_resynchronise_and_are_counted(fault):
-    got, counts, gold, sched = run(fault, seed=FAULTS.index(fault), idle=0.2, stall=0.2)
+    got, counts, gold, sched, state = run(fault, seed=FAULTS.index(fault), idle=0.2, stall=0.2)
     assert counts == {"pairs_ok": gold.pairs_ok, "mispaired": gold.mispaired,
                       "dropped": gold.dropped}
     if fault != "none":
@@ -146,6 +158,19 @@ def test_faults_resynchronise_and_are_counted(fault):
             else:
                 assert out == src[:len(out)] or tag == ("R", 1)   # a prefix (the cut frame's)
     assert gold.pairs[-1][2] and gold.pairs[-2][2]                 # (Ln, Rn) again
+    # rule 4: abort rises once per abandoned pair, and nothing is forwarded while it is high
+    assert state["aborts"] == gold.mispaired
+    assert state["beats_in_abort"] == 0
+
+
+def test_no_pair_starts_while_the_pipeline_is_in_a_frame():
+    """Rule 4: both held field starts wait while ``busy`` (the pipeline is inside a frame), then
+    the pairs are the same."""
+    free = run("none")
+    held = run("none", busy_until=free[4]["first_beat"] + 30)
+    assert held[4]["first_beat"] == free[4]["first_beat"] + 30 + 1
+    assert held[0] == free[0] and held[1] == free[1] == {"pairs_ok": 5, "mispaired": 0,
+                                                         "dropped": 0}
 
 
 def test_reset_mid_frame_gives_no_phantom_frame():

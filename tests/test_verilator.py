@@ -47,7 +47,7 @@ def test_color_full_frame_no_stalls(random_752):
     check_color(run, [random_752])
     # one pixel per clock: every cycle moves a pixel, plus the pipeline latency
     assert run.cycles == 480 * 752 + ColorConvert.LATENCY
-    assert run.status == {"errors": 0, "dropped": 0}
+    assert run.status == {"in_frame": 0, "errors": 0, "dropped": 0}
     print(f"verilator color 752x480: {run.total_cycles} cycles in {run.seconds:.3f} s, "
           f"{run.cycles_per_second / 1e6:.2f} M cycles/s")
 
