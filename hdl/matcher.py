@@ -675,21 +675,19 @@ class Matcher(wiring.Component):
         ls_k = Signal(range(W + 1)); ls_y = Signal(YW); ls_lim = Signal(YW + 1)
         ls_top = Signal(SB)
 
-        def line_select(words, slots):
-            """The W window lines (top first) of one column from the ROWS / 2 pair words
-            (slot 2q in the low byte of pair q, slot 2q + 1 in the high byte)."""
-            datas = Array(words)
-            return [Mux(s[0], datas[s >> 1][8:16], datas[s >> 1][0:8]) for s in slots]
+        def slot_bytes(words):
+            """One column of every line slot, in slot order, from the ROWS / 2 pair words (slot
+            2q in the low byte of pair q, slot 2q + 1 in the high byte). No line selection: both
+            cameras keep line y in slot y mod ROWS, so the windows hold the same lines in the
+            same slots, and the cost lane masks the slots outside the window (the window cost
+            is a sum, whatever the order of its lines)."""
+            return [w[8 * h:8 * h + 8] for w in words for h in (0, 1)]
 
-        def slot_regs(top, name):
-            """Registered slots of the W window lines from a registered top slot."""
-            regs = []
-            for j in range(W):
-                idx = top + j
-                sj = Signal(SB, name=f"{name}{j}")
-                m.d.sync += sj.eq(Mux(idx >= ROWS, idx - ROWS, idx))
-                regs.append(sj)
-            return regs
+        def window_slots(top):
+            """Bit s: slot s holds one of the W lines of the window whose top line is in slot
+            ``top`` (a constant per top slot)."""
+            masks = [sum(1 << ((t + j) % ROWS) for j in range(W)) for t in range(ROWS)]
+            return Array(Const(v, ROWS) for v in masks)[top]
 
         # Registered: lneed changes only when a row marker is popped, and the left stage then
         # holds that marker for at least a cycle, so the value is fresh when a job can pop.
@@ -711,25 +709,24 @@ class Matcher(wiring.Component):
 
         # Left column reads: decision (LS) -> address -> BRAM -> raw words -> shadow.
         lports = [mem.read_port() for mem in L.ymem]
-        l2_addr = Signal(XW + 1); l2_v = Signal(); l2_top = Signal(SB)
-        l3_v = Signal(); l3_top = Signal(SB)
+        l2_addr = Signal(XW + 1); l2_v = Signal()
+        l3_v = Signal()
         l4_v = Signal(); l4_raw = [Signal(16, name=f"l4_raw{q}") for q in range(ROWS // 2)]
         m.d.sync += l2_v.eq(0)
         with m.If(ls_full & (ls_kind == KIND_JOB) & (ls_k != W)):
-            m.d.sync += [l2_addr.eq(ls_base + ls_k), l2_v.eq(1), l2_top.eq(ls_top),
-                         ls_k.eq(ls_k + 1)]
+            m.d.sync += [l2_addr.eq(ls_base + ls_k), l2_v.eq(1), ls_k.eq(ls_k + 1)]
         for pt in lports:
             m.d.comb += pt.addr.eq(l2_addr)
-        m.d.sync += [l3_v.eq(l2_v), l3_top.eq(l2_top), l4_v.eq(l3_v)]
+        m.d.sync += [l3_v.eq(l2_v), l4_v.eq(l3_v)]
         m.d.sync += [raw.eq(pt.data) for raw, pt in zip(l4_raw, lports)]
-        l4_slots = slot_regs(l3_top, "l4_slot")
-        lcol = line_select(l4_raw, l4_slots)
-        shadow = [[Signal(8, name=f"shadow_{i}_{j}") for j in range(W)] for i in range(W)]
+        lcol = slot_bytes(l4_raw)
+        # shadow[i][s]: window column i (0 = x - r), line slot s
+        shadow = [[Signal(8, name=f"shadow_{i}_{j}") for j in range(ROWS)] for i in range(W)]
         with m.If(l4_v):
             for i in range(W - 1):
-                for j in range(W):
+                for j in range(ROWS):
                     m.d.sync += shadow[i][j].eq(shadow[i + 1][j])
-            for j in range(W):
+            for j in range(ROWS):
                 m.d.sync += shadow[W - 1][j].eq(lcol[j])
 
         # Walker.
@@ -813,19 +810,18 @@ class Matcher(wiring.Component):
         t4 = stage(t3, "t4")
         r4_raw = [Signal(16, name=f"r4_raw{q}") for q in range(ROWS // 2)]
         m.d.sync += [raw.eq(pt.data) for raw, pt in zip(r4_raw, rports)]
-        r4_slots = slot_regs(t3["top"], "r4_slot")
-        rcol = line_select(r4_raw, r4_slots)
-        lwin = [[Signal(8, name=f"lwin_{i}_{j}") for j in range(W)] for i in range(W)]
-        rwin = [[Signal(8, name=f"rwin_{i}_{j}") for j in range(W)] for i in range(W)]
+        rcol = slot_bytes(r4_raw)
+        lwin = [[Signal(8, name=f"lwin_{i}_{j}") for j in range(ROWS)] for i in range(W)]
+        rwin = [[Signal(8, name=f"rwin_{i}_{j}") for j in range(ROWS)] for i in range(W)]
         with m.If(t4["v"]):
             for i in range(W - 1):
-                for j in range(W):
+                for j in range(ROWS):
                     m.d.sync += rwin[i + 1][j].eq(rwin[i][j])
-            for j in range(W):
+            for j in range(ROWS):
                 m.d.sync += rwin[0][j].eq(rcol[j])
             with m.If(t4["first"]):
                 for i in range(W):
-                    for j in range(W):
+                    for j in range(ROWS):
                         m.d.sync += lwin[i][j].eq(shadow[i][j])
         retired_inc = Signal()
         m.d.comb += retired_inc.eq(t4["mk"] == KIND_ROW)
@@ -837,15 +833,18 @@ class Matcher(wiring.Component):
         # D5: SAD tree over (lwin, rwin) for the positions that are candidates.
         tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": KB,
                                         "d1": KB + 1, "x": XW, "y": YW, "doomed": 1})
-        m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size, cost=self._cost)
+        m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size, cost=self._cost,
+                                         lines=ROWS)
         t5_tag = Signal(tag_layout)
+        t5_slots = Signal(ROWS)           # the job's window slots
+        m.d.sync += t5_slots.eq(window_slots(t4["top"]))
         m.d.sync += [t5_tag.fire.eq(t4["fire"]), t5_tag.ff.eq(t4["ff"]),
                      t5_tag.last.eq(t4["last"]), t5_tag.frame.eq(t4["mk"] == KIND_FRAME),
                      t5_tag.d.eq(t4["d"]), t5_tag.d1.eq(t4["d1"]), t5_tag.x.eq(t4["x"]),
                      t5_tag.y.eq(t4["y"]), t5_tag.doomed.eq(doomed4)]
-        m.d.comb += [sad.valid.eq(t5_tag.fire), sad.tag.eq(t5_tag),
-                     sad.left.eq(Cat(*[lwin[i][j] for i in range(W) for j in range(W)])),
-                     sad.right.eq(Cat(*[rwin[i][j] for i in range(W) for j in range(W)]))]
+        m.d.comb += [sad.valid.eq(t5_tag.fire), sad.tag.eq(t5_tag), sad.mask.eq(t5_slots),
+                     sad.left.eq(Cat(*[lwin[i][j] for i in range(W) for j in range(ROWS)])),
+                     sad.right.eq(Cat(*[rwin[i][j] for i in range(W) for j in range(ROWS)]))]
         s_tag = data.View(tag_layout, sad.o_tag)
 
         # Winner over the candidates of each job.

@@ -23,8 +23,8 @@ from golden.matcher import COSTS
 __all__ = ["SadTree", "sad_latency", "term_max"]
 
 
-def sad_latency(window):
-    n, stages = window * window, 1
+def sad_latency(window, lines=None):
+    n, stages = window * (window if lines is None else lines), 1
     while n > 1:
         n, stages = (n + 1) // 2, stages + 1
     return stages
@@ -44,34 +44,42 @@ def _popcount8(v):
 
 
 class SadTree(wiring.Component):
-    """Ports: ``valid``, ``tag``, ``left`` and ``right`` (``window**2`` bytes each, index
-    ``column * window + line``) in; ``o_valid``, ``o_tag``, ``sad`` (the window cost) out,
-    :func:`sad_latency` cycles later. ``cost``: ``"sad"`` or ``"census"``."""
+    """Ports: ``valid``, ``tag``, ``left`` and ``right`` (``window * lines`` bytes each, index
+    ``column * lines + line``) and ``mask`` (bit ``line``: that line's terms count; the others
+    are 0) in; ``o_valid``, ``o_tag``, ``sad`` (the window cost) out, :func:`sad_latency`
+    cycles later. ``cost``: ``"sad"`` or ``"census"``. ``lines`` (default ``window``): the
+    matcher feeds every line slot of its line store, the window's ``window`` of them masked
+    in, instead of selecting them (``hdl/matcher.py``); at most ``window`` mask bits may be
+    set (``sad`` is as wide as a window of ``window`` lines needs)."""
 
-    def __init__(self, window=7, tag_width=1, cost="sad"):
+    def __init__(self, window=7, tag_width=1, cost="sad", lines=None):
         self.window = window
+        self.lines = window if lines is None else lines
+        if self.lines < window:
+            raise ValueError(f"lines ({self.lines}) must be at least the window ({window})")
         self.cost = cost
-        self.latency = sad_latency(window)
+        self.latency = sad_latency(window, self.lines)
         self.term_max = term_max(cost)
         self.sad_width = bits_for(self.term_max * window * window)
-        n = window * window
+        n = window * self.lines
         super().__init__({
             "valid": In(1), "tag": In(tag_width),
-            "left": In(8 * n), "right": In(8 * n),
+            "left": In(8 * n), "right": In(8 * n), "mask": In(self.lines),
             "o_valid": Out(1), "o_tag": Out(tag_width), "sad": Out(self.sad_width),
         })
 
     def elaborate(self, platform):
         m = Module()
-        n = self.window * self.window
+        n = self.window * self.lines
         terms = []
         for i in range(n):
             a, b = self.left[8 * i:8 * i + 8], self.right[8 * i:8 * i + 8]
+            on = self.mask[i % self.lines]
             t = Signal(bits_for(self.term_max), name=f"ad{i}")
             if self.cost == "sad":
-                m.d.sync += t.eq(Mux(a >= b, a - b, b - a))
+                m.d.sync += t.eq(Mux(on, Mux(a >= b, a - b, b - a), 0))
             else:
-                m.d.sync += t.eq(_popcount8(a ^ b))
+                m.d.sync += t.eq(_popcount8((a ^ b) & on.replicate(8)))
             terms.append((t, self.term_max))
         v, tag = self.valid, self.tag
         vs, ts = Signal(name="v1"), Signal(len(tag), name="t1")

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
+from amaranth.utils import bits_for
 
 from golden.census import POPCOUNT8
 from hdl.matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
@@ -49,14 +50,19 @@ def test_bit_logic(n):
     simulate(m, bench, clock=False)
 
 
-@pytest.mark.parametrize("window,cost", [(3, "sad"), (7, "sad"), (3, "census"), (7, "census")])
-def test_sad_tree(window, cost):
-    dut = SadTree(window, tag_width=8, cost=cost)
-    n = window * window
-    rng = np.random.default_rng(window)
+@pytest.mark.parametrize("window,cost,lines", [(3, "sad", 3), (7, "sad", 7), (3, "census", 3),
+                                               (7, "census", 7), (3, "sad", 4),
+                                               (7, "census", 8), (5, "census", 8)])
+def test_sad_tree(window, cost, lines):
+    # lines > window: every line slot is fed and a mask of `window` bits picks the window's
+    # (as the matcher does); lines == window: the mask has every bit set
+    dut = SadTree(window, tag_width=8, cost=cost, lines=lines)
+    n = window * lines
+    rng = np.random.default_rng(window + 10 * lines)
     cycles = 60
     lefts = rng.integers(0, 256, (cycles, n))
     rights = rng.integers(0, 256, (cycles, n))
+    masks = np.array([rng.permutation(lines) < window for _ in range(cycles)])
     lefts[0], rights[0] = 255, 0                       # the largest sum of either cost
     valid = rng.random(cycles) < 0.6
     pack = lambda a: sum(int(b) << (8 * i) for i, b in enumerate(a))
@@ -67,6 +73,7 @@ def test_sad_tree(window, cost):
             if t < cycles:
                 ctx.set(dut.left, pack(lefts[t]))
                 ctx.set(dut.right, pack(rights[t]))
+                ctx.set(dut.mask, int(sum(1 << j for j in range(lines) if masks[t, j])))
                 ctx.set(dut.valid, int(valid[t]))
                 ctx.set(dut.tag, t)
             else:
@@ -79,12 +86,13 @@ def test_sad_tree(window, cost):
         terms = np.abs(lefts - rights)
     else:
         terms = POPCOUNT8[np.bitwise_xor(lefts, rights)]
-    want = [(t, int(terms[t].sum())) for t in range(cycles) if valid[t]]
-    assert dut.sad_width == {("sad", 3): 12, ("sad", 7): 14, ("census", 3): 7,
-                             ("census", 7): 9}[cost, window]
+    on = np.tile(masks, (1, window))                   # index column * lines + line
+    want = [(t, int(terms[t][on[t]].sum())) for t in range(cycles) if valid[t]]
+    assert dut.sad_width == {"sad": bits_for(255 * window * window),
+                             "census": bits_for(8 * window * window)}[cost]
     assert [(tag, sad) for _, tag, sad in got] == want
-    assert {lat for lat, _, _ in got} == {sad_latency(window)}
-    assert sad_latency(window) == dut.latency == (7 if window == 7 else 5)
+    assert {lat for lat, _, _ in got} == {sad_latency(window, lines)} == {dut.latency}
+    assert sad_latency(7) == 7 and sad_latency(3) == 5 and sad_latency(7, 8) == 7
 
 
 def reference_winner(cands):
