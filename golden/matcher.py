@@ -56,8 +56,10 @@ uses while it visits candidates in increasing ``d`` (see ``hdl/matcher.py``): ke
 and the smallest cost among the candidates more than one away from it; a new best at ``d`` takes
 as its far minimum the smallest cost among earlier candidates below ``d - 1``.
 
-Version 1 (the :class:`MatcherParams` defaults, what the RTL implements today): ``sad``,
-``sign = "same"``, ``widen`` 0 or 1, no consistency, no subpixel. Version 2 (:func:`v2_params`,
+Version 1 (the :class:`MatcherParams` defaults): ``sad``, ``sign = "same"``, ``widen`` 0 or 1,
+no consistency, no subpixel. The RTL implements steps 1-5 with either cost (an elaboration
+choice), either sign and ``widen`` 0..2; its default is :data:`RTL` (census, ``sign = "any"``,
+``widen = 2``, uniqueness 64), ``golden.pipeline.default_params``. Version 2 (:func:`v2_params`,
 ``golden.pipeline.default_params(..., version=2)``): ``census``, ``sign = "any"``,
 ``widen = 2``, ``uniqueness = 64``, ``unique_right``, ``subpixel``; with front-end thresholds
 128 / 128. golden/matcher_plain.py states every step as loops; the tests check that this
@@ -167,8 +169,8 @@ _NONE = np.int32(1 << 30)
 
 @dataclass(frozen=True)
 class MatcherParams:
-    """Matcher parameters. The defaults are version 1, the algorithm the RTL implements;
-    :func:`v2_params` gives version 2."""
+    """Matcher parameters. The defaults are version 1; :func:`v2_params` gives version 2 and
+    :data:`RTL` what the RTL runs by default."""
     d_min: int = 0
     d_max: int = DISPARITY_SPAN - 1
     window: int = 7

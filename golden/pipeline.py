@@ -44,13 +44,14 @@ V2_THRESHOLD = 128
 #: :data:`golden.matcher.RTL`). A weaker right threshold keeps more true matches among the
 #: candidates; the left one trades points against the matcher's time. Measured on the
 #: motorcycle pair, ground off (sim/bench_matcher.py), left / right: 128 / 96 bad-2 5.7 %,
-#: 8,688 points within 2 px; 144 / 96 5.5 %, 8,008; 160 / 96 5.4 %, 7,421; 192 / 96 5.2 %,
-#: 6,334 (right 64 / 80 / 112 / 128 with left 128: bad-2 5.9 / 5.8 / 6.0 / 6.7 %). The SoC at
-#: NTSC field rate (``python -m sim system --scene motorcycle``, 720 x 240) keeps up with 160
-#: (zero drops, bit-exact) but not with 144 or 128: a row with many left edges takes the
-#: matcher longer than a line time, the line store holds one line of slack and the camera
-#: buffers 330 pixels, and the camera FIFOs overflow.
-RTL_THRESHOLDS = (160, 96)
+#: 8,688 points within 2 px; 144 / 96 5.5 %, 8,008; 160 / 96 5.4 %, 7,421; 176 / 96 5.2 %,
+#: 6,881; 192 / 96 5.2 %, 6,334 (right 64 / 80 / 112 / 128 with left 128: bad-2 5.9 / 5.8 /
+#: 6.0 / 6.7 %). The SoC at NTSC field rate (``python -m sim system --scene motorcycle``,
+#: 720 x 240, 16-pixel camera FIFOs) keeps up with 176 and 192 (zero drops, bit-exact) but not
+#: with 160 or lower: a row with many left edges takes the matcher longer than a line time,
+#: the line store holds one line of slack and the camera buffers about 280 pixels, and the
+#: camera FIFOs overflow.
+RTL_THRESHOLDS = (176, 96)
 
 
 @dataclass(frozen=True)

