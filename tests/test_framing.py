@@ -98,10 +98,12 @@ def test_a_sof_after_the_abort_is_no_error():
 FIRST_WORDS = 80        # two lines of the good pair
 
 
-def run_pipeline_with_cut_pair(abort, *, gap=700):
+def run_pipeline_with_cut_pair(abort, *, gap=2 * CLEAR_CYCLES + 180):
     """The pipeline on a pair cut after 5 rows and 3 pixels (with ``abort`` raised once both
     inputs have taken the cut frames' beats, as the pairing does, and held until no unit is in
-    a frame), ``gap`` idle cycles (the cut frames' discarded rest), then two good pairs. Returns
+    a frame), ``gap`` idle cycles (the cut frames' discarded rest: long enough for both ground
+    units to clear their counts, one after the other on the shared search engine), then two
+    good pairs. Returns
     the output frames, the golden frames of the good pairs and a dict: the cycles each input
     took for the first :data:`FIRST_WORDS` words of the good pairs (``first_words``), and the
     cycles from the abort to the pipeline leaving the frame (``leave``)."""

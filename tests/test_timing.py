@@ -18,8 +18,9 @@ def test_wrapper_covers_every_port():
         assert re.search(rf"\.{port}\((sh|q)\[", text), port
     n_in = int(re.search(r"reg \[(\d+):0\] sh", text).group(1)) + 1
     n_out = int(re.search(r"wire \[(\d+):0\] q", text).group(1)) + 1
-    assert n_in == 1 + 1 + 27 + 1          # rst, i valid + payload, o ready
-    assert n_out == 1 + 1 + 27 + 16 + 32   # i ready, o valid + payload, errors, dropped
+    assert n_in == 1 + 1 + 27 + 1 + 1      # rst, i valid + payload, o ready, frame_abort
+    assert n_out == 1 + 1 + 27 + 16 + 32 + 1   # i ready, o valid + payload, errors, dropped,
+    #                                            in_frame
 
 
 def test_every_clock_domain_gets_its_pin_shift_register_and_fold():
