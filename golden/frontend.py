@@ -5,10 +5,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .census import census
 from .color import rgb_to_yhs
 from .freespace import FreeSpaceParams
 from .ground import GroundModel, GroundParams
+from .matcher import matched_values
 from .sobel import SobelParams, sobel_edges
 
 __all__ = ["FrontEndParams", "FrontEndFrame", "FrontEndModel", "frontend_frames", "as_rgb"]
@@ -39,12 +39,14 @@ class FrontEndFrame:
     sets: tuple = None   # (hue set, luma set) the frame was classified with; None: default bands
     free: np.ndarray = None  # free-space row per column band (uint16, golden.freespace)
 
-    def output(self, cost="sad"):
-        """The front end's output stream fields. The matcher takes them as they are
-        (:func:`golden.matcher.match` computes the census words itself); ``cost = "census"``:
-        the stream of a front end built for the census cost, whose Sobel unit computes the
-        census words and sends them in place of the luminance (``hdl.sobel.SobelEdges``)."""
-        y = census(self.y) if cost == "census" else self.y
+    def output(self, matcher=None):
+        """The front end's output stream fields. :func:`golden.matcher.match` takes them as
+        they are (it computes its matched values itself); with ``matcher`` (the
+        :class:`golden.matcher.MatcherParams` of the RTL matcher the stream feeds) ``y``
+        carries those matched values (:func:`golden.matcher.matched_values`), as a front end
+        built for the census cost sends its census words in place of the luminance
+        (``hdl.sobel.SobelEdges``)."""
+        y = self.y if matcher is None else matched_values(self.y, matcher)
         return dict(y=y, edge=self.edge, neg=self.neg)
 
 

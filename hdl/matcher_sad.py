@@ -1,5 +1,6 @@
-"""Full-window cost lane of the matcher: the window cost of two W x W windows of bytes, one
-window pair a cycle, pipelined (specification: ``golden/matcher.py``, step 3).
+"""Full-window cost lane of the matcher: the window cost of two W x W windows of bytes (fed as
+W columns of ``lines`` bytes, the lines outside the window masked off), one window pair a cycle,
+pipelined (specification: ``golden/matcher.py``, step 3).
 
 Two costs, chosen at elaboration:
 
@@ -7,10 +8,10 @@ Two costs, chosen at elaboration:
 * ``census``: ``sum popcount(L ^ R)`` of census words (golden/census.py; the front end's Sobel
   unit computes them, :class:`hdl.sobel.SobelEdges` ``census``): at most ``8 W^2`` (9 bits).
 
-Stage 1 registers the W^2 per-pixel terms (an 8-bit absolute difference, or the 4-bit popcount
-of an 8-bit XOR: two LUT levels, no carry), then each stage adds pairs of the previous stage's
-sums (one carry chain of at most 14 bits a stage), so the latency is ``1 + ceil(log2(W^2))``
-cycles (7 for W = 7) and nothing stalls: a ``tag`` travels beside each window pair and comes
+Stage 1 registers the W x lines per-pixel terms (an 8-bit absolute difference, or the 4-bit
+popcount of an 8-bit XOR: two LUT levels, no carry; 0 for a masked line), then each stage adds
+pairs of the previous stage's sums (one carry chain of at most 14 bits a stage), so the latency
+is ``1 + ceil(log2(W x lines))`` cycles (7 for W = 7, with 7 or 8 lines) and nothing stalls: a ``tag`` travels beside each window pair and comes
 out with its sum, ``valid`` marks the pairs that carry one.
 """
 from amaranth.hdl import Module, Signal, Mux

@@ -14,8 +14,7 @@ and without pressure, elaboration errors. Full frames run under Verilator elsewh
 import numpy as np
 import pytest
 
-from golden.census import census
-from golden.matcher import MatcherParams, match, STAT_KEYS
+from golden.matcher import MatcherParams, match, matched_values, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher
 from hdl.types import EdgePixel
@@ -166,11 +165,10 @@ def run_checked(name, make_dut, left_words, right_words, expected, params, **kw)
 
 
 def stream_words(frames, params):
-    """Input words of front-end frames: with the census cost the front end sends each pixel's
-    census word in place of its luminance (golden.frontend.FrontEndFrame.output)."""
-    if params.cost == "census":
-        frames = [{**f, "y": census(f["y"])} for f in frames]
-    return frames_words(EDGE, frames)
+    """Input words of front-end frames: ``y`` carries the matched values (with the census cost
+    the front end sends each pixel's census word in place of its luminance,
+    golden.frontend.FrontEndFrame.output)."""
+    return frames_words(EDGE, [{**f, "y": matched_values(f["y"], params)} for f in frames])
 
 
 def run_and_check(name, make_dut, frames_l, frames_r, params, *, seeds=(0,), idle=0.0,
