@@ -33,10 +33,9 @@ For every LEFT edge pixel ``(x, y)`` in raster order (row by row, left to right)
    candidate ``d'`` with ``|d' - d_best| > 1`` has ``SAD(d') * 256 <= SAD(d_best) * (256 + u)``.
    ``far_min`` is the smallest such far cost (none: no far candidate).
 6. **Subpixel and confidence** (``subpixel``; records are :data:`RECORD_DTYPE_V2`): with
-   ``c0 = SAD(d)``, ``cm = SAD(d - 1)``, ``cp = SAD(d + 1)``, a neighbour that was not a
-   candidate is evaluated now (counted in ``sad_evaluations``) when ``d +- 1`` lies in
-   ``[d_min, d_max]`` and its right window inside the image; if either neighbour is outside,
-   the offset is 0. Otherwise (:func:`subpixel_offset`, the equiangular fit OpenCV's StereoBM
+   ``c0 = SAD(d)``, ``cm = SAD(d - 1)``, ``cp = SAD(d + 1)``: if either neighbour was not a
+   candidate (step 2), the offset is 0 (nothing more is evaluated: the hardware has the
+   neighbours' costs from the candidates it visits in increasing ``d``). Otherwise (:func:`subpixel_offset`, the equiangular fit OpenCV's StereoBM
    uses): ``den = max(cm, cp) - c0``, offset 0 if ``den <= 0``, else
    ``sign(cm - cp) * ((16 * |cm - cp| + den) // (2 * den))`` clipped to -8..8, i.e.
    ``8 (cm - cp) / den`` rounded half away from zero. ``d16 = 16 d + offset`` (1/16 px).
@@ -58,8 +57,9 @@ as its far minimum the smallest cost among earlier candidates below ``d - 1``.
 
 Version 1 (the :class:`MatcherParams` defaults): ``sad``, ``sign = "same"``, ``widen`` 0 or 1,
 no consistency, no subpixel. The RTL implements steps 1-5 with either cost (an elaboration
-choice), either sign and ``widen`` 0..2; its default is :data:`RTL` (census, ``sign = "any"``,
-``widen = 2``, uniqueness 64), ``golden.pipeline.default_params``. Version 2 (:func:`v2_params`,
+choice), either sign and ``widen`` 0..2, and step 6 with the census cost; its default is
+:data:`RTL` (census, ``sign = "any"``, ``widen = 2``, uniqueness 64, subpixel),
+``golden.pipeline.default_params``. Version 2 (:func:`v2_params`,
 ``golden.pipeline.default_params(..., version=2)``): ``census``, ``sign = "any"``,
 ``widen = 2``, ``uniqueness = 64``, ``unique_right``, ``subpixel``; with front-end thresholds
 128 / 128. golden/matcher_plain.py states every step as loops; the tests check that this
@@ -87,13 +87,13 @@ Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 
   160 instead of 128: 7.6 % / 1.26 %. The true disparity is a candidate for 85.0 % of the left
   edges with ground truth (88.6 % of those not occluded; v1: 83.8 %): 97 % needs right edges
   without non-maximum suppression at threshold <= 64 (2.6 % of dense), over the budget.
-* **Subpixel**: the costs at ``d - 1`` and ``d + 1`` are the candidate visited just before the
-  best and the one just after it (two registers updated with the best), so with ``widen >= 1``
-  a neighbour is rarely missing (524 extra evaluations on the motorcycle pair, 0.2 % of its
-  264,000); a missing one costs one extra evaluation (one lane cycle) after the scan, while the
-  window is still in the line store. The offset is an unsigned 4-bit quotient of 9-bit
-  operands: a 4-step restoring divider (4 cycles, ~25 LUT4) per record, or a 2-stage pipelined
-  one; 0 RAMB16.
+* **Subpixel** (in the RTL: hdl/matcher_winner.py keeps the neighbours' costs,
+  hdl/matcher_post.py fits): the costs at ``d - 1`` and ``d + 1`` are the candidate visited
+  just before the best and the one just after it (registers updated with the best). A
+  neighbour that was not a candidate leaves the offset at 0 rather than costing an evaluation
+  after the scan (that rule evaluated 524 more windows on the motorcycle pair, 0.2 % of its
+  264,000, and changed bad-1 by less than 0.1 %). The offset is a 4-bit quotient of 9-bit
+  operands: a 4-step restoring divider, one step a pipeline stage; 0 RAMB16.
 * **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, a wire shift, the constant
   and saturation: ~35 LUT4) per record, no extra cycles. Ranking by it, the 4,496 most
   confident motorcycle points have bad-2 0.4 % (StereoBM 15 at the same count: 3.1 %;
@@ -235,10 +235,10 @@ V2 = dict(uniqueness=64, widen=2, cost="census", sign="any", consistency="unique
           subpixel=True)
 
 
-#: What the RTL runs by default (hdl/matcher.py): version 2's census cost, candidates and
-#: uniqueness, without its two post-steps (``unique_right``, ``subpixel``), which the RTL does
-#: not implement yet.
-RTL = {k: v for k, v in V2.items() if k not in ("consistency", "subpixel")}
+#: What the RTL runs by default (hdl/matcher.py): version 2 without its consistency step
+#: (``unique_right``), which the RTL does not implement: census cost, candidates, uniqueness,
+#: subpixel d and confidence.
+RTL = {k: v for k, v in V2.items() if k != "consistency"}
 
 
 def v2_params(**overrides):
@@ -605,7 +605,6 @@ def match(left, right, params=MatcherParams(), form="auto"):
         raise ValueError(f"left {yl.shape} and right {yr.shape} frames differ in size")
     vl, vr = matched_values(yl, p), matched_values(yr, p)
     h, w = yl.shape
-    r = p.window // 2
     ys, xs, inside, cand = candidates(left, right, p)
     n, nd = cand.shape
     lin = np.flatnonzero(cand)                 # row-major: grouped by edge, increasing d
@@ -632,17 +631,12 @@ def match(left, right, params=MatcherParams(), form="auto"):
     d = kbest[idx] + p.d_min
     if p.subpixel:
         side = []
-        for step in (-1, 1):
+        for step in (-1, 1):           # the neighbour's cost, if it was a candidate
             kn = kbest[idx] + step
-            usable = (kn >= 0) & (kn < nd) & (xs[idx] - (d + step) - r >= 0)
             q = idx * nd + kn
             pos = np.minimum(np.searchsorted(lin, q), max(len(lin) - 1, 0))
-            found = usable & (lin[pos] == q)
-            cn = np.where(found, c[pos].astype(np.int64), _NONE)
-            missing = np.flatnonzero(usable & ~found)          # evaluated now
-            cn[missing] = costs.at(origin[idx[missing]], d[missing] + step, form)
-            evaluations += len(missing)
-            side.append((usable, cn))
+            found = (kn >= 0) & (kn < nd) & (lin[pos] == q)
+            side.append((found, np.where(found, c[pos].astype(np.int64), _NONE)))
         (um, cm), (up, cp) = side
         off = np.where(um & up, subpixel_offset(cm, cbest[idx], cp), 0)
         conf = confidence(cbest[idx], far_min[idx], far_min[idx] < _NONE)

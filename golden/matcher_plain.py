@@ -75,17 +75,9 @@ def match_plain(left, right, p):
                 continue
             d16 = conf = None
             if p.subpixel:
-                nb = {}
-                for d in (best - 1, best + 1):
-                    if p.d_min <= d <= p.d_max and x - d - r >= 0:
-                        if d not in costs:
-                            st["sad_evaluations"] += 1
-                            nb[d] = _window_cost(vl, vr, x, y, d, r, p.cost)
-                        else:
-                            nb[d] = costs[d]
-                off = 0
-                if len(nb) == 2:
-                    off = _offset(nb[best - 1], cb, nb[best + 1])
+                off = 0                     # both neighbours must have been candidates
+                if best - 1 in costs and best + 1 in costs:
+                    off = _offset(costs[best - 1], cb, costs[best + 1])
                 d16 = best * SUBPIXEL_ONE + off
                 conf = 0
                 if far:

@@ -91,7 +91,8 @@ def default_params(width, height, *, ground="hue", version="rtl", thresholds=Non
     thresholds):
 
     * ``"rtl"`` (the default): what the RTL runs, :data:`golden.matcher.RTL` (version 2's census
-      cost, candidates and uniqueness without its post-steps), thresholds
+      cost, candidates, uniqueness, subpixel d and confidence, without its consistency step),
+      thresholds
       :data:`RTL_THRESHOLDS`;
     * ``2``: matcher version 2 (:func:`golden.matcher.v2_params`), both thresholds
       :data:`V2_THRESHOLD`;

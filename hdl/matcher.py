@@ -64,9 +64,12 @@ in flight: ``credits``):
   adder tree;
 * *winner* (:class:`~hdl.matcher_winner.Winner`): the streaming winner/uniqueness update in
   increasing ``d``, one candidate a cycle (see ``golden/matcher.py``);
-* *record stage*: the uniqueness product and comparison, then a record ``(x, y, d, cost)``
-  into the output FIFO. Post-steps (consistency, subpixel, confidence) slot in between the
-  winner and this stage.
+* *subpixel and confidence* (:class:`~hdl.matcher_post.SubpixelConfidence`, census cost
+  only): the fit through the costs at ``d - 1``, ``d``, ``d + 1`` that the winner kept, and
+  the confidence from the far minimum; a fixed-latency pipeline of 10 stages;
+* *record stage*: the uniqueness product and comparison, then a record ``(x, y, d, cost, d16,
+  conf)`` into the output FIFO. A consistency step (golden ``unique_right``) would slot in
+  here.
 
 Every address comes from a register (left: ``x - r`` + counter; right: ``x + r`` minus the
 registered index of the visited bit), every block-RAM output is registered before the line
@@ -149,31 +152,46 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for, ceil_log2
 
-from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
+from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS, SUBPIXEL_BITS
 
 from .types import EdgePixel
 from .counter import saturating_sum, wide_accumulator, wide_counter
 from .framing import FrameTracker
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
+from .matcher_post import SubpixelConfidence
 from .matcher_sad import SadTree, term_max
 from .matcher_winner import Winner
+from .fifos import DistributedSyncFIFOBuffered
 from .skid import SkidBuffer
 
-__all__ = ["Matcher", "match_record_layout", "MATCHER_WIDEN"]
+__all__ = ["Matcher", "match_record_layout", "has_subpixel", "MATCHER_WIDEN"]
 
 #: The largest candidate spread ``widen`` the scanner implements (golden/matcher.py step 2).
 MATCHER_WIDEN = 2
 
 
-def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY):
-    """Output record: ``x``, ``y``, ``d`` (``bits_for(max_disparity)``), ``cost`` (16 bits) and
-    ``eof``.
+def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, *,
+                        cost="sad", window=7):
+    """Output record: ``x``, ``y``, ``d`` (``bits_for(max_disparity)``), ``cost`` (as many bits
+    as a window cost of ``cost`` and ``window`` needs: 9 for census at 7 x 7, 14 for SAD) and
+    ``eof``; with the census cost, whose matcher has the subpixel step (golden/matcher.py step
+    6), also ``d16`` (the disparity in 1/16 px, ``bits_for(max_disparity) + SUBPIXEL_BITS``)
+    and ``conf`` (the confidence, 8 bits), before ``eof``.
 
     A record with ``eof`` = 1 is the end-of-frame marker: it carries no match (its other fields
     are 0) and is emitted after the last match of the frame, in the same cycle as the
     ``frame_*`` statistics outputs take that frame's values."""
-    return data.StructLayout({"x": bits_for(max_width - 1), "y": bits_for(max_height - 1),
-                              "d": bits_for(max_disparity), "cost": 16, "eof": 1})
+    fields = {"x": bits_for(max_width - 1), "y": bits_for(max_height - 1),
+              "d": bits_for(max_disparity), "cost": bits_for(term_max(cost) * window * window)}
+    if has_subpixel(cost):
+        fields.update(d16=bits_for(max_disparity) + SUBPIXEL_BITS, conf=8)
+    return data.StructLayout({**fields, "eof": 1})
+
+
+def has_subpixel(cost):
+    """Whether a matcher of window cost ``cost`` has the subpixel and confidence step: census
+    (SAD's 14-bit costs are wider than :class:`~hdl.matcher_post.SubpixelConfidence` takes)."""
+    return cost == "census"
 
 
 def _sat_inc(counter, by=1):
@@ -240,9 +258,12 @@ class Matcher(wiring.Component):
         self._queue_depth = queue_depth
         self._out_depth = out_depth
         self._cost = cost
+        #: golden/matcher.py step 6 in the RTL (:func:`has_subpixel`).
+        self.subpixel = has_subpixel(cost)
         self.max_disparity = max_disparity
         self.window = window
-        self.record = match_record_layout(max_width, max_height, max_disparity)
+        self.record = match_record_layout(max_width, max_height, max_disparity, cost=cost,
+                                          window=window)
         ports = {
             "left": In(stream.Signature(EdgePixel)),
             "right": In(stream.Signature(EdgePixel)),
@@ -866,23 +887,19 @@ class Matcher(wiring.Component):
         m.d.sync += w_frame.eq(s_tag.frame)
         wt = data.View(win_tag, winner.o_tag)
 
-        # Uniqueness test (E2) and output.
+        # Uniqueness test (E2), statistics and credits; the matches go on to the record.
         e_v = Signal(); e_frame = Signal(); e_bc = Signal(CB); e_bd = Signal(DB)
         e_fm = Signal(CB); e_x = Signal(XW); e_y = Signal(YW); e_doomed = Signal()
         e_evals = Signal.like(winner.evals); e_thr = Signal(CB + 9)
+        e_cm = Signal(CB); e_cp = Signal(CB); e_fit = Signal()
         m.d.sync += [e_v.eq(winner.o_valid), e_frame.eq(w_frame), e_bc.eq(winner.best_cost),
                      e_bd.eq(winner.best_d + f_dmin), e_fm.eq(winner.far_min), e_x.eq(wt.x),
                      e_y.eq(wt.y), e_doomed.eq(wt.doomed), e_evals.eq(winner.evals),
-                     e_thr.eq(winner.best_cost * (256 + self.uniqueness))]
+                     e_thr.eq(winner.best_cost * (256 + self.uniqueness)),
+                     e_cm.eq(winner.cm), e_cp.eq(winner.cp),
+                     e_fit.eq(winner.has_m & winner.has_p)]
         reject = Signal()
         m.d.comb += reject.eq((e_fm != INF) & (e_fm <= e_thr[8:]))
-
-        m.submodules.out_fifo = ofifo = fifo.SyncFIFOBuffered(width=self.record.size,
-                                                              depth=self._out_depth)
-        orec = data.View(self.record, ofifo.w_data)
-        o_pop = Signal()
-        m.d.comb += [self.o.valid.eq(ofifo.r_rdy), self.o.payload.eq(ofifo.r_data),
-                     ofifo.r_en.eq(self.o.ready), o_pop.eq(ofifo.r_rdy & self.o.ready)]
         give_back = Signal()              # a job finished without a record
         e_drop = Signal(); e_reject = Signal(); e_match = Signal()
         with m.If(e_v):
@@ -891,8 +908,40 @@ class Matcher(wiring.Component):
             with m.Elif(reject):
                 m.d.comb += [e_reject.eq(1), give_back.eq(1)]
             with m.Else():
-                m.d.comb += [e_match.eq(1), ofifo.w_en.eq(1), orec.x.eq(e_x), orec.y.eq(e_y),
-                             orec.d.eq(e_bd), orec.cost.eq(e_bc)]
+                m.d.comb += e_match.eq(1)
+
+        # Subpixel fit and confidence of the matches (census: costs narrow enough), a
+        # fixed-latency pipeline carrying the record and the frame marker along, so the
+        # end-of-frame record still follows the frame's last match.
+        rec_tag = data.StructLayout({"frame": 1, "x": XW, "y": YW, "cost": CB - 1})
+        r_in = Signal(rec_tag)
+        m.d.comb += [r_in.frame.eq(e_frame), r_in.x.eq(e_x), r_in.y.eq(e_y), r_in.cost.eq(e_bc)]
+        if self.subpixel:
+            m.submodules.post = post = SubpixelConfidence(cost_width=CB - 1, d_width=DB,
+                                                          tag_width=rec_tag.size)
+            m.d.comb += [post.valid.eq(e_match), post.d.eq(e_bd), post.c0.eq(e_bc),
+                         post.cm.eq(e_cm), post.cp.eq(e_cp), post.fit.eq(e_fit),
+                         post.far_min.eq(e_fm), post.has_far.eq(e_fm != INF),
+                         post.tag.eq(r_in)]
+            r_valid, r_tag, r_d, r_d16, r_conf = (post.o_valid, post.o_tag, post.o_d,
+                                                  post.o_d16, post.o_conf)
+        else:
+            r_valid, r_tag, r_d = e_match, r_in, e_bd
+        rt = data.View(rec_tag, r_tag)
+
+        m.submodules.out_fifo = ofifo = DistributedSyncFIFOBuffered(width=self.record.size,
+                                                                    depth=self._out_depth)
+        orec = data.View(self.record, ofifo.w_data)
+        o_pop = Signal()
+        m.d.comb += [self.o.valid.eq(ofifo.r_rdy), self.o.payload.eq(ofifo.r_data),
+                     ofifo.r_en.eq(self.o.ready), o_pop.eq(ofifo.r_rdy & self.o.ready)]
+        with m.If(r_valid):
+            m.d.comb += [ofifo.w_en.eq(1), orec.x.eq(rt.x), orec.y.eq(rt.y), orec.d.eq(r_d),
+                         orec.cost.eq(rt.cost)]
+            if self.subpixel:
+                m.d.comb += [orec.d16.eq(r_d16), orec.conf.eq(r_conf)]
+        with m.If(rt.frame):
+            m.d.comb += [ofifo.w_en.eq(1), orec.eof.eq(1)]
         # drops: the scanner's (queue full) and the engine's (window overwritten), one count
         adds = {"edge_pixels": ev["edge_pixels"], "border": ev["border"],
                 "no_candidate": ev["no_candidate"], "drops": ev["drops"] + e_drop,
@@ -901,7 +950,6 @@ class Matcher(wiring.Component):
         for name in STAT_KEYS:
             wide_accumulator(m, stat[name], adds[name], clear=e_frame)
         with m.If(e_frame):
-            m.d.comb += [ofifo.w_en.eq(1), orec.eof.eq(1)]
             # The statistics change here, before the eof record leaves the FIFO; the next
             # frame's end waits until it has left (eof_pending), so they hold until then.
             m.d.sync += [eng_done.eq(1), eof_pending.eq(1)]

@@ -20,9 +20,8 @@ hence ``cost_width`` <= 13 for the project's 16-bit rule. Measured (Yosys xc3s e
 bits, tests/test_matcher_post.py checks the rule): 185 LUT4, 585 FF, 3 LUT levels, longest
 carry 11 bits with 9-bit census costs; 247 LUT4, 669 FF, 3 levels, 15 bits at 13 bits.
 
-Not yet in the matcher: the engine must also bring the costs at ``d +- 1`` (evaluating a
-neighbour that was not a candidate, as golden does) and widen the record by the 4 fractional
-bits and the confidence (issue 13).
+In the matcher (census cost) between the winner, which keeps the costs at ``d +- 1`` when
+they were candidates (``fit``), and the record stage, which adds ``16 d_min`` to ``d16``.
 
 Stages: (1) ``cm - cp``, ``3 c0``; (2) ``max(cm, cp)`` and ``|cm - cp|``, ``far_min - 3 c0``;
 (3) ``den``, the confidence before its clip; (4) the clip test ``a >= den``, the confidence's
@@ -70,6 +69,8 @@ class SubpixelConfidence(wiring.Component):
     tag : In(tag_width)
     o_valid, o_tag : Out(1), Out(tag_width)
         ``LATENCY`` cycles after ``valid``.
+    o_d : Out(d_width)
+        ``d``, carried along.
     o_d16 : Out(d_width + SUBPIXEL_BITS)
         ``16 d + offset``, offset in -8..8 (``d16`` of golden's records).
     o_conf : Out(8)
@@ -89,7 +90,8 @@ class SubpixelConfidence(wiring.Component):
             "valid": In(1), "d": In(d_width), "c0": In(cost_width), "cm": In(cost_width),
             "cp": In(cost_width), "fit": In(1), "far_min": In(cost_width), "has_far": In(1),
             "tag": In(tag_width),
-            "o_valid": Out(1), "o_tag": Out(tag_width), "o_d16": Out(d_width + SUBPIXEL_BITS),
+            "o_valid": Out(1), "o_tag": Out(tag_width), "o_d": Out(d_width),
+            "o_d16": Out(d_width + SUBPIXEL_BITS),
             "o_conf": Out(8),
         })
 
@@ -160,6 +162,6 @@ class SubpixelConfidence(wiring.Component):
                              for n, s in (("conf", conf), ("v", v), ("d", d), ("t", t)))
         # (10) d16 = 16 d + offset
         d16 = Cat(Const(0, SUBPIXEL_BITS), d9, Const(0, 1)).as_signed() + off9    # >= 0
-        m.d.sync += [self.o_d16.eq(d16[:len(self.o_d16)]),
+        m.d.sync += [self.o_d16.eq(d16[:len(self.o_d16)]), self.o_d.eq(d9),
                  self.o_conf.eq(conf9), self.o_valid.eq(v9), self.o_tag.eq(t9)]
         return m

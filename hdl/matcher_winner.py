@@ -8,6 +8,11 @@ smallest cost so far and the smallest cost before the previous candidate. ``d1 =
 with each candidate (computed a stage earlier) so that no adder sits in front of a comparator.
 At ``last`` the result is registered on ``o_*`` for one cycle, with the ``tag`` of that
 candidate and the number of candidates (``evals``); the next edge may follow at once.
+
+For the subpixel fit (golden/matcher.py step 6) it also keeps the best's neighbours: ``cm``, the
+cost of the candidate just before the best when that one was at ``d - 1`` (``has_m``), and
+``cp``, the cost of the candidate just after it when at ``d + 1`` (``has_p``). Candidates come
+in increasing ``d``, so those are the only places the neighbours can be.
 """
 from amaranth.hdl import Module, Signal, Mux
 from amaranth.lib import wiring
@@ -26,6 +31,7 @@ class Winner(wiring.Component):
             "tag": In(tag_width),
             "o_valid": Out(1), "o_tag": Out(tag_width), "best_cost": Out(cost_width),
             "best_d": Out(d_width), "far_min": Out(cost_width),
+            "cm": Out(cost_width), "has_m": Out(1), "cp": Out(cost_width), "has_p": Out(1),
             "evals": Out(range(max_candidates + 1)),
         })
 
@@ -36,6 +42,8 @@ class Winner(wiring.Component):
         b_c = Signal(CB); b_d = Signal(dw); b_d1 = Signal(dw + 1); f_m = Signal(CB)
         a_m = Signal(CB); x_m = Signal(CB); l_d1 = Signal(dw + 1); hv = Signal()
         evals = Signal.like(self.evals)
+        l_c = Signal(CB)                       # the previous candidate's cost
+        b_cm = Signal(CB); b_hm = Signal(); b_cp = Signal(CB); b_hp = Signal()
         first = self.first
         # State seen by this candidate: the reset state at the first candidate of an edge.
         s_bc = Mux(first, INF, b_c)
@@ -47,6 +55,12 @@ class Winner(wiring.Component):
         prev_far = Mux(s_hv & (l_d1 == d), x_m, s_am)
         better = Signal()
         m.d.comb += better.eq(~s_hv | (cost < s_bc))
+        after_m = Signal()                     # the previous candidate was at d - 1
+        m.d.comb += after_m.eq(s_hv & (l_d1 == d))
+        next_p = Signal()                      # this one is at best + 1 (not better)
+        m.d.comb += next_p.eq(~better & (d == s_bd1))
+        n_cm, n_hm = Mux(better, l_c, b_cm), Mux(better, after_m, b_hm)
+        n_cp, n_hp = Mux(next_p, cost, b_cp), ~better & (next_p | b_hp)
         with m.If(self.valid):
             m.d.sync += [
                 b_c.eq(Mux(better, cost, s_bc)),
@@ -56,6 +70,7 @@ class Winner(wiring.Component):
                 a_m.eq(Mux(cost < s_am, cost, s_am)),
                 x_m.eq(s_am), l_d1.eq(self.d1), hv.eq(1),
                 evals.eq(Mux(first, 1, evals + 1)),
+                l_c.eq(cost), b_cm.eq(n_cm), b_hm.eq(n_hm), b_cp.eq(n_cp), b_hp.eq(n_hp),
             ]
         m.d.sync += self.o_valid.eq(self.valid & self.last)
         with m.If(self.valid & self.last):
@@ -66,5 +81,6 @@ class Winner(wiring.Component):
                 self.far_min.eq(Mux(better, prev_far,
                                     Mux((d > s_bd1) & (cost < s_fm), cost, s_fm))),
                 self.evals.eq(Mux(first, 1, evals + 1)),
+                self.cm.eq(n_cm), self.has_m.eq(n_hm), self.cp.eq(n_cp), self.has_p.eq(n_hp),
             ]
         return m

@@ -76,8 +76,8 @@ class StereoPipeline(wiring.Component):
         ports = {
             "left": In(stream.Signature(RGBPixel)),
             "right": In(stream.Signature(RGBPixel)),
-            "o": Out(stream.Signature(match_record_layout(max_width, max_height,
-                                                                  max_disparity))),
+            "o": Out(stream.Signature(match_record_layout(max_width, max_height, max_disparity,
+                                                          cost=cost, window=window))),
             "ground": In(GroundConfig),
             "threshold": In(THRESHOLD_BITS), "right_threshold": In(THRESHOLD_BITS),
             "ratio": In(RATIO_BITS), "nms": In(1),

@@ -113,7 +113,7 @@ def load_pair(quick):
 
 def pipeline_accuracy(bench, left, right, gt):
     from golden.pipeline import default_params, pipeline_frames
-    from golden.matcher import accuracy
+    from golden.matcher import accuracy, record_disparity
     h, w = gt.shape
     runs = {"pipeline_default": {}, "pipeline_adaptive": {"widen": False},
             "pipeline_full": {"mode": "full"}}
@@ -129,7 +129,7 @@ def pipeline_accuracy(bench, left, right, gt):
             scored = edge & np.isfinite(gt)
         elif not np.array_equal(scored, edge & np.isfinite(gt)):
             raise AssertionError(f"{key}: the left edge pixels differ from the default mode's")
-        r = score(f.records["x"], f.records["y"], f.records["d"], scored, gt)
+        r = score(f.records["x"], f.records["y"], record_disparity(f.records), scored, gt)
         ref = accuracy(f.records, f.stats, f.left.edge, gt)      # the project's own helper
         for name in ("density", "bad1", "bad2"):
             if abs(ref[name] - r[name]) > 1e-12:

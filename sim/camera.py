@@ -179,10 +179,8 @@ MOTORCYCLE = Camera(994.978, 994.978, 311.193, 254.877, 0.193001, None, 0.0, (0,
 def disparity(records):
     """Each record's disparity in pixels: the subpixel ``d16`` / 16 where the matcher gives one
     (matcher version 2), else the integer ``d``."""
-    from golden.matcher import SUBPIXEL_ONE
-    if "d16" in records.dtype.names:
-        return records["d16"].astype(np.float64) / SUBPIXEL_ONE
-    return records["d"].astype(np.float64)
+    from golden.matcher import record_disparity
+    return record_disparity(records)
 
 
 def match_table(camera, records):

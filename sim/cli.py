@@ -195,15 +195,16 @@ def check_size(w, h, args):
 
 #: Matcher parameters of golden version 2 that the RTL (hdl/matcher.py) lacks: the value it
 #: implements for each.
-RTL_MATCHER = {"consistency": "none", "subpixel": False}
+RTL_MATCHER = {"consistency": "none"}
 
 
 def rtl_unsupported(mp):
     """The matcher settings of ``mp`` the RTL cannot run, as ``--flag value`` strings."""
-    def shown(v):
-        return {True: "on", False: "off"}.get(v, v) if isinstance(v, bool) else v
-    out = [f"--{name} {shown(getattr(mp, name))}" for name, value in RTL_MATCHER.items()
+    out = [f"--{name} {getattr(mp, name)}" for name, value in RTL_MATCHER.items()
            if getattr(mp, name) != value]
+    if mp.subpixel and mp.cost != "census":
+        out.append("--subpixel on with --cost sad (the RTL's subpixel step needs the census "
+                   "cost)")
     from hdl.matcher import MATCHER_WIDEN
     if int(mp.widen) > MATCHER_WIDEN:
         out.append(f"--widen {int(mp.widen)} (the RTL widens by 0 to {MATCHER_WIDEN})")
@@ -227,8 +228,8 @@ def build_params(args, flags, width, height, grey, ground_default):
         raise CliError(str(e)) from None
     unsupported = rtl_unsupported(params.matcher)
     if unsupported:
-        raise CliError("the RTL matcher has no consistency or subpixel step (golden/matcher.py "
-                       "version 2); not available in RTL: " + ", ".join(unsupported))
+        raise CliError("the RTL matcher has no consistency step (golden/matcher.py version 2); "
+                       "not available in RTL: " + ", ".join(unsupported))
     gp = params.frontend.ground
     if gp.ref_x >= width or gp.ref_y >= height:
         raise CliError(f"the ground reference region {gp.ref_w}x{gp.ref_h}+{gp.ref_x}+{gp.ref_y} "
@@ -368,6 +369,7 @@ def _run_inputs(args):
 
 def cmd_run(args, flags):
     from .camera import load_camera, depth_error
+    from golden.matcher import record_dtype
     from .units import UNITS, Job, records_from_words, stream_mismatches
     from .raw_outputs import write_raw_outputs
     from .views import write_outputs, write_camera_views
@@ -403,7 +405,8 @@ def cmd_run(args, flags):
                  f"minute; later runs reuse it)")
         try:
             result = run_backend(unit, job, dut, args, progress, timeout=1_000_000)
-            rtl_frames = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"])
+            rtl_frames = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"],
+                                            record_dtype(params.matcher))
         except RtlFailure as e:
             failure, result, rtl_frames = str(e).splitlines()[0], None, []
         seconds = time.time() - t0

@@ -47,6 +47,7 @@ def run_scene(left, right, ground, *, drop_mode=False, idle=0.0, frames=2, seed=
     """One Verilator run of the pipeline; returns a dict of figures."""
     from golden.pipeline import default_params
     from sim.config import config_values
+    from golden.matcher import record_dtype
     from sim.units import UNITS, Job, records_from_words
     from sim.verilator import run_verilator
     h, w = left.shape[:2]
@@ -59,7 +60,8 @@ def run_scene(left, right, ground, *, drop_mode=False, idle=0.0, frames=2, seed=
     run = run_verilator(dut, inputs=unit.words(job), out_frames=unit.outputs(job),
                         runtime=runtime, seed=seed, idle=idle, stall=0.0, timeout=2_000_000,
                         name=unit.name)
-    got = records_from_words(dut.o.payload.shape(), run.outputs["o"])
+    got = records_from_words(dut.o.payload.shape(), run.outputs["o"],
+                             record_dtype(params.matcher))
     golden = [g.records for g in job.golden]
     exact = len(got) == len(golden) and all(np.array_equal(a, b) for a, b in zip(got, golden))
     subset = all({tuple(r) for r in a.tolist()} <= {tuple(r) for r in b.tolist()}

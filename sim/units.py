@@ -123,18 +123,21 @@ def _sobel(job):
     return SobelEdges(**_size(job), census=_cost(job) == "census")
 
 
-def records_from_words(layout, words):
-    """Split matcher output words into frames: a list of RECORD_DTYPE arrays, one per ``eof``
-    record (a trailing unterminated frame is dropped)."""
+def records_from_words(layout, words, dtype=None):
+    """Split matcher output words into frames: a list of record arrays of ``dtype``
+    (``golden.matcher.RECORD_DTYPE`` by default; :func:`golden.matcher.record_dtype` of the
+    job's matcher parameters to keep ``d16`` and ``conf``), one per ``eof`` record (a trailing
+    unterminated frame is dropped)."""
     from golden.matcher import RECORD_DTYPE
+    dtype = RECORD_DTYPE if dtype is None else dtype
     f = Packer(layout).unpack(np.array(words, dtype=np.uint64)) if len(words) else None
     frames, start = [], 0
     if f is None:
         return frames
     for end in np.flatnonzero(f["eof"]):
         sl = slice(start, end)
-        rec = np.zeros(end - start, dtype=RECORD_DTYPE)
-        for name in ("x", "y", "d", "cost"):
+        rec = np.zeros(end - start, dtype=dtype)
+        for name in dtype.names:
             rec[name] = f[name][sl]
         frames.append(rec)
         start = end + 1
@@ -179,21 +182,33 @@ class StereoUnit:
         return [g.records for g in job.golden]
 
     def mismatches(self, job, words, dut):
-        layout = dut.o.payload.shape()
-        return (record_mismatches(records_from_words(layout, words["o"]), self.expected(job))
+        from golden.matcher import record_dtype
+        got = records_from_words(dut.o.payload.shape(), words["o"],
+                                 record_dtype(job.params.matcher))
+        return (record_mismatches(got, self.expected(job))
                 + stream_mismatches(self.streams, job, words))
+
+
+def _rtl_matcher(job):
+    """The matcher parameters, checked against what the RTL computes: the subpixel step
+    (golden/matcher.py step 6) exists only with the census cost."""
+    mp = job.params.matcher
+    if mp.subpixel and mp.cost != "census":
+        raise ValueError("the RTL computes subpixel d and confidence only with the census "
+                         "cost: set matcher.subpixel=0 with matcher.cost=sad")
+    return mp
 
 
 def _matcher(job):
     from hdl.matcher import Matcher
-    mp = job.params.matcher
+    mp = _rtl_matcher(job)
     return Matcher(**_size(job), max_disparity=job.max_disparity, window=mp.window,
                    cost=mp.cost)
 
 
 def _pipeline(job):
     from hdl.pipeline import StereoPipeline
-    mp = job.params.matcher
+    mp = _rtl_matcher(job)
     return StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window,
                           cost=mp.cost)
 

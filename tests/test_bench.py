@@ -65,7 +65,7 @@ def test_quick_bench_has_the_matcher_v2_section(quick_run):
     # the ladder from the RTL's rules to v2 ends at v2 itself
     ladder = rep["rtl_ladder"]
     assert list(ladder) == [name for name, _ in bench_matcher.RTL_LADDER]
-    assert ladder["+ subpixel: v2"]["plain"]["bad2"] == rep["methods"]["v2"]["bad2"]
+    assert ladder["+ unique right pixel: v2"]["plain"]["bad2"] == rep["methods"]["v2"]["bad2"]
     assert rep["speed"]["golden_matcher_v2_s"] > 0 and rep["speed"]["stereobm_7_s"] > 0
     assert "## Matcher v2 (issue 13)" in (out / "report.md").read_text()
 

@@ -128,13 +128,15 @@ def test_run_writes_the_views(pair, tmp_path):
     assert near == pytest.approx(600 * 0.1 / 63, abs=1e-3) and far == pytest.approx(60.0)
     with open(out / "matches.csv") as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == ["x", "y", "d", "cost", "z_m", "x_m", "forward_m", "valid"]
+    # the default matcher (golden.matcher.RTL) has subpixel d (decimal) and the confidence
+    assert list(rows[0]) == ["x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid"]
     assert len(rows) == summary["matches"] > 0
+    assert any(float(row["d"]) % 1 for row in rows)
     for row in rows:
-        inside = 4 <= int(row["x"]) < 60
-        assert row["valid"] == str(int(inside and int(row["d"]) > 0))
-        if int(row["d"]) > 0:
-            assert float(row["z_m"]) == pytest.approx(60.0 / int(row["d"]), abs=1e-3)
+        inside, d = 4 <= int(row["x"]) < 60, float(row["d"])
+        assert row["valid"] == str(int(inside and d > 0)) and 0 <= int(row["conf"]) <= 255
+        if d > 0:
+            assert float(row["z_m"]) == pytest.approx(60.0 / d, abs=1e-3)
 
 
 def test_run_on_amaranth_compares_the_statistics(pair, tmp_path):
@@ -277,7 +279,7 @@ def test_no_command_prints_usage_and_one_error_line():
     (["compare", "--unit", "color"], "required: --left"),
     # golden version 2 settings the RTL matcher lacks
     (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--consistency", "unique_right"], "not available in RTL: --consistency unique_right"),
-    (["run", "--subpixel", "on", "--widen", "3", "--out", "{tmp}"], "not available in RTL: --subpixel on, --widen 3 (the RTL widens by 0 to 2)"),
+    (["run", "--cost", "sad", "--widen", "3", "--out", "{tmp}"], "not available in RTL: --subpixel on with --cost sad (the RTL's subpixel step needs the census cost), --widen 3 (the RTL widens by 0 to 2)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
     names = {k: str(v) for k, v in pair.items()}

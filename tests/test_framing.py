@@ -7,6 +7,7 @@ import numpy as np
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
+from golden.matcher import record_dtype
 from golden.pipeline import default_params, pipeline_frames
 from hdl.framing import FrameTracker
 from hdl.ground import CLEAR_CYCLES
@@ -183,7 +184,7 @@ def run_pipeline_with_cut_pair(abort, *, gap=2 * CLEAR_CYCLES + 180):
     sim.add_testbench(consumer)
     sim.run()
     golden = pipeline_frames([good_l] * 2, [good_r] * 2, params)
-    got = records_from_words(dut.o.payload.shape(), out["o"])
+    got = records_from_words(dut.o.payload.shape(), out["o"], record_dtype(params.matcher))
     return got, golden, state
 
 

@@ -14,7 +14,7 @@ and without pressure, elaboration errors. Full frames run under Verilator elsewh
 import numpy as np
 import pytest
 
-from golden.matcher import MatcherParams, match, matched_values, STAT_KEYS
+from golden.matcher import MatcherParams, match, matched_values, record_dtype, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher
 from hdl.types import EdgePixel
@@ -108,7 +108,7 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
     run = MatchRun()
     rec = Packer(dut.record).unpack(res.words["o"])
     ends = np.flatnonzero(rec["eof"])
-    fields = np.stack([rec[k] for k in ("x", "y", "d", "cost")], axis=1).astype(np.int64)
+    fields = np.stack([rec[k] for k in record_dtype(params).names], axis=1).astype(np.int64)
     run.records = [fields[a + 1 if i else 0:b] for i, (a, b) in
                    enumerate(zip(np.concatenate([[0], ends[:-1]]), ends))]
     run.stats = [dict(zip(STAT_KEYS, v)) for v in res.eof_values["o"]]
@@ -119,7 +119,8 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
 
 def golden_records(left, right, params):
     recs, stats = match(left, right, params)
-    return np.stack([recs["x"], recs["y"], recs["d"], recs["cost"]], axis=1).astype(np.int64), stats
+    fields = [recs[k] for k in recs.dtype.names]         # with subpixel: d16 and conf too
+    return np.stack(fields, axis=1).reshape(-1, len(fields)).astype(np.int64), stats
 
 
 def check_frames(run, expected, name):
@@ -219,7 +220,7 @@ def test_synthetic_always_valid():
     assert run.cycles / (2 * 12 * 32) < 2.5
 
 
-CENSUS = {"cost": "census", "sign": "any", "widen": 2, "uniqueness": 64}
+CENSUS = {"cost": "census", "sign": "any", "widen": 2, "uniqueness": 64, "subpixel": True}
 
 
 @pytest.mark.parametrize("window, seed, kw", [
@@ -288,6 +289,9 @@ def test_motorcycle_crop(kw):
                                      lambda: small_matcher(window=5, cost=params.cost), fl, fr,
                                      params, seeds=(3,), idle=0.2, stall=0.4)
     assert expected[0][1]["matches"] > 10
+    if params.subpixel:         # the comparison covers real offsets and confidences
+        recs = expected[0][0]
+        assert (recs[:, 4] % 16 != 0).sum() > 5 and len(set(recs[:, 5].tolist())) > 5
 
 
 def test_short_line_then_good_frames():

@@ -187,9 +187,11 @@ def test_against_plain_form(seed, variant):
 
 
 def test_plain_form_cases_occur():
-    # The random frames above exercise every version 2 rule: consistency losers, subpixel
-    # neighbours evaluated after the scan, non-zero offsets and confidences.
-    lost = post = offsets = conf = 0
+    # The random frames above exercise every version 2 rule: consistency losers, winners with
+    # a neighbour that was not a candidate (offset 0, nothing more evaluated), non-zero
+    # offsets and confidences.
+    from golden.matcher import candidates
+    lost = unfit = offsets = conf = 0
     for seed in range(4):
         left, right = random_pair(seed)
         p = v2_params(d_max=12, window=3)
@@ -197,10 +199,18 @@ def test_plain_form_cases_occur():
         _, st_none = match(left, right, MatcherParams(**{**p.__dict__, "consistency": "none"}))
         lost += st_none["matches"] - st["matches"]
         _, st_int = match(left, right, MatcherParams(**{**p.__dict__, "subpixel": False}))
-        post += st["sad_evaluations"] - st_int["sad_evaluations"]
+        assert st["sad_evaluations"] == st_int["sad_evaluations"]
+        ys, xs, _, cand = candidates(left, right, p)
+        row = {(y, x): i for i, (y, x) in enumerate(zip(ys.tolist(), xs.tolist()))}
+        padded = np.pad(cand, ((0, 0), (1, 1)))          # d_min - 1 and d_max + 1: never
+        for r in recs:
+            i, k = row[(int(r["y"]), int(r["x"]))], int(r["d"]) - p.d_min + 1
+            if not (padded[i, k - 1] and padded[i, k + 1]):
+                unfit += 1
+                assert r["d16"] == 16 * r["d"]
         offsets += int((recs["d16"] != 16 * recs["d"]).sum())
         conf += int((recs["conf"] > 0).sum())
-    assert lost > 0 and post > 0 and offsets > 0 and conf > 0
+    assert lost > 0 and unfit > 0 and offsets > 0 and conf > 0
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -384,7 +394,7 @@ def test_default_params_versions():
     assert p1.matcher == MatcherParams(widen=True)
     assert p2.matcher == v2_params() and p2.frontend.sobel.threshold == V2_THRESHOLD
     rtl = default_params(64, 48)
-    assert rtl.matcher == v2_params(consistency="none", subpixel=False)
+    assert rtl.matcher == v2_params(consistency="none")
     assert (rtl.frontend.sobel.threshold, rtl.right_threshold) == RTL_THRESHOLDS == (176, 96)
     custom = default_params(64, 48, version=1, thresholds=(50, 40))
     assert (custom.frontend.sobel.threshold, custom.right_threshold) == (50, 40)

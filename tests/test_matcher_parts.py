@@ -96,11 +96,14 @@ def test_sad_tree(window, cost, lines):
 
 
 def reference_winner(cands):
-    """(best cost, best d, far minimum) of a list of (d, cost) in increasing d, as
-    golden/matcher.py defines them (INF when there is no far candidate)."""
+    """(best cost, best d, far minimum, cost at best - 1, cost at best + 1) of a list of
+    (d, cost) in increasing d, as golden/matcher.py defines them (None when there is no far
+    candidate, or the neighbour was not a candidate)."""
     best_d, best_c = min(cands, key=lambda dc: (dc[1], dc[0]))
     far = [c for d, c in cands if abs(d - best_d) > 1]
-    return best_c, best_d, min(far) if far else None
+    costs = dict(cands)
+    return (best_c, best_d, min(far) if far else None, costs.get(best_d - 1),
+            costs.get(best_d + 1))
 
 
 def test_winner():
@@ -129,10 +132,12 @@ def test_winner():
         for item in stream:
             for name, value in item.items():
                 ctx.set(getattr(dut, name), value)
-            _, _, ov, tag, bc, bd, fm, ev = await ctx.tick().sample(
-                dut.o_valid, dut.o_tag, dut.best_cost, dut.best_d, dut.far_min, dut.evals)
+            _, _, ov, tag, bc, bd, fm, cm, hm, cp, hp, ev = await ctx.tick().sample(
+                dut.o_valid, dut.o_tag, dut.best_cost, dut.best_d, dut.far_min, dut.cm,
+                dut.has_m, dut.cp, dut.has_p, dut.evals)
             if ov:
-                got.append((tag, bc, bd, None if fm == dut.inf else fm, ev))
+                got.append((tag, bc, bd, None if fm == dut.inf else fm, cm if hm else None,
+                            cp if hp else None, ev))
     simulate(dut, bench)
     want = [(k & 0xFF, *reference_winner(job), len(job)) for k, job in enumerate(jobs)]
     assert got == want

@@ -40,7 +40,7 @@ def vectors(cost_width, n, seed):
 def expected(v):
     off = int(subpixel_offset(v["cm"], v["c0"], v["cp"])) if v["fit"] else 0
     conf = int(confidence(v["c0"], v["far_min"], bool(v["has_far"])))
-    return (v["tag"], v["d"] * SUBPIXEL_ONE + off, conf)
+    return (v["tag"], v["d"] * SUBPIXEL_ONE + off, conf, v["d"])
 
 
 def run(dut, vecs, gaps_seed=None):
@@ -62,7 +62,8 @@ def run(dut, vecs, gaps_seed=None):
             await ctx.tick()
             cycle += 1
             if ctx.get(dut.o_valid):
-                got.append((ctx.get(dut.o_tag), ctx.get(dut.o_d16), ctx.get(dut.o_conf), cycle))
+                got.append((ctx.get(dut.o_tag), ctx.get(dut.o_d16), ctx.get(dut.o_conf),
+                            ctx.get(dut.o_d), cycle))
             assert cycle < 10 * len(vecs) + 100, "results stopped coming"
 
     sim = Simulator(dut)
@@ -77,9 +78,9 @@ def test_bit_exact_with_golden_at_constant_latency(cost_width, gaps_seed):
     vecs = vectors(cost_width, 600, seed=cost_width)
     dut = SubpixelConfidence(cost_width=cost_width, d_width=D_WIDTH, tag_width=16)
     got, issued = run(dut, vecs, gaps_seed)
-    assert [g[:3] for g in got] == [expected(v) for v in vecs]
+    assert [g[:4] for g in got] == [expected(v) for v in vecs]
     # every result LATENCY cycles after its winner (the sample is taken one tick after)
-    assert [g[3] - i for g, i in zip(got, issued)] == [SubpixelConfidence.LATENCY] * len(vecs)
+    assert [g[4] - i for g, i in zip(got, issued)] == [SubpixelConfidence.LATENCY] * len(vecs)
     offsets = np.array([g[1] for g in got]) - np.array([v["d"] for v in vecs]) * SUBPIXEL_ONE
     assert offsets.min() == -SUBPIXEL_ONE // 2 and offsets.max() == SUBPIXEL_ONE // 2   # clips seen
     assert (offsets != 0).sum() > len(vecs) // 4
@@ -91,7 +92,7 @@ def test_exhaustive_small_costs():
                  has_far=(c0 + cm) % 3 != 0, tag=(c0 << 8) | (cm << 4) | cp)
             for c0 in range(16) for cm in range(16) for cp in range(16)]
     got, _ = run(SubpixelConfidence(cost_width=4, d_width=D_WIDTH, tag_width=12), vecs)
-    assert [g[:3] for g in got] == [expected(v) for v in vecs]
+    assert [g[:4] for g in got] == [expected(v) for v in vecs]
 
 
 def test_bad_parameters():

@@ -4,6 +4,7 @@ Amaranth's simulator with stalls, and the matcher's statistics of the last frame
 import numpy as np
 import pytest
 
+from golden.matcher import record_dtype
 from golden.pipeline import default_params
 from sim.backends import run_unit
 from sim.data import motorcycle, crop
@@ -19,7 +20,8 @@ STATS = {"edge_pixels": "frame_edge_pixels", "sad_evaluations": "frame_sad_evalu
 def check(job, backend, stall_seed=None):
     result = run_unit(UNITS["pipeline"], job, backend=backend, stall_seed=stall_seed,
                       timeout=1_000_000)
-    got = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"])
+    got = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"],
+                             record_dtype(job.params.matcher))
     assert len(got) == len(job.left)
     for k, (g, frame) in enumerate(zip(got, job.golden)):
         assert np.array_equal(g, frame.records), f"frame {k}: records differ"

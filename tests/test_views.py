@@ -75,11 +75,13 @@ def test_matches_csv_is_in_metres_and_flags_the_valid_region(run):
     rec = frames[-1].records
     with open(paths["matches"]) as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == list(views.MATCH_COLUMNS) and len(rows) == len(rec)
+    # the default matcher's records (golden.matcher.RTL) have subpixel d and the confidence
+    assert list(rows[0]) == list(views.MATCH_COLUMNS_V2) and len(rows) == len(rec)
     for row, r in zip(rows, rec):
-        assert (int(row["x"]), int(row["y"]), int(row["d"])) == (r["x"], r["y"], r["d"])
-        if r["d"] > 0:
-            assert float(row["z_m"]) == pytest.approx(72.0 / r["d"], abs=1e-3)
+        assert (int(row["x"]), int(row["y"]), float(row["d"]), int(row["conf"])) == \
+            (r["x"], r["y"], r["d16"] / 16, r["conf"])
+        if r["d16"] > 0:
+            assert float(row["z_m"]) == pytest.approx(72.0 * 16 / r["d16"], abs=1e-3)
             assert row["valid"] == "1"
         else:
             assert row["z_m"] == "" and row["valid"] == "0"
