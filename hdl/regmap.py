@@ -314,9 +314,10 @@ REGISTERS: tuple[Register, ...] = (
              "Read order: RESULT, then RESULT_EXT, before the next RESULT read (that read "
              "replaces it). 0 after a RESULT read with valid = 0, and for eof/abort markers.", (
         F("d16", 0, _D16B, 0, "subpixel disparity in 1/16 px: 16 d + offset, offset -8..8 "
-                              "(golden/matcher.py step 6)"),
+                              "(golden/matcher.py step 6; 16 d from a matcher without that "
+                              "step, cost sad)"),
         F("conf", _D16B, _CB, 0, f"confidence of the match, 0..{CONFIDENCE_MAX} "
-                                 "(golden/matcher.py step 6)"),
+                                 "(golden/matcher.py step 6; 0 without that step)"),
     )),
 )
 

@@ -12,11 +12,13 @@ The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/cosim``).
 """
-from amaranth.hdl import Cat, ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
+from amaranth.hdl import Cat, ClockDomain, ClockSignal, Const, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
+
+from golden.matcher import SUBPIXEL_BITS
 
 from . import regmap
 from .camera_buffer import PairBuffer
@@ -101,8 +103,7 @@ class StereoSoC(wiring.Component):
             regs.results.payload.x.eq(rec.x),
             regs.results.payload.y.eq(rec.y),
             regs.results.payload.d.eq(rec.d),
-            regs.results.payload.d16.eq(rec.d16),
-            regs.results.payload.conf.eq(rec.conf),
+            *_second_half(rec, regs.results.payload),
         ]
 
         # Status: statistics as they are, sticky counters relative to the last clear.
@@ -282,7 +283,16 @@ def _records_and_markers(m, o, results, video_rst):
     ]
     for name in ("x", "y", "d"):
         m.d.comb += results.payload[name].eq(Mux(marker, 0, rec[name]))
-    m.d.comb += [results.payload.d16.eq(rec.d16), results.payload.conf.eq(rec.conf)]
+    m.d.comb += _second_half(rec, results.payload)
+
+
+def _second_half(rec, payload):
+    """A result record's d16 and conf from pipeline record ``rec``: its own, or 16 d and 0 when
+    the pipeline's matcher has no subpixel step (``cost = "sad"``, :func:`hdl.matcher.has_subpixel`:
+    its records lack them)."""
+    if "d16" in rec.shape().members:
+        return [payload.d16.eq(rec.d16), payload.conf.eq(rec.conf)]
+    return [payload.d16.eq(Cat(Const(0, SUBPIXEL_BITS), rec.d)), payload.conf.eq(0)]
 
 
 def _connect_parameters(m, regs, pipe):

@@ -367,7 +367,7 @@ def test_result_record_widths_come_from_the_elaboration_limits():
     from amaranth.hdl import Shape
     from hdl.regs import ResultLayout
     from hdl.soc import StereoSoC, SystemSoC
-    rec = match_record_layout(regmap.MAX_WIDTH, regmap.MAX_HEIGHT, MAX_DISPARITY)
+    rec = match_record_layout(regmap.MAX_WIDTH, regmap.MAX_HEIGHT, MAX_DISPARITY, cost="census")
     for reg, name in (("RESULT", "x"), ("RESULT", "y"), ("RESULT", "d"), ("RESULT_EXT", "d16"),
                       ("RESULT_EXT", "conf")):
         assert Shape.cast(ResultLayout[name].shape).width == Shape.cast(rec[name].shape).width == \

@@ -515,10 +515,10 @@
 /* RESULT_EXT (read-only): Second half of the record the last RESULT read popped. Read order: RESULT, then RESULT_EXT, before the next RESULT read (that read replaces it). 0 after a RESULT read with valid = 0, and for eof/abort markers. */
 #define STEREO_RESULT_EXT_OFFSET                     0x88u        /**< Second half of the record the last RESULT read popped. Read order: RESULT, then RESULT_EXT, before the next RESULT read (that read replaces it). 0 after a RESULT read with valid = 0, and for eof/abort markers. */
 #define STEREO_RESULT_EXT_RESET                      0x0u         /**< RESULT_EXT value after reset */
-#define STEREO_RESULT_EXT_D16_SHIFT                  0u           /**< d16: subpixel disparity in 1/16 px: 16 d + offset, offset -8..8 (golden/matcher.py step 6) */
+#define STEREO_RESULT_EXT_D16_SHIFT                  0u           /**< d16: subpixel disparity in 1/16 px: 16 d + offset, offset -8..8 (golden/matcher.py step 6; 16 d from a matcher without that step, cost sad) */
 #define STEREO_RESULT_EXT_D16_MASK                   0xFFFu       /**< d16 mask (12 bits) */
 #define STEREO_RESULT_EXT_D16_RESET                  0u           /**< d16 reset value */
-#define STEREO_RESULT_EXT_CONF_SHIFT                 12u          /**< conf: confidence of the match, 0..255 (golden/matcher.py step 6) */
+#define STEREO_RESULT_EXT_CONF_SHIFT                 12u          /**< conf: confidence of the match, 0..255 (golden/matcher.py step 6; 0 without that step) */
 #define STEREO_RESULT_EXT_CONF_MASK                  0x000FF000u  /**< conf mask (8 bits) */
 #define STEREO_RESULT_EXT_CONF_RESET                 0u           /**< conf reset value */
 
