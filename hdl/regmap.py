@@ -22,7 +22,8 @@ Register kinds (``Register.kind``):
 - ``ro``: status register; fields come from inputs of the block; writes are ignored.
 - ``pulse``: write-one-to-pulse: a field written with 1 drives its output high for one cycle;
   reads return 0.
-- ``fifo``: reading pops one record from the result FIFO (an empty FIFO reads 0, valid = 0).
+- ``fifo``: reading pops one record from the result FIFO (an empty FIFO reads 0, valid = 0);
+  the record's second half waits in RESULT_EXT (``ro``, the block's own) until the next read.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import SimpleNamespace
 
-from golden.matcher import DISPARITY_BITS, DISPARITY_SPAN
+from golden.matcher import CONFIDENCE_MAX, DISPARITY_BITS, DISPARITY_SPAN, SUBPIXEL_BITS
 from golden.pipeline import default_params
 
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
@@ -45,7 +46,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 8
+MAP_VERSION = 9
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -55,6 +56,8 @@ MAX_HEIGHT = 1024             #: tallest frame (y < MAX_HEIGHT)
 _XB = (MAX_WIDTH - 1).bit_length()
 _YB = (MAX_HEIGHT - 1).bit_length()
 _DB = DISPARITY_BITS          #: disparities 0 .. golden.matcher.MAX_DISPARITY
+_D16B = _DB + SUBPIXEL_BITS   #: subpixel disparities d16 = 16 d + offset, 1/16 px
+_CB = CONFIDENCE_MAX.bit_length()     #: confidence 0 .. golden.matcher.CONFIDENCE_MAX
 
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
@@ -287,7 +290,8 @@ REGISTERS: tuple[Register, ...] = (
         F("right_learned", 2, 1, 0, "as left_learned, right camera"),
         F("right_hue_fallback", 3, 1, 0, "as left_hue_fallback, right camera"),
     )),
-    Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one record.", (
+    Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one whole record, whose "
+             "second half (d16, conf) RESULT_EXT then shows.", (
         F("x", 0, _XB, 0, "column of the left edge pixel"),
         F("y", _XB, _YB, 0, "row"),
         F("d", _XB + _YB, _DB, 0, "disparity"),
@@ -297,12 +301,23 @@ REGISTERS: tuple[Register, ...] = (
         F("abort", _XB + _YB + _DB + 1, 1, 0, "with eof: that frame was cut by "
                                               "CTRL.restart_video or VIDEO.video_enable = 0: "
                                               "discard its records"),
-        F("valid", 31, 1, 0, "1: a record; 0: the FIFO was empty"),
+        F("valid", 31, 1, 0, "1: a record; 0: no whole record was waiting (the FIFO was empty, "
+                             "or the read came in the cycle right after a RESULT read, while "
+                             "the FIFO steps over that record's second half: read again)"),
     )),
     Register("RESULT_LEVEL", 0x84, "ro", "Result FIFO state.", (
         F("level", 0, 16, 0, "records waiting"),
         F("overflow", 16, 16, 0, "records lost because the FIFO was full (saturating; cleared by "
                                   "CTRL.flush_results or CTRL.clear_errors)"),
+    )),
+    Register("RESULT_EXT", 0x88, "ro", "Second half of the record the last RESULT read popped. "
+             "Read order: RESULT, then RESULT_EXT, before the next RESULT read (that read "
+             "replaces it). 0 after a RESULT read with valid = 0, and for eof/abort markers.", (
+        F("d16", 0, _D16B, 0, "subpixel disparity in 1/16 px: 16 d + offset, offset -8..8 "
+                              "(golden/matcher.py step 6; 16 d from a matcher without that "
+                              "step, cost sad)"),
+        F("conf", _D16B, _CB, 0, f"confidence of the match, 0..{CONFIDENCE_MAX} "
+                                 "(golden/matcher.py step 6; 0 without that step)"),
     )),
 )
 
@@ -350,9 +365,10 @@ def param_value(params, f):
 
 
 def status_fields():
-    """(register, field) of every status input (the block's own RESULT_LEVEL and ID, and the
-    registers read from tables, excluded)."""
-    return [(r, f) for r in REGISTERS if r.kind == "ro" and r.name not in ("ID", "RESULT_LEVEL")
+    """(register, field) of every status input (the block's own RESULT_LEVEL, RESULT_EXT and
+    ID, and the registers read from tables, excluded)."""
+    return [(r, f) for r in REGISTERS if r.kind == "ro"
+            and r.name not in ("ID", "RESULT_LEVEL", "RESULT_EXT")
             and r.table is None for f in r.fields]
 
 

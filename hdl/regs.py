@@ -25,15 +25,15 @@ ignore writes. Addresses outside the window get no answer.
 
 from amaranth.hdl import Cat, Const, Module, Mux, ResetInserter, Signal
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.fifo import SyncFIFOBuffered
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from golden.matcher import MAX_DISPARITY
 
 from . import regmap
 
-__all__ = ["IOBusSignature", "BusWindow", "check_window_base", "check_result_limits", "ResultLayout", "RegisterBlock",
-           "status_port_name"]
+__all__ = ["IOBusSignature", "BusWindow", "check_window_base", "check_result_limits", "ResultLayout",
+           "ResultFIFO", "RegisterBlock", "status_port_name"]
 
 
 class IOBusSignature(wiring.Signature):
@@ -86,22 +86,31 @@ class BusWindow:
                            bus.read_data.eq(Mux(self.read, value, 0))]
 
 
-def _result_layout():
-    """The RESULT register's fields below ``valid``, packed from bit 0 as the FIFO holds them."""
-    fields = [f for f in regmap.register("RESULT").fields if f.name != "valid"]
+def _record_half(name):
+    """The record fields of register ``name`` (RESULT without ``valid``, RESULT_EXT), which
+    must be packed from bit 0: a FIFO word holds them as the register shows them."""
+    fields = [f for f in regmap.register(name).fields if f.name != "valid"]
     lsb = 0
     for f in fields:
         if f.lsb != lsb:
-            raise ValueError(f"RESULT.{f.name} at bit {f.lsb}: the record fields must be packed "
+            raise ValueError(f"{name}.{f.name} at bit {f.lsb}: the record fields must be packed "
                              f"from bit 0 (expected {lsb})")
         lsb += f.width
     return data.StructLayout({f.name: f.width for f in fields})
 
 
-#: One result record: the (x, y, d) of a matched obstacle-edge pixel, or an end-of-frame
-#: marker (``eof``; ``abort`` when the frame was cut by a restart of the video path). Derived
-#: from the RESULT register (its widths from hdl/regmap.py's elaboration limits).
-ResultLayout = _result_layout()
+#: The two halves of a record, one FIFO word each: what RESULT shows (x, y, d, eof, abort) and
+#: what RESULT_EXT shows (d16, conf).
+_HEAD = _record_half("RESULT")
+_EXT = _record_half("RESULT_EXT")
+
+#: One result record: the (x, y, d), subpixel disparity ``d16`` and confidence ``conf`` of a
+#: matched obstacle-edge pixel, or an end-of-frame marker (``eof``; ``abort`` when the frame
+#: was cut by a restart of the video path; the other fields 0). Derived from the RESULT and
+#: RESULT_EXT registers (their widths from hdl/regmap.py's elaboration limits); the fields of
+#: RESULT first, packed as that register shows them, then those of RESULT_EXT.
+ResultLayout = data.StructLayout({**{n: f.shape for n, f in _HEAD},
+                                  **{n: f.shape for n, f in _EXT}})
 
 
 def check_result_limits(component, *, max_width, max_height, max_disparity=MAX_DISPARITY):
@@ -117,6 +126,111 @@ def check_result_limits(component, *, max_width, max_height, max_disparity=MAX_D
                              f"(at most {limit - 1 if name == 'max_disparity' else limit})")
 
 
+class ResultFIFO(wiring.Component):
+    """The result FIFO: records in two words each, in one block RAM.
+
+    A record (:data:`ResultLayout`, 50 bits) is two words of a ``2 depth`` x 30-bit memory:
+    its RESULT half at address ``2k``, its RESULT_EXT half at ``2k + 1``. With the default
+    ``depth`` of 256 records that is 512 x 30 bits, one RAMB16 in 512 x 36 mode (the FIFO of
+    512 one-word records before the record had its second half took the same). Why two words
+    a record in 512 x 36 and not three in 1K x 18 (341 records): the memory gives one word a
+    cycle and the CPU takes a record in two bus transfers (RESULT, RESULT_EXT), which the MCS
+    may issue in consecutive cycles. With two words the FIFO reads the popped record's second
+    word in the cycle of the RESULT_EXT read and the next record's first word in the cycle
+    after, so a firmware reading as fast as the bus goes never finds the next record not
+    ready; three words a record would take three cycles for every two of the bus.
+
+    Ports
+    -----
+    i : In(stream.Signature(ResultLayout))
+        Records. ``ready`` is low only in the cycle after a record was stored (its second word
+        is written then), so a record takes two cycles; a record arriving while the FIFO is
+        full is taken and dropped (``dropped`` high in that cycle): the FIFO never holds up a
+        producer for more than one cycle. A marker's (``eof``) second half is stored as 0.
+    pop : In(1)
+        A RESULT read in this cycle: takes the head record when ``valid``; else the next
+        ``ext`` is 0.
+    valid : Out(1), head : Out(RESULT half)
+        A whole record is waiting, and its RESULT half (from the memory's output register).
+        Low in the cycle after a pop (the FIFO steps over the popped record's second word).
+    ext : Out(RESULT_EXT half)
+        The second half of the record the last ``pop`` took; 0 after a ``pop`` without
+        ``valid`` and after reset. Shows it from the cycle after the pop.
+    level : Out(range(depth + 1))
+        Whole records waiting (a record counts once both its words are written).
+    dropped : Out(1)
+        A record arrived while the FIFO was full (it is lost).
+    """
+
+    def __init__(self, *, depth=256):
+        if not isinstance(depth, int) or depth < 2 or depth & (depth - 1):
+            self._MustUse__silence = True
+            raise ValueError(f"fifo_depth must be a power of two >= 2, not {depth!r}")
+        self._depth = depth
+        super().__init__({
+            "i": In(stream.Signature(ResultLayout)),
+            "pop": In(1),
+            "valid": Out(1), "head": Out(_HEAD), "ext": Out(_EXT),
+            "level": Out(range(depth + 1)),
+            "dropped": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        depth = self._depth
+        width = max(_HEAD.size, _EXT.size)
+        m.submodules.mem = mem = Memory(shape=width, depth=2 * depth, init=[])
+        wp = mem.write_port()
+        rp = mem.read_port()
+
+        # writer: the first word as the record arrives, the second (staged) the cycle after
+        w_rec = Signal(range(depth))
+        second = Signal()                  # writing a record's second word
+        staged = Signal(_EXT.size)
+        stored = Signal(range(depth + 1))  # records with both words written, not popped
+        full = Signal()
+        m.d.comb += [
+            full.eq(stored == depth),       # (while `second`, nothing is taken anyway)
+            self.i.ready.eq(~second),
+            self.dropped.eq(self.i.valid & ~second & full),
+            self.level.eq(stored),
+        ]
+        take = self.i.valid & ~second & ~full
+        rec = self.i.payload.as_value()
+        with m.If(second):
+            m.d.comb += [wp.addr.eq(Cat(1, w_rec)), wp.data.eq(staged), wp.en.eq(1)]
+            m.d.sync += [second.eq(0), w_rec.eq(w_rec + 1)]
+        with m.Else():
+            m.d.comb += [wp.addr.eq(Cat(0, w_rec)), wp.data.eq(rec[:_HEAD.size]), wp.en.eq(take)]
+            # a marker's second half is 0 whatever the producer sent (a flip-flop reset)
+            m.d.sync += [second.eq(take),
+                         staged.eq(Mux(self.i.payload.eof, 0, rec[_HEAD.size:]))]
+
+        # reader: the read port addresses the head's first word; a pop moves it to the second
+        # word (read in the next cycle, ``stepping``), then to the next record's first word. A
+        # record counts in ``stored`` from the cycle after its second word is written: its
+        # first word, written a cycle earlier, is then on the port's output.
+        r_rec = Signal(range(depth))
+        stepping = Signal()
+        ext = Signal(_EXT.size)
+        popped = Signal()
+        m.d.comb += [
+            self.valid.eq((stored != 0) & ~stepping),
+            popped.eq(self.pop & self.valid),
+            rp.addr.eq(Cat(popped, r_rec)),
+            self.head.eq(rp.data[:_HEAD.size]),
+            self.ext.eq(Mux(stepping, rp.data[:_EXT.size], ext)),
+        ]
+        m.d.sync += [stored.eq(stored + second - popped), stepping.eq(popped)]
+        with m.If(popped):
+            m.d.sync += r_rec.eq(r_rec + 1)
+        with m.If(self.pop & ~self.valid):
+            m.d.sync += ext.eq(0)
+        with m.Elif(stepping):
+            m.d.sync += ext.eq(rp.data[:_EXT.size])
+        return m
+
+
 def status_port_name(reg: regmap.Register, field: regmap.Field) -> str:
     """Name of the input port of a status field: ``err_left_errors``, ``stat_sad_count``..."""
     return f"{reg.name.lower()}_{field.name}"
@@ -128,7 +242,8 @@ class RegisterBlock(wiring.Component):
     Parameters (keyword-only)
     -------------------------
     fifo_depth : int
-        Result FIFO depth in records (power of two not required, at least 2).
+        Result FIFO depth in records (a power of two, at least 2; :class:`ResultFIFO`: two
+        memory words a record, 256 records in one RAMB16).
     base : int
         Byte address of the window on the I/O bus (aligned to 0x100).
 
@@ -150,15 +265,17 @@ class RegisterBlock(wiring.Component):
         ``k`` (the strobe's cycle; the table answers combinationally, e.g. from distributed
         RAM).
     results : In(stream.Signature(ResultLayout))
-        Result records into the FIFO. Always ready: a camera-fed pipeline cannot stall, so a
-        record arriving when the FIFO is full is dropped and counted in
-        RESULT_LEVEL.overflow (saturating, cleared by CTRL.flush_results or clear_errors).
+        Result records into the FIFO, two cycles each: ``ready`` is low in the cycle after a
+        record was stored, high otherwise. A full FIFO does not hold the producer up (a
+        camera-fed pipeline cannot wait for the CPU): a record arriving when the FIFO is full
+        is dropped and counted in RESULT_LEVEL.overflow (saturating, cleared by
+        CTRL.flush_results or clear_errors).
     """
 
-    def __init__(self, *, fifo_depth=512, base=regmap.REGS_BASEADDR):
-        if not isinstance(fifo_depth, int) or fifo_depth < 2:
+    def __init__(self, *, fifo_depth=256, base=regmap.REGS_BASEADDR):
+        if not isinstance(fifo_depth, int) or fifo_depth < 2 or fifo_depth & (fifo_depth - 1):
             self._MustUse__silence = True
-            raise ValueError(f"fifo_depth must be an integer >= 2, not {fifo_depth!r}")
+            raise ValueError(f"fifo_depth must be a power of two >= 2, not {fifo_depth!r}")
         check_window_base(self, base, regmap.REGS_WINDOW)
         self._fifo_depth = fifo_depth
         self._base = base
@@ -188,17 +305,13 @@ class RegisterBlock(wiring.Component):
 
         # result FIFO, flushed by a reset of its own
         flush = Signal()
-        fifo = m.submodules.fifo = ResetInserter(flush)(
-            SyncFIFOBuffered(width=ResultLayout.size, depth=self._fifo_depth))
+        fifo = ResultFIFO(depth=self._fifo_depth)
+        m.submodules.fifo = ResetInserter(flush)(fifo)
+        wiring.connect(m, wiring.flipped(self.results), fifo.i)
         overflow = Signal(16)
-        m.d.comb += [
-            fifo.w_data.eq(self.results.payload.as_value()),
-            fifo.w_en.eq(self.results.valid),
-            self.results.ready.eq(1),
-        ]
         with m.If(flush | self.clear_errors):
             m.d.sync += overflow.eq(0)
-        with m.Elif(self.results.valid & ~fifo.w_rdy & (overflow != 0xFFFF)):
+        with m.Elif(fifo.dropped & (overflow != 0xFFFF)):
             m.d.sync += overflow.eq(overflow + 1)
 
         # parameter storage, one 32-bit register per rw register (unused bits stay 0)
@@ -251,12 +364,14 @@ class RegisterBlock(wiring.Component):
                     elif reg.name == "RESULT_LEVEL":
                         m.d.comb += [read_value[0:16].eq(fifo.level),
                                      read_value[16:32].eq(overflow)]
+                    elif reg.name == "RESULT_EXT":
+                        m.d.comb += read_value.eq(fifo.ext)
                     elif reg.kind == "fifo":
                         m.d.comb += [
-                            read_value.eq(Mux(fifo.r_rdy, Cat(fifo.r_data, Const(0, 31 - ResultLayout.size),
-                                                                  fifo.r_rdy),
+                            read_value.eq(Mux(fifo.valid, Cat(fifo.head, Const(0, 31 - _HEAD.size),
+                                                              fifo.valid),
                                               0)),
-                            fifo.r_en.eq(do_read),
+                            fifo.pop.eq(do_read),
                         ]
                     elif reg.kind == "ro":
                         for f in reg.fields:

@@ -12,11 +12,13 @@ The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/cosim``).
 """
-from amaranth.hdl import Cat, ClockDomain, ClockSignal, Module, ResetInserter, Signal, Mux
+from amaranth.hdl import Cat, ClockDomain, ClockSignal, Const, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
+
+from golden.matcher import SUBPIXEL_BITS
 
 from . import regmap
 from .camera_buffer import PairBuffer
@@ -47,13 +49,14 @@ class StereoSoC(wiring.Component):
     scl_o, scl_oe, scl_i, sda_o, sda_oe, sda_i
         Open-drain IIC pins of the video decoders (drive low when ``*_oe``).
 
-    The pipeline's records go to the register block's result FIFO, which is always ready (a
-    camera-fed pipeline cannot wait for the CPU: a full FIFO drops and counts). The sticky error
-    counters are cleared by CTRL.clear_errors: the block shows each counter minus its value at
-    the last clear, so the pipeline's own counters never need a reset.
+    The pipeline's records go to the register block's result FIFO, one every two cycles at
+    most (the matcher holds them meanwhile); the FIFO does not wait for the CPU (a camera-fed
+    pipeline cannot: a full FIFO drops and counts). The sticky error counters are cleared by
+    CTRL.clear_errors: the block shows each counter minus its value at the last clear, so the
+    pipeline's own counters never need a reset.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=512, clk_div=125,
+    def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=256, clk_div=125,
                  cost="census"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
@@ -91,14 +94,16 @@ class StereoSoC(wiring.Component):
         wiring.connect(m, wiring.flipped(self.right), pipe.right)
         _connect_parameters(m, regs, pipe)
 
-        # Records into the result FIFO (the end-of-frame markers carry no match).
+        # Records into the result FIFO (the end-of-frame markers carry no match), at most one
+        # every two cycles (the FIFO's ready; the matcher holds them meanwhile).
         rec = pipe.o.payload
         m.d.comb += [
-            pipe.o.ready.eq(1),
+            pipe.o.ready.eq(regs.results.ready),
             regs.results.valid.eq(pipe.o.valid & ~rec.eof),
             regs.results.payload.x.eq(rec.x),
             regs.results.payload.y.eq(rec.y),
             regs.results.payload.d.eq(rec.d),
+            *_second_half(rec, regs.results.payload),
         ]
 
         # Status: statistics as they are, sticky counters relative to the last clear.
@@ -145,7 +150,7 @@ class SystemSoC(wiring.Component):
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
-                 camera_fifo_depth=16, buffer_depth=256, skew=896, fifo_depth=512,
+                 camera_fifo_depth=16, buffer_depth=256, skew=896, fifo_depth=256,
                  clk_div=125, uart_divisor=434, cost="census"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
@@ -227,26 +232,7 @@ class SystemSoC(wiring.Component):
         m.d.comb += pairing.busy.eq(busy)
         _connect_parameters(m, regs, pipe)
 
-        # Records and end-of-frame markers into the result FIFO. A restart of the video path
-        # in the middle of a frame (records since the last marker) adds an abort marker, so
-        # the CPU never takes the cut frame's records for a frame of their own.
-        rec = pipe.o.payload
-        in_frame = Signal()         # records of a frame went to the FIFO since the last marker
-        abort = Signal()
-        m.d.comb += abort.eq(video_rst & in_frame)
-        with m.If(abort):
-            m.d.sync += in_frame.eq(0)
-        with m.Elif(pipe.o.valid):
-            m.d.sync += in_frame.eq(~rec.eof)
-        m.d.comb += [
-            pipe.o.ready.eq(1),
-            regs.results.valid.eq(abort | pipe.o.valid),
-            regs.results.payload.x.eq(Mux(rec.eof | abort, 0, rec.x)),
-            regs.results.payload.y.eq(Mux(rec.eof | abort, 0, rec.y)),
-            regs.results.payload.d.eq(Mux(rec.eof | abort, 0, rec.d)),
-            regs.results.payload.eof.eq(rec.eof | abort),
-            regs.results.payload.abort.eq(abort),
-        ]
+        _records_and_markers(m, pipe.o, regs.results, video_rst)
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
                                   reset=video_rst)
         match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
@@ -269,6 +255,44 @@ class SystemSoC(wiring.Component):
             name = status_port_name(reg, f)
             m.d.comb += getattr(regs, name).eq(status.get(name, 0))
         return m
+
+
+def _records_and_markers(m, o, results, video_rst):
+    """Records and end-of-frame markers of the pipeline's output ``o`` into the result FIFO's
+    input ``results``, at most one every two cycles (the FIFO's ready; the matcher holds them
+    meanwhile). A restart of the video path (``video_rst``) in the middle of a frame (records
+    since the last marker) adds an abort marker, so the CPU never takes the cut frame's
+    records for a frame of their own; it goes in ahead of any record, waiting (``cut``) while
+    the FIFO is not ready. Markers carry 0 in x, y and d (the FIFO stores 0 as their second
+    half, d16 and conf)."""
+    rec = o.payload
+    in_frame = Signal()         # records of a frame went to the FIFO since the last marker
+    cut = Signal()              # an abort marker waits for the FIFO
+    abort = Signal()
+    m.d.comb += abort.eq(cut | (video_rst & in_frame))
+    with m.If(abort):
+        m.d.sync += [in_frame.eq(0), cut.eq(~results.ready)]
+    with m.Elif(o.valid & o.ready):
+        m.d.sync += in_frame.eq(~rec.eof)
+    marker = rec.eof | abort
+    m.d.comb += [
+        o.ready.eq(results.ready & ~abort),
+        results.valid.eq(abort | o.valid),
+        results.payload.eof.eq(marker),
+        results.payload.abort.eq(abort),
+    ]
+    for name in ("x", "y", "d"):
+        m.d.comb += results.payload[name].eq(Mux(marker, 0, rec[name]))
+    m.d.comb += _second_half(rec, results.payload)
+
+
+def _second_half(rec, payload):
+    """A result record's d16 and conf from pipeline record ``rec``: its own, or 16 d and 0 when
+    the pipeline's matcher has no subpixel step (``cost = "sad"``, :func:`hdl.matcher.has_subpixel`:
+    its records lack them)."""
+    if "d16" in rec.shape().members:
+        return [payload.d16.eq(rec.d16), payload.conf.eq(rec.conf)]
+    return [payload.d16.eq(Cat(Const(0, SUBPIXEL_BITS), rec.d)), payload.conf.eq(0)]
 
 
 def _connect_parameters(m, regs, pipe):

@@ -15,13 +15,14 @@ cycle later and its stream starts :data:`RIGHT_LEAD_BYTES` bytes later.
 CPU: ``build/firmware/libfirmware.so`` with its HAL bus hook pointed at the Verilated bus
 (``sim/system_tb/system.cpp``): ``app_init_pipeline`` (ID check, defaults), ``pipeline_configure``
 with the parameters of the frame size, ``app_start_video`` (enable, wait for stream lock), then
-``pipeline_read_results`` and ``app_read_health`` every :data:`POLL_US` microseconds of
-simulated time. The result FIFO's end-of-frame markers split the records into frames; an abort
-marker (video restart) discards the cut frame's records.
+``pipeline_read_results`` (RESULT, then RESULT_EXT, for each record) and ``app_read_health``
+every :data:`POLL_US` microseconds of simulated time. The result FIFO's end-of-frame markers
+split the records into frames; an abort marker (video restart) discards the cut frame's records.
 
 Golden: ``golden.pipeline.pipeline_frames`` on the decoded pairs (Ln, Rn) (chroma replicated,
-``golden.bt656.ycbcr_to_rgb``) with the same parameters. ``bit_exact``: without a fault every
-frame equals golden; with a fault at field :data:`FAULT_FIELD`, the frames before it and every
+``golden.bt656.ycbcr_to_rgb``) with the same parameters; a record compares its x, y, d and, when
+the parameters have ``matcher.subpixel``, its d16 and conf (:func:`record_fields`).
+``bit_exact``: without a fault every frame equals golden; with a fault at field :data:`FAULT_FIELD`, the frames before it and every
 frame from the second pair after it ((L3, R3) onwards for field 1) equal golden, and the fault is
 counted (in mispaired, drops, camera errors or by the restart). Prints one JSON line; exit 0 only
 when bit-exact, 1 otherwise, 2 on a usage error.
@@ -61,7 +62,7 @@ from golden.bt656 import encode_bt656, ntsc_stream, rgb_to_ycbcr, timing_code, y
 from golden.pipeline import default_params, pipeline_frames
 from hdl import regmap
 
-__all__ = ["FAULTS", "build", "camera_streams", "inject", "run_system", "main"]
+__all__ = ["FAULTS", "build", "camera_streams", "inject", "record_fields", "run_system", "main"]
 
 ROOT = Path(__file__).resolve().parent.parent
 HARNESS = Path(__file__).resolve().parent / "system_tb" / "system.cpp"
@@ -230,6 +231,13 @@ def _config(lib_fw, params):
     return cfg
 
 
+def record_fields(params):
+    """The record fields the run compares with golden: x, y, d, and the subpixel disparity
+    ``d16`` and confidence ``conf`` (RESULT_EXT) when the golden matcher computes them
+    (``params.matcher.subpixel``)."""
+    return ("x", "y", "d", "d16", "conf") if params.matcher.subpixel else ("x", "y", "d")
+
+
 def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None, seed=1):
     """Simulate; returns the result dict (the JSON line's fields)."""
     from sim.cosim import fwlib
@@ -261,8 +269,6 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     fwlib.check_layout(fw)
     fw.pipeline_configure.restype = C.c_int32
     fw.pipeline_configure.argtypes = [C.c_uint32, C.POINTER(fwlib.PipelineConfigC)]
-    fw.pipeline_read_results.restype = C.c_uint32
-    fw.pipeline_read_results.argtypes = [C.c_uint32, C.POINTER(fwlib.PipelineMatchC), C.c_uint32]
     fw.app_restart_video.argtypes = [C.POINTER(fwlib.AppC)]
     fw.app_start_video.restype = C.c_int32
     fw.app_start_video.argtypes = [C.POINTER(fwlib.AppC), C.c_uint32]
@@ -270,7 +276,8 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     fw.app_read_health.argtypes = [C.POINTER(fwlib.AppC), C.POINTER(fwlib.RadioHealthC)]
 
     golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
-    want = [[(int(r["x"]), int(r["y"]), int(r["d"])) for r in g.records] for g in golden]
+    fields = record_fields(params)
+    want = [[tuple(int(r[k]) for k in fields) for r in g.records] for g in golden]
 
     t0 = time.monotonic()
     sysl.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345)
@@ -317,7 +324,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                     out_frames.append(current)
                     current = []
                 else:
-                    current.append((r.x, r.y, r.d))
+                    current.append(tuple(getattr(r, k) for k in fields))
             if n < 64:
                 wait = POLL_US
                 if restart_at is not None:      # wake up for the restart on time
@@ -346,7 +353,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
             counted = health["frames"] == len(out_frames) == frames - 1
             n = frames - FAULT_FIELD - 1
             fresh = pipeline_frames([lrgb] * n, [rrgb] * n, params)
-            fresh = [[(int(r["x"]), int(r["y"]), int(r["d"])) for r in g.records] for g in fresh]
+            fresh = [[tuple(int(r[k]) for k in fields) for r in g.records] for g in fresh]
             exact = exact and out_frames == want[:FAULT_FIELD] + fresh
         else:
             counted = health["mispaired"] + health["drops"] + sum(health["cam_errors"]) > 0
@@ -359,6 +366,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                    "matcher": health["matcher_errors"]},
         "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
         "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
+        "record_fields": list(fields),
         "firmware": status, "core_cycles": cycles, "sim_seconds": round(seconds, 1),
         "build_seconds": round(build_s, 1),
     }

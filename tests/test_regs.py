@@ -37,8 +37,10 @@ def test_header_has_every_field():
 
 
 def test_bad_parameters():
-    with pytest.raises(ValueError, match="fifo_depth"):
+    with pytest.raises(ValueError, match="fifo_depth must be a power of two >= 2, not 1"):
         RegisterBlock(fifo_depth=1)
+    with pytest.raises(ValueError, match="fifo_depth must be a power of two >= 2, not 12"):
+        RegisterBlock(fifo_depth=12)
     with pytest.raises(ValueError, match="aligned"):
         RegisterBlock(base=BASE + 4)
 
@@ -158,74 +160,185 @@ def test_clear_errors_pulse():
     run(dut, bench)
 
 
-def record(x, y, d):
-    return {"x": x, "y": y, "d": d}
+def random_records(rng, n):
+    """``n`` records (dicts of ResultLayout fields, markers excluded) with every field random
+    over its register field's range."""
+    names = [f.name for f in regmap.register("RESULT").fields if f.name not in ("eof", "abort", "valid")]
+    names += [f.name for f in regmap.register("RESULT_EXT").fields]
+    widths = {n: (regmap.field("RESULT_EXT", n) if n in ("d16", "conf") else regmap.field("RESULT", n)).width
+              for n in names}
+    return [{n: rng.getrandbits(widths[n]) for n in names} for _ in range(n)]
+
+
+def reg_value(name, rec, **extra):
+    """The value register ``name`` shows for record ``rec`` (fields it lacks 0)."""
+    values = {**rec, **extra}
+    return sum(values.get(f.name, 0) << f.lsb for f in regmap.register(name).fields)
+
+
+async def put(ctx, port, payload):
+    """Offer one record until it is taken (its ``ready`` sampled high at a clock edge);
+    returns the cycles it took."""
+    ctx.set(port.payload, payload)
+    ctx.set(port.valid, 1)
+    cycles = 0
+    while True:
+        _, _, ready = await ctx.tick().sample(port.ready)
+        cycles += 1
+        if ready:
+            break
+    ctx.set(port.valid, 0)
+    return cycles
+
+
+async def read_record(ctx, bus):
+    """RESULT then RESULT_EXT, in consecutive cycles (as fast as the bus goes): the pair of
+    words, or None for an empty read."""
+    head = await io_read(ctx, bus, BASE + OFF["RESULT"])
+    ext = await io_read(ctx, bus, BASE + OFF["RESULT_EXT"])
+    if not head >> regmap.field("RESULT", "valid").lsb:
+        assert head == 0 and ext == 0, (hex(head), hex(ext))
+        return None
+    return head, ext
 
 
 def test_result_fifo():
     depth = 8
     dut = RegisterBlock(fifo_depth=depth)
-    rng = random.Random(3)
-    recs = [(rng.randrange(1024), rng.randrange(1024), rng.randrange(128)) for _ in range(depth + 3)]
+    recs = random_records(random.Random(3), depth + 3)
 
     async def bench(ctx):
-        # producer: depth + 3 records back to back, the last 3 overflow
-        for x, y, d in recs:
-            ctx.set(dut.results.payload, record(x, y, d))
-            ctx.set(dut.results.valid, 1)
-            await ctx.tick()
-            assert ctx.get(dut.results.ready) == 1
-        ctx.set(dut.results.valid, 0)
+        # producer: depth + 3 records as fast as the FIFO takes them (two cycles each); the
+        # last 3 find it full: taken at once and dropped
+        cycles = [await put(ctx, dut.results, r) for r in recs]
+        assert cycles == [1] + [2] * (depth - 1) + [2] + [1] * 2, cycles
         await ctx.tick()
         level = await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"])
         assert level & 0xFFFF == depth
         assert level >> 16 == 3
-        for x, y, d in recs[:depth]:
-            w = await io_read(ctx, dut.bus, BASE + OFF["RESULT"])
-            assert w == x | y << 10 | d << 20 | 1 << 31
-        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == 0  # empty: valid = 0
+        for r in recs[:depth]:
+            assert await read_record(ctx, dut.bus) == (reg_value("RESULT", r, valid=1),
+                                                       reg_value("RESULT_EXT", r))
+        assert await read_record(ctx, dut.bus) is None      # empty: valid = 0, RESULT_EXT 0
         assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 3 << 16
         # flush empties the FIFO and clears the overflow count
-        for x, y, d in recs[:4]:
-            ctx.set(dut.results.payload, record(x, y, d))
-            ctx.set(dut.results.valid, 1)
-            await ctx.tick()
-        ctx.set(dut.results.valid, 0)
+        for r in recs[:4]:
+            await put(ctx, dut.results, r)
         await ctx.tick()
         assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 4 | 3 << 16
         await io_write(ctx, dut.bus, BASE + OFF["CTRL"], 2)
         await ctx.tick()
         assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 0
+        assert await read_record(ctx, dut.bus) is None
+        print(f"FIFO depth {depth}: {depth} records and their second halves read in order, "
+              "3 overflows counted, flush ok")
+
+    run(dut, bench)
+
+
+def test_result_fifo_full_drops_one_record_a_cycle():
+    """A producer holding ``valid`` high: two cycles a record until the FIFO is full, then
+    every cycle a record taken and counted lost; the stored ones come out whole."""
+    depth = 4
+    dut = RegisterBlock(fifo_depth=depth)
+    recs = random_records(random.Random(6), 3 * depth)
+
+    async def bench(ctx):
+        ctx.set(dut.results.valid, 1)
+        taken = 0
+        for _ in range(3 * depth):
+            ctx.set(dut.results.payload, recs[taken])
+            _, _, ready = await ctx.tick().sample(dut.results.ready)
+            taken += ready
+        ctx.set(dut.results.valid, 0)
+        assert taken == 2 * depth        # depth stored in 2 depth cycles, then one a cycle
+        level = await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"])
+        assert (level & 0xFFFF, level >> 16) == (depth, depth)
+        for r in recs[:depth]:
+            assert await read_record(ctx, dut.bus) == (reg_value("RESULT", r, valid=1),
+                                                       reg_value("RESULT_EXT", r))
+        assert await read_record(ctx, dut.bus) is None
+
+    run(dut, bench)
+
+
+def test_result_read_never_returns_half_a_record():
+    """RESULT read while only a record's first word is written: valid 0 (RESULT_LEVEL 0), and
+    the next read has it whole. RESULT read twice in consecutive cycles: the second reads
+    valid 0 (the FIFO steps over the first record's second word) and clears RESULT_EXT; no
+    record is lost. RESULT_EXT keeps its record across other reads."""
+    dut = RegisterBlock(fifo_depth=4)
+    a, b, c = random_records(random.Random(7), 3)
+
+    async def bench(ctx):
+        ctx.set(dut.results.payload, a)
+        ctx.set(dut.results.valid, 1)
+        await ctx.tick()                       # a taken: its second word is written next cycle
+        ctx.set(dut.results.valid, 0)
+        assert ctx.get(dut.results.ready) == 0
         assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == 0
-        print(f"FIFO depth {depth}: {depth} records read in order, 3 overflows counted, flush ok")
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_EXT"]) == 0
+        assert await read_record(ctx, dut.bus) == (reg_value("RESULT", a, valid=1),
+                                                   reg_value("RESULT_EXT", a))
+        ctx.set(dut.results.payload, b)
+        ctx.set(dut.results.valid, 1)
+        await ctx.tick()
+        ctx.set(dut.results.valid, 0)
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 0
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 1
+        await put(ctx, dut.results, c)
+        await ctx.tick()
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == reg_value("RESULT", b, valid=1)
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == 0      # stepping: again
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_EXT"]) == 0  # after an empty read
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT"]) == reg_value("RESULT", c, valid=1)
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_LEVEL"]) == 0
+        assert await io_read(ctx, dut.bus, BASE + OFF["ID"]) == regmap.register("ID").reset
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_EXT"]) == reg_value("RESULT_EXT", c)
+        assert await io_read(ctx, dut.bus, BASE + OFF["RESULT_EXT"]) == reg_value("RESULT_EXT", c)
+
+    run(dut, bench)
+
+
+def test_result_markers_have_no_second_half():
+    """An eof / abort marker reads RESULT_EXT 0 whatever d16 and conf its producer sent."""
+    dut = RegisterBlock(fifo_depth=4)
+    rec, = random_records(random.Random(8), 1)
+
+    async def bench(ctx):
+        await put(ctx, dut.results, {**rec, "eof": 1, "abort": 1})
+        await put(ctx, dut.results, rec)
+        await ctx.tick()
+        assert await read_record(ctx, dut.bus) == (reg_value("RESULT", rec, eof=1, abort=1, valid=1), 0)
+        assert await read_record(ctx, dut.bus) == (reg_value("RESULT", rec, valid=1),
+                                                   reg_value("RESULT_EXT", rec))
 
     run(dut, bench)
 
 
 def test_result_fifo_concurrent_read_write():
-    """Producer and CPU at the same time: every record comes out once, in order."""
+    """Producer and CPU at the same time: every record comes out once, in order, whole."""
     dut = RegisterBlock(fifo_depth=4)
     rng = random.Random(4)
-    recs = [(rng.randrange(1024), rng.randrange(1024), rng.randrange(128)) for _ in range(40)]
+    recs = random_records(rng, 60)
     got = []
 
     async def producer(ctx):
-        for x, y, d in recs:
-            ctx.set(dut.results.payload, record(x, y, d))
-            ctx.set(dut.results.valid, 1)
-            await ctx.tick()
-            ctx.set(dut.results.valid, 0)
-            for _ in range(rng.randrange(3, 8)):
+        for r in recs:
+            await put(ctx, dut.results, r)
+            for _ in range(rng.randrange(0, 6)):
                 await ctx.tick()
 
     async def cpu(ctx):
         while len(got) < len(recs):
-            w = await io_read(ctx, dut.bus, BASE + OFF["RESULT"])
-            if w >> 31:
-                got.append((w & 0x3FF, w >> 10 & 0x3FF, w >> 20 & 0x7F))
+            w = await read_record(ctx, dut.bus)
+            if w is not None:
+                got.append(w)
+            if rng.random() < 0.3:
+                await ctx.tick().repeat(rng.randrange(1, 4))
 
     run(dut, producer, cpu)
-    assert got == recs
+    assert got == [(reg_value("RESULT", r, valid=1), reg_value("RESULT_EXT", r)) for r in recs]
 
 
 def test_reset_values_are_golden_defaults():
@@ -254,10 +367,11 @@ def test_result_record_widths_come_from_the_elaboration_limits():
     from amaranth.hdl import Shape
     from hdl.regs import ResultLayout
     from hdl.soc import StereoSoC, SystemSoC
-    rec = match_record_layout(regmap.MAX_WIDTH, regmap.MAX_HEIGHT, MAX_DISPARITY)
-    for name in ("x", "y", "d"):
+    rec = match_record_layout(regmap.MAX_WIDTH, regmap.MAX_HEIGHT, MAX_DISPARITY, cost="census")
+    for reg, name in (("RESULT", "x"), ("RESULT", "y"), ("RESULT", "d"), ("RESULT_EXT", "d16"),
+                      ("RESULT_EXT", "conf")):
         assert Shape.cast(ResultLayout[name].shape).width == Shape.cast(rec[name].shape).width == \
-            regmap.field("RESULT", name).width, name
+            regmap.field(reg, name).width, name
     # a frame wider or taller than the records address is refused, not truncated
     with pytest.raises(ValueError, match="max_width 2048 does not fit the RESULT register's x"):
         SystemSoC(max_width=2048)

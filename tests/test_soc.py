@@ -1,12 +1,13 @@
 """The vision core as the CPU sees it: configure through registers, stream a stereo pair,
 read the results out of the FIFO over the MCS I/O bus; compare with the golden pipeline."""
+import pytest
 from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
 from golden.freespace import FreeSpaceParams
 from golden.frontend import FrontEndParams
 from golden.ground import GroundParams, GroundMode
-from golden.matcher import MatcherParams
+from golden.matcher import RTL, MatcherParams
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.sobel import SobelParams
 from hdl import regmap
@@ -15,7 +16,10 @@ from hdl.types import RGBPixel
 from sim.cosim.iobus import io_read, io_write
 from sim.data import motorcycle, crop
 from sim.streams import Packer, frames_words, stream_put
+from sim.system import record_fields
 import random
+
+import numpy as np
 
 BASE = regmap.REGS_BASEADDR
 
@@ -46,9 +50,14 @@ def test_configure_stream_and_read_results_over_the_bus():
     params = PipelineParams(
         FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
                        SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7))
+        MatcherParams(d_max=15, window=7, **RTL))
     golden = pipeline_frames([lf, lf], [rf, rf], params)
     assert sum(len(g.records) for g in golden) > 0
+    compared = record_fields(params)
+    # the comparison covers the record's second half, and golden's is not trivial
+    recs = np.concatenate([g.records for g in golden])
+    assert compared == ("x", "y", "d", "d16", "conf")
+    assert (recs["d16"] != 16 * recs["d"]).any() and len(set(recs["conf"])) > 1
 
     soc, sim = soc_simulator(max_width=64, max_height=16, fifo_depth=64)
     packer = Packer(RGBPixel)
@@ -71,9 +80,10 @@ def test_configure_stream_and_read_results_over_the_bus():
             raise AssertionError("the pipeline did not finish two frames")
         while True:
             word = fields("RESULT", await io_read(ctx, soc.bus, addr("RESULT")))
+            word.update(fields("RESULT_EXT", await io_read(ctx, soc.bus, addr("RESULT_EXT"))))
             if not word["valid"]:
                 break
-            state["results"].append((word["x"], word["y"], word["d"]))
+            state["results"].append(tuple(word[k] for k in compared))
         for reg in ("STAT_EDGES", "STAT_SAD", "STAT_MATCHES", "STAT_REJECTS", "STAT_DROPS"):
             state["stats"][reg] = await io_read(ctx, soc.bus, addr(reg))
         for reg in ("ERR_LEFT", "ERR_RIGHT", "ERR_MATCH"):
@@ -98,7 +108,7 @@ def test_configure_stream_and_read_results_over_the_bus():
     sim.add_testbench(camera(soc.right, [rf, rf], 2), background=True)
     sim.run()
 
-    expected = [(int(r["x"]), int(r["y"]), int(r["d"])) for g in golden for r in g.records]
+    expected = [tuple(int(r[k]) for k in compared) for g in golden for r in g.records]
     assert state["results"] == expected
     st = golden[-1].stats
     assert state["stats"] == {"STAT_EDGES": st["edge_pixels"], "STAT_SAD": st["sad_evaluations"],
@@ -138,3 +148,77 @@ def test_sticky_counters_count_since_the_last_clear():
     sim.run()
     assert seen == [{"errors": 1, "dropped": 5}, {"errors": 0, "dropped": 0},
                     {"errors": 0, "dropped": 3}]
+
+
+@pytest.mark.parametrize("cost", ["census", "sad"])
+def test_abort_marker_waits_for_the_fifo(cost):
+    """SystemSoC's records into the FIFO (hdl/soc.py ``_records_and_markers``): a video restart
+    in the cycle the FIFO writes a record's second word still adds its abort marker, after
+    that record and ahead of the next one; markers carry 0 beside eof / abort, records their
+    d16 and conf (16 d and 0 from a matcher without the subpixel step, cost sad)."""
+    from amaranth.lib import stream, wiring
+    from hdl.matcher import match_record_layout
+    from hdl.regs import RegisterBlock
+    from hdl.soc import _records_and_markers
+
+    class Top(wiring.Component):
+        o: wiring.In(stream.Signature(match_record_layout(64, 16, cost=cost)))
+        video_rst: wiring.In(1)
+
+        def __init__(self):
+            super().__init__()
+            self.regs = RegisterBlock(fifo_depth=8)
+
+        def elaborate(self, platform):
+            m = Module()
+            m.submodules.regs = self.regs
+            _records_and_markers(m, self.o, self.regs.results, self.video_rst)
+            return m
+
+    top = Top()
+    regs = top.regs
+    sim = Simulator(top)
+    sim.add_clock(1e-8)
+    recs = [dict(x=3, y=4, d=5, cost=9, d16=5 * 16 - 3, conf=77, eof=0),
+            dict(x=0, y=0, d=0, cost=0, d16=0, conf=0, eof=1),
+            dict(x=6, y=7, d=8, cost=1, d16=8 * 16 + 8, conf=255, eof=0),
+            dict(x=9, y=1, d=2, cost=2, d16=2 * 16, conf=1, eof=0)]
+    if cost == "sad":
+        recs = [{k: v for k, v in r.items() if k not in ("d16", "conf")} for r in recs]
+    got = []
+
+    async def bench(ctx):
+        async def send(rec, rst_after=False):
+            ctx.set(top.o.payload, rec)
+            ctx.set(top.o.valid, 1)
+            while not (await ctx.tick().sample(top.o.ready))[2]:
+                pass
+            ctx.set(top.o.valid, 0)
+            if rst_after:                   # the FIFO writes rec's second word in this cycle
+                assert not ctx.get(regs.results.ready)
+                ctx.set(top.video_rst, 1)
+                await ctx.tick()
+                ctx.set(top.video_rst, 0)
+        await send(recs[0])
+        await send(recs[1])                 # eof: no abort for a finished frame
+        ctx.set(top.video_rst, 1)
+        await ctx.tick()
+        ctx.set(top.video_rst, 0)
+        await send(recs[2], rst_after=True)
+        await send(recs[3])
+        await ctx.tick().repeat(4)
+        while True:
+            word = fields("RESULT", await io_read(ctx, regs.bus, addr("RESULT")))
+            word.update(fields("RESULT_EXT", await io_read(ctx, regs.bus, addr("RESULT_EXT"))))
+            if not word["valid"]:
+                break
+            got.append({k: word[k] for k in ("x", "y", "d", "d16", "conf", "eof", "abort")})
+
+    sim.add_testbench(bench)
+    sim.run()
+    keep = ("x", "y", "d", "d16", "conf")
+    record = [{"d16": 16 * r["d"], "conf": 0, **{k: r[k] for k in keep if k in r}, "eof": 0,
+               "abort": 0} for r in recs]
+    eof = {**{k: 0 for k in keep}, "eof": 1, "abort": 0}
+    abort = {**{k: 0 for k in keep}, "eof": 1, "abort": 1}
+    assert got == [record[0], eof, record[2], abort, record[3]]

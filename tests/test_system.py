@@ -29,6 +29,7 @@ def pair():
 def test_clean_run_is_bit_exact_with_records():
     res = run_system(*pair(), frames=FRAMES, timing="short", params=PARAMS)
     assert res["bit_exact"] and res["records"] == res["golden_records"] > 0
+    assert res["record_fields"] == ["x", "y", "d", "d16", "conf"]    # RESULT_EXT compared too
     assert res["frames"] == res["pairs_ok"] == FRAMES
     assert res["mispaired"] == res["drops"] == res["fifo_overflow"] == 0
     assert res["errors"] == {"camera_left": 0, "camera_right": 0, "matcher": 0}

@@ -17,13 +17,15 @@ typedef struct {
     STEREO_CONFIG_FIELDS(PIPELINE_CONFIG_MEMBER)
 } pipeline_config_t;
 
-/** One record of the result FIFO: a matched obstacle-edge pixel, or (mark != 0) an
- *  end-of-frame marker (x, y, d = 0). */
+/** One record of the result FIFO (RESULT, then RESULT_EXT): a matched obstacle-edge pixel,
+ *  or (mark != 0) an end-of-frame marker (x, y, d, d16, conf = 0). */
 typedef struct {
     uint16_t x;
     uint16_t y;
     uint8_t d;
     uint8_t mark;            /**< 0 a match; PIPELINE_MARK_EOF, | PIPELINE_MARK_ABORT */
+    uint16_t d16;            /**< subpixel disparity, 1/16 px: 16 d + offset (-8..8) */
+    uint8_t conf;            /**< confidence 0..255 */
 } pipeline_match_t;
 
 #define PIPELINE_MARK_EOF   0x01u /**< end of a frame's records */
@@ -69,7 +71,8 @@ fw_status_t pipeline_set_window(uint32_t base, uint8_t d_min, uint8_t d_max);
 /** Read every parameter register back into cfg. */
 void pipeline_read_config(uint32_t base, pipeline_config_t *cfg);
 void pipeline_read_status(uint32_t base, pipeline_status_t *st);
-/** Pop up to `max` results; returns how many were stored. Stops at an empty FIFO. */
+/** Pop up to `max` results (each a RESULT read, then a RESULT_EXT read for its second
+ *  half); returns how many were stored. Stops at an empty FIFO. */
 uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t max);
 /** Write FREE_CFG: band_w columns per band (1..2047), obstacle runs of run_r rows (1..255).
  *  FW_ERR_PARAM (nothing written) out of range; FW_ERR_ID if the read-back differs. */

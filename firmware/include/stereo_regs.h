@@ -10,15 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           8u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           9u           /**< ID.version value */
 #define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540008u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x53540009u  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      8u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      9u           /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -480,8 +480,8 @@
 #define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK 0x8u         /**< right_hue_fallback mask (1 bits) */
 #define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_RESET 0u           /**< right_hue_fallback reset value */
 
-/* RESULT (read pops): Result FIFO head; a read pops one record. */
-#define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one record. */
+/* RESULT (read pops): Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
+#define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
 #define STEREO_RESULT_RESET                          0x0u         /**< RESULT value after reset */
 #define STEREO_RESULT_X_SHIFT                        0u           /**< x: column of the left edge pixel */
 #define STEREO_RESULT_X_MASK                         0x3FFu       /**< x mask (10 bits) */
@@ -498,7 +498,7 @@
 #define STEREO_RESULT_ABORT_SHIFT                    29u          /**< abort: with eof: that frame was cut by CTRL.restart_video or VIDEO.video_enable = 0: discard its records */
 #define STEREO_RESULT_ABORT_MASK                     0x20000000u  /**< abort mask (1 bits) */
 #define STEREO_RESULT_ABORT_RESET                    0u           /**< abort reset value */
-#define STEREO_RESULT_VALID_SHIFT                    31u          /**< valid: 1: a record; 0: the FIFO was empty */
+#define STEREO_RESULT_VALID_SHIFT                    31u          /**< valid: 1: a record; 0: no whole record was waiting (the FIFO was empty, or the read came in the cycle right after a RESULT read, while the FIFO steps over that record's second half: read again) */
 #define STEREO_RESULT_VALID_MASK                     0x80000000u  /**< valid mask (1 bits) */
 #define STEREO_RESULT_VALID_RESET                    0u           /**< valid reset value */
 
@@ -511,6 +511,16 @@
 #define STEREO_RESULT_LEVEL_OVERFLOW_SHIFT           16u          /**< overflow: records lost because the FIFO was full (saturating; cleared by CTRL.flush_results or CTRL.clear_errors) */
 #define STEREO_RESULT_LEVEL_OVERFLOW_MASK            0xFFFF0000u  /**< overflow mask (16 bits) */
 #define STEREO_RESULT_LEVEL_OVERFLOW_RESET           0u           /**< overflow reset value */
+
+/* RESULT_EXT (read-only): Second half of the record the last RESULT read popped. Read order: RESULT, then RESULT_EXT, before the next RESULT read (that read replaces it). 0 after a RESULT read with valid = 0, and for eof/abort markers. */
+#define STEREO_RESULT_EXT_OFFSET                     0x88u        /**< Second half of the record the last RESULT read popped. Read order: RESULT, then RESULT_EXT, before the next RESULT read (that read replaces it). 0 after a RESULT read with valid = 0, and for eof/abort markers. */
+#define STEREO_RESULT_EXT_RESET                      0x0u         /**< RESULT_EXT value after reset */
+#define STEREO_RESULT_EXT_D16_SHIFT                  0u           /**< d16: subpixel disparity in 1/16 px: 16 d + offset, offset -8..8 (golden/matcher.py step 6; 16 d from a matcher without that step, cost sad) */
+#define STEREO_RESULT_EXT_D16_MASK                   0xFFFu       /**< d16 mask (12 bits) */
+#define STEREO_RESULT_EXT_D16_RESET                  0u           /**< d16 reset value */
+#define STEREO_RESULT_EXT_CONF_SHIFT                 12u          /**< conf: confidence of the match, 0..255 (golden/matcher.py step 6; 0 without that step) */
+#define STEREO_RESULT_EXT_CONF_MASK                  0x000FF000u  /**< conf mask (8 bits) */
+#define STEREO_RESULT_EXT_CONF_RESET                 0u           /**< conf reset value */
 
 /** Extract field F of register R from value v: STEREO_GET(MATCH, D_MAX, v). */
 #define STEREO_GET(R, F, v) (((uint32_t)(v) & STEREO_##R##_##F##_MASK) >> STEREO_##R##_##F##_SHIFT)

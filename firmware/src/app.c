@@ -265,7 +265,8 @@ static const fw_field_t fw_fields[] = {
     STEREO_CONFIG_FIELDS(CONFIG_FW_FIELD)
 #undef CONFIG_FW_FIELD
     FW_FIELD(pipeline_match_t, x), FW_FIELD(pipeline_match_t, y), FW_FIELD(pipeline_match_t, d),
-    FW_FIELD(pipeline_match_t, mark),
+    FW_FIELD(pipeline_match_t, mark), FW_FIELD(pipeline_match_t, d16),
+    FW_FIELD(pipeline_match_t, conf),
     FW_FIELD(radio_health_t, frames), FW_FIELD(radio_health_t, pairs_ok),
     FW_FIELD(radio_health_t, mispaired), FW_FIELD(radio_health_t, drops),
     FW_FIELD(radio_health_t, cam_errors), FW_FIELD(radio_health_t, matcher_errors),

@@ -150,9 +150,13 @@ static uint32_t regblock_read(sim_xiic_t *s, uint32_t off)
         return 0u;
     case STEREO_RESULT_OFFSET:
         if (s->result_head < s->result_n) {
+            s->result_ext_last = s->result_ext[s->result_head];
             return s->result_fifo[s->result_head++];
         }
+        s->result_ext_last = 0u;
         return 0u;
+    case STEREO_RESULT_EXT_OFFSET:
+        return s->result_ext_last;
     case STEREO_RESULT_LEVEL_OFFSET:
         return s->result_n - s->result_head;
     default:

@@ -46,8 +46,10 @@ typedef struct {
     uint32_t accesses;
     uint32_t delays_us;
     uint32_t regfile[64];     /**< register block model (RW, no side effects) */
-    uint32_t result_fifo[256];
+    uint32_t result_fifo[256];   /**< RESULT words of the queued records */
+    uint32_t result_ext[256];    /**< their RESULT_EXT words */
     uint32_t result_n, result_head;
+    uint32_t result_ext_last;    /**< RESULT_EXT: of the record the last RESULT read popped */
     uint8_t uart[512];
     uint32_t uart_n;
 } sim_xiic_t;

@@ -111,14 +111,22 @@ static void test_set_window_keeps_the_other_match_fields(void)
     FWT_CHECK_EQ(sim.regfile[STEREO_MATCH_OFFSET / 4] & 0xFFFFu, 0x3F00u);
 }
 
+static uint32_t record_ext(uint32_t d16, uint32_t conf)
+{
+    return STEREO_SET(RESULT_EXT, D16, d16) | STEREO_SET(RESULT_EXT, CONF, conf);
+}
+
 static void test_results_and_status(void)
 {
     pipeline_match_t m[8];
     pipeline_status_t st;
     setup();
-    sim.result_fifo[0] = record(1023, 1023, 127);
+    sim.result_fifo[0] = record(1023, 1023, 255);
+    sim.result_ext[0] = record_ext(4095u, 255u);     /* every field at its widest */
     sim.result_fifo[1] = record(5, 6, 7);
+    sim.result_ext[1] = record_ext(7u * 16u - 8u, 17u);
     sim.result_fifo[2] = record(0, 0, 1);
+    sim.result_ext[2] = record_ext(1u * 16u + 8u, 200u);
     sim.result_n = 3;
     sim.regfile[STEREO_FRAME_COUNT_OFFSET / 4] = 77;
     sim.regfile[STEREO_ERR_LEFT_OFFSET / 4] = 0x00020001u;
@@ -130,11 +138,23 @@ static void test_results_and_status(void)
     FWT_CHECK_EQ(st.matches, 3);
     FWT_CHECK_EQ(st.fifo_level, 3);
     FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 2), 2);
-    FWT_CHECK(m[0].x == 1023 && m[0].y == 1023 && m[0].d == 127);
+    FWT_CHECK(m[0].x == 1023 && m[0].y == 1023 && m[0].d == 255 && m[0].mark == 0u);
+    FWT_CHECK(m[0].d16 == 4095u && m[0].conf == 255u);
     FWT_CHECK(m[1].x == 5 && m[1].y == 6 && m[1].d == 7);
+    FWT_CHECK(m[1].d16 == 7u * 16u - 8u && m[1].conf == 17u);   /* its own second half */
     FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 1);
+    FWT_CHECK(m[0].x == 0 && m[0].d == 1 && m[0].d16 == 24u && m[0].conf == 200u);
     FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 0);
+    /* markers: RESULT_EXT is 0 for them */
+    sim.result_fifo[3] = STEREO_SET(RESULT, EOF, 1u) | STEREO_SET(RESULT, VALID, 1u);
+    sim.result_ext[3] = 0u;
+    sim.result_fifo[4] = record(9, 8, 3);
+    sim.result_ext[4] = record_ext(3u * 16u + 1u, 99u);
     sim.result_n = 5;
+    FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 2);
+    FWT_CHECK(m[0].mark == PIPELINE_MARK_EOF && m[0].d16 == 0u && m[0].conf == 0u);
+    FWT_CHECK(m[1].mark == 0u && m[1].d16 == 49u && m[1].conf == 99u);
+    sim.result_n = 7;
     pipeline_flush_results(STEREO_BASEADDR);
     FWT_CHECK_EQ(pipeline_read_results(STEREO_BASEADDR, m, 8), 0);
 }

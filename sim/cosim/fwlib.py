@@ -84,7 +84,8 @@ class AppC(C.Structure):
 
 
 class PipelineMatchC(C.Structure):
-    _fields_ = [("x", C.c_uint16), ("y", C.c_uint16), ("d", C.c_uint8), ("mark", C.c_uint8)]
+    _fields_ = [("x", C.c_uint16), ("y", C.c_uint16), ("d", C.c_uint8), ("mark", C.c_uint8),
+                ("d16", C.c_uint16), ("conf", C.c_uint8)]
 
 
 class RegValC(C.Structure):
@@ -129,6 +130,7 @@ def load(rebuild: bool = True) -> C.CDLL:
         "app_report": (C.c_uint32, [P(AppC), C.c_int16, C.c_int16, C.c_uint16, C.c_uint32,
                                     P(RadioHealthC), P(C.c_uint8), C.c_uint32]),
         "pipeline_read_config": (None, [C.c_uint32, P(PipelineConfigC)]),
+        "pipeline_read_results": (C.c_uint32, [C.c_uint32, P(PipelineMatchC), C.c_uint32]),
     }
     for name, (res, args) in sig.items():
         fn = getattr(lib, name)

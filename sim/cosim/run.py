@@ -96,6 +96,7 @@ class Result:
     frames: list = field(default_factory=list)
     decoder: FrameDecoder | None = None
     matches: list = field(default_factory=list)
+    read_back: list = field(default_factory=list)     #: pipeline_read_results of the matches
     regs_outputs: dict = field(default_factory=dict)
     uart: bytes = b""
 
@@ -105,6 +106,12 @@ SCENARIOS = [
     Scenario("decoder 0x21 NACKs", nack_addr=0x21),
     Scenario("decoder 0x20 holds SCL low", stuck_addr=0x20),
 ]
+
+
+def second_half(x, d):
+    """The (d16, conf) the report scenario gives the record of column ``x``, disparity ``d``:
+    16 d + an offset -8..8, and a confidence, different from record to record."""
+    return 16 * d + x % 17 - 8, 3 * x % 256
 
 
 def run_scenario(sc: Scenario, lib=None) -> Result:
@@ -169,9 +176,12 @@ def run_scenario(sc: Scenario, lib=None) -> Result:
                 await ctx.tick().repeat(max(1, a // DELAY_US_PER_CYCLE))
             elif kind == "push":                       # results into the RTL FIFO
                 for x, y, d in matches:
-                    ctx.set(dut.regs.results.payload, {"x": x, "y": y, "d": d})
+                    d16, conf = second_half(x, d)
+                    ctx.set(dut.regs.results.payload, {"x": x, "y": y, "d": d, "d16": d16,
+                                                       "conf": conf})
                     ctx.set(dut.regs.results.valid, 1)
-                    await ctx.tick()
+                    while not (await ctx.tick().sample(dut.regs.results.ready))[2]:
+                        pass
                 ctx.set(dut.regs.results.valid, 0)
                 await ctx.tick()
             elif kind == "snapshot":
@@ -187,7 +197,11 @@ def run_scenario(sc: Scenario, lib=None) -> Result:
                                                IIC_TIMEOUT_POLLS)}
         if sc.report:
             state["pipeline"] = lib.app_init_pipeline(C.byref(app), regmap.REGS_BASEADDR)
-            service(("push", None, 0))
+            service(("push", None, 0))          # read back by pipeline_read_results
+            chunk = (fwlib.PipelineMatchC * len(matches))()
+            n = lib.pipeline_read_results(regmap.REGS_BASEADDR, chunk, len(matches))
+            res.read_back = [(r.x, r.y, r.d, r.d16, r.conf, r.mark) for r in chunk[:n]]
+            service(("push", None, 0))          # collected by app_report
             state["report_len"] = lib.app_report(C.byref(app), -120, 3400, 0x4000, 1000, None,
                                                  frame, len(frame))
             res.regs_outputs = service(("snapshot", None, 0))
@@ -264,6 +278,10 @@ def check(res: Result, sc: Scenario, table) -> list[str]:
             assert res.regs_outputs[f.name] == f.reset, f.name
         lines.append(f"register block: ID checked, {len(res.regs_outputs)} parameter outputs "
                      "hold the firmware's configuration")
+        want = [(x, y, d, *second_half(x, d), 0) for x, y, d in res.matches]
+        assert res.read_back == want, next((g, w) for g, w in zip(res.read_back, want) if g != w)
+        lines.append(f"pipeline_read_results: the {len(want)} records pushed into the RTL FIFO, "
+                     "each whole (RESULT and RESULT_EXT: d16, conf), in order")
         assert res.decoder.frames_ok == 1 and res.decoder.errors == 0
         pkt = res.frames[0]
         bands = summarise_matches(res.matches, 720, 32, 3)
