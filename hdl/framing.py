@@ -56,6 +56,7 @@ class FrameTracker(Elaboratable):
     Registered outputs: ``in_frame`` (between an accepted ``sof`` and the end of that frame; the
     signal given to the constructor, else a new one),
     ``width`` (learned line length of the current frame, 0 until its first ``eol``),
+    ``last_x`` (``width - 1`` from the frame's first ``eol`` on; stale before it),
     ``errors`` (16-bit) and ``dropped`` (32-bit, :func:`hdl.counter.wide_counter`: 16-bit carry
     chains) saturating counters.
     """
@@ -78,6 +79,7 @@ class FrameTracker(Elaboratable):
 
         self.in_frame = Signal() if in_frame is None else in_frame
         self.width = Signal(range(max_width + 1))
+        self.last_x = Signal(bits_for(max_width))
         self.errors = Signal(16)
         self.dropped = Signal(32)
 
@@ -90,7 +92,7 @@ class FrameTracker(Elaboratable):
         width_known = Signal()
         too_long = Signal()
         bad = Signal()
-        last_x = Signal.like(next_x)     # width - 1, registered with width
+        last_x = self.last_x             # width - 1, registered with width
         at_last = Signal()               # next_x == last_x, registered (no comparator in `bad`)
         # next_x == width, registered: once the width is known, next_x never exceeds it (a beat
         # at next_x == width is too long and ends the frame), so this flag is the comparison
