@@ -43,7 +43,8 @@ class YCbCrToRGB(wiring.Component):
     -----
     i_valid, i : In
         A pixel (:data:`YCbCrPixel`) is taken whenever ``i_valid`` is high; no backpressure
-        (the pipeline advances every cycle).
+        (the pipeline advances every cycle; :class:`Ycc422ToRGB` stalls it with a clock
+        enable, ``EnableInserter``).
     o_valid, o : Out
         The RGB888 pixel (:data:`RGBPixel`, framing flags passed through), exactly
         :data:`CONVERT_LATENCY` cycles later.
