@@ -4,13 +4,15 @@ The ADV7180 decoders output BT.656; the pipeline's front end takes :data:`hdl.ty
 The bit-exact specification (decoding rules, colour conversion, error counting) is
 ``golden/bt656.py``; this unit produces the same beats in the same order.
 
-Structure: a byte-serial decoder picks (Y, Cb, Cr) and the framing flags of each pixel (at most
-one pixel per two input bytes), then a fixed 5-stage conversion pipeline
-(:class:`YCbCrToRGB`: operands, products, sums, clamp) computes RGB888, then a 4-entry buffer
-absorbs short output stalls. The conversion pipeline never stalls.
+Structure: a byte-serial decoder (:class:`Bt656Decoder`) gives each pixel as a 4:2:2 word
+(:data:`YCbCr422`: its Y and one chroma byte, 19 bits; at most one word per two input bytes),
+then :class:`Ycc422ToRGB` puts each group's two words together and computes RGB888 in a 5-stage
+conversion pipeline (:class:`YCbCrToRGB`: operands, products, sums, clamp), then a 4-entry
+buffer absorbs short output stalls. The SoC's camera ports (:mod:`hdl.camera_port`) carry the
+words through their clock-domain FIFOs and convert in the core domain.
 """
 
-from amaranth.hdl import Cat, Module, Mux, Signal, signed
+from amaranth.hdl import Cat, EnableInserter, Module, Mux, Signal, signed
 from amaranth.lib import stream, wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
@@ -18,9 +20,17 @@ from amaranth.lib.wiring import In, Out
 from golden.bt656 import COEFFICIENTS
 from .types import RGBPixel, frame_layout
 
-__all__ = ["Bt656ToRGB", "YCbCrToRGB", "YCbCrPixel", "CONVERT_LATENCY"]
+__all__ = ["Bt656ToRGB", "Bt656Decoder", "Ycc422ToRGB", "YCbCrToRGB", "YCbCr422", "YCbCrPixel",
+           "CONVERT_LATENCY"]
 
-#: One pixel of the decoder: its own Y and the Cb, Cr of its 4:2:2 group.
+#: One pixel of the decoder as a 4:2:2 word: its own Y and one chroma byte ``c``. A group
+#: ``Cb Y0 Cr Y1`` is two words, the *first* (Y0, Cb; ``sof`` on a frame's first pixel, never
+#: ``eol`` or ``eof``) and the *second* (Y1, Cr; ``eol``, ``eof`` on a line's and a frame's
+#: last pixel, never ``sof``). A second word with ``eof`` and without ``eol`` is no pixel: it
+#: brings the Cr of a group cut after it (golden.bt656: the first pixel alone, the line without
+#: ``eol``).
+YCbCr422 = frame_layout(y=8, c=8)
+#: One pixel with the Cb, Cr of its 4:2:2 group.
 YCbCrPixel = frame_layout(y=8, cb=8, cr=8)
 #: Cycles from a pixel into :class:`YCbCrToRGB` to its RGB value out.
 CONVERT_LATENCY = 5
@@ -33,7 +43,8 @@ class YCbCrToRGB(wiring.Component):
     -----
     i_valid, i : In
         A pixel (:data:`YCbCrPixel`) is taken whenever ``i_valid`` is high; no backpressure
-        (the pipeline advances every cycle).
+        (the pipeline advances every cycle; :class:`Ycc422ToRGB` stalls it with a clock
+        enable, ``EnableInserter``).
     o_valid, o : Out
         The RGB888 pixel (:data:`RGBPixel`, framing flags passed through), exactly
         :data:`CONVERT_LATENCY` cycles later.
@@ -94,72 +105,103 @@ class YCbCrToRGB(wiring.Component):
         return m
 
 
-class Bt656ToRGB(wiring.Component):
-    """BT.656 byte stream in, RGB888 pixels out; each field is a frame.
+class Ycc422ToRGB(wiring.Component):
+    """4:2:2 words (:data:`YCbCr422`) to RGB888 pixels (:data:`RGBPixel`), with backpressure.
+
+    Ports
+    -----
+    i : In(stream.Signature(YCbCr422))
+        Words, whole groups in order (a first word, then its second). A first word without
+        its second (followed by another first word) is lost. ``ready`` follows the output.
+    o : Out(stream.Signature(RGBPixel))
+        Pixels in order, ``valid`` and ``payload`` from registers. A group's first pixel enters
+        the conversion with its second word, its second pixel one cycle later (while the next
+        group's first word is taken): one word a cycle sustained. Latency from the second
+        word: :data:`CONVERT_LATENCY` cycles for the first pixel, one more for the second.
+
+    The conversion pipeline (:class:`YCbCrToRGB`) and the registers here move together when the
+    output register is empty or being read.
+    """
+
+    i: In(stream.Signature(YCbCr422))
+    o: Out(stream.Signature(RGBPixel))
+
+    def elaborate(self, platform):
+        m = Module()
+        advance = Signal()
+        m.submodules.convert = conv = EnableInserter(advance)(YCbCrToRGB())
+        m.d.comb += [advance.eq(~self.o.valid | self.o.ready), self.i.ready.eq(advance),
+                     self.o.valid.eq(conv.o_valid), self.o.payload.eq(conv.o)]
+
+        w = self.i.payload
+        second = Signal()           # a first word was taken: the next word is its second
+        is_second = Signal()
+        m.d.comb += is_second.eq(second & ~w.sof)
+        hold_y, hold_cb, hold_sof = Signal(8), Signal(8), Signal()     # the first word
+        cr = Signal(8)
+        pend = Signal()             # the group's second pixel enters the conversion next
+        pend_y, pend_eol, pend_eof = Signal(8), Signal(), Signal()
+        with m.If(pend):
+            m.d.comb += [conv.i_valid.eq(1), conv.i.y.eq(pend_y), conv.i.cr.eq(cr),
+                         conv.i.eol.eq(pend_eol), conv.i.eof.eq(pend_eof)]
+        with m.Else():
+            m.d.comb += [conv.i_valid.eq(self.i.valid & is_second), conv.i.y.eq(hold_y),
+                         conv.i.cr.eq(w.c), conv.i.sof.eq(hold_sof)]
+        m.d.comb += conv.i.cb.eq(hold_cb)
+        with m.If(advance):
+            m.d.sync += pend.eq(0)
+            with m.If(self.i.valid):
+                with m.If(is_second):
+                    m.d.sync += [second.eq(0), cr.eq(w.c)]
+                    with m.If(w.eol | ~w.eof):                  # not a group cut after Cr
+                        m.d.sync += [pend.eq(1), pend_y.eq(w.y), pend_eol.eq(w.eol),
+                                     pend_eof.eq(w.eof)]
+                with m.Else():
+                    m.d.sync += [second.eq(1), hold_y.eq(w.y), hold_cb.eq(w.c),
+                                 hold_sof.eq(w.sof)]
+        return m
+
+
+class Bt656Decoder(wiring.Component):
+    """BT.656 byte stream in, 4:2:2 words (:data:`YCbCr422`) out; each field is a frame.
 
     Parameters (keyword-only)
     -------------------------
     lines : int
         Active lines per field (240 for NTSC): the ``lines``-th line carries ``eof``.
-    buffer : bool
-        Put the 4-entry output buffer in (default). Without it (a consumer that is always
-        ready, as :class:`hdl.camera_port.CameraPort`'s overflow guard), ``o`` is the
-        conversion pipeline's registered output and a pixel offered while ``ready`` is low is
-        dropped and counted.
 
     Ports
     -----
     i : In(stream.Signature(8))
         Bytes from the decoder, one per LLC cycle at most. Always ready (a video decoder cannot
         stall); a byte is taken whenever ``valid`` is high.
-    o : Out(stream.Signature(RGBPixel))
-        Pixels, at most one per two input bytes, in the order of ``golden.bt656.decode_bt656``.
-        Latency from the byte that completes a pixel: 1 (decoder) + :data:`CONVERT_LATENCY`
-        cycles for the first pixel of a group, one byte more for the second. A 4-entry buffer
-        absorbs output stalls; a pixel that finds it full is dropped and counted.
+    o_valid, o : Out
+        A word, registered, at most one per two input bytes (no backpressure): a group's first
+        word one cycle after its Cr byte, its second one cycle after the byte that follows
+        Y1 (which tells whether Y1 ends the line).
     errors : Out(16)
         Saturating count of malformed lines (ending inside a group, or beyond ``lines``).
-    dropped : Out(16)
-        Saturating count of pixels dropped for lack of output space.
     locked : Out(1)
-        A field edge has been seen since reset (pixels flow only after one, so a reset in the
+        A field edge has been seen since reset (words flow only after one, so a reset in the
         middle of a field yields no partial frame).
     """
 
     i: In(stream.Signature(8))
-    o: Out(stream.Signature(RGBPixel))
+    o_valid: Out(1)
+    o: Out(YCbCr422)
     errors: Out(16)
-    dropped: Out(16)
     locked: Out(1)
 
-    def __init__(self, *, lines=240, buffer=True):
+    def __init__(self, *, lines=240):
         if not isinstance(lines, int) or not 1 <= lines <= 2047:
             self._MustUse__silence = True
             raise ValueError(f"lines must be an integer in 1..2047, not {lines!r}")
         self._lines = lines
-        self._buffer = bool(buffer)
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.convert = conv = YCbCrToRGB()
         m.d.comb += self.i.ready.eq(1)
-        if self._buffer:
-            fifo = m.submodules.fifo = SyncFIFOBuffered(width=RGBPixel.size, depth=4)
-            m.d.comb += [
-                self.o.valid.eq(fifo.r_rdy),
-                self.o.payload.eq(fifo.r_data),
-                fifo.r_en.eq(self.o.ready),
-                fifo.w_en.eq(conv.o_valid & fifo.w_rdy),
-                fifo.w_data.eq(conv.o.as_value()),
-            ]
-            room = fifo.w_rdy
-        else:
-            m.d.comb += [self.o.valid.eq(conv.o_valid), self.o.payload.eq(conv.o)]
-            room = self.o.ready
-        with m.If(conv.o_valid & ~room & (self.dropped != 0xFFFF)):
-            m.d.sync += self.dropped.eq(self.dropped + 1)
-
         byte = self.i.payload
         take = self.i.valid
         h0 = Signal(8, init=1)          # the three previous bytes, h0 the oldest
@@ -182,14 +224,18 @@ class Bt656ToRGB(wiring.Component):
         with m.If(error & (self.errors != 0xFFFF)):
             m.d.sync += self.errors.eq(self.errors + 1)
 
-        # one pixel per cycle at most into the converter, registered
-        emit_valid = Signal()
-        emit = Signal(YCbCrPixel)
-        m.d.sync += [conv.i_valid.eq(emit_valid), conv.i.eq(emit)]
+        # one word per cycle at most, registered
+        emit = Signal()
+        emit_second = Signal()
+        eol, eof = Signal(), Signal()
+        m.d.sync += [self.o_valid.eq(emit),
+                     self.o.y.eq(Mux(emit_second, pend_y, y0)),
+                     self.o.c.eq(Mux(emit_second, cr, cb)),
+                     self.o.sof.eq(~emit_second & new_frame),
+                     self.o.eol.eq(emit_second & eol), self.o.eof.eq(emit_second & eof)]
 
-        def push(y, cr_value, sof, eol, eof):
-            m.d.comb += [emit_valid.eq(1), emit.y.eq(y), emit.cb.eq(cb), emit.cr.eq(cr_value),
-                         emit.sof.eq(sof), emit.eol.eq(eol), emit.eof.eq(eof)]
+        def push_second(eol_value, eof_value):
+            m.d.comb += [emit.eq(1), emit_second.eq(1), eol.eq(eol_value), eof.eq(eof_value)]
 
         is_code = (h0 == 0xFF) & (h1 == 0x00) & (h2 == 0x00)
         f_bit, v_bit, h_bit = byte[6], byte[5], byte[4]
@@ -197,8 +243,10 @@ class Bt656ToRGB(wiring.Component):
             m.d.sync += [h0.eq(h1), h1.eq(h2), h2.eq(byte)]
             with m.If(active & (byte == 0xFF)):                # start of EAV: line ends
                 with m.If(pend_valid):
-                    push(pend_y, cr, 0, 1, count == self._lines)
+                    push_second(1, count == self._lines)
                     m.d.sync += pend_valid.eq(0)
+                with m.Elif(phase == 3):                       # cut after Cr: its Cr alone
+                    push_second(0, 1)
                 m.d.comb += error.eq(phase != 0)
                 m.d.sync += [active.eq(0), phase.eq(0)]
             with m.Elif(is_code):
@@ -214,7 +262,7 @@ class Bt656ToRGB(wiring.Component):
                         m.d.sync += [active.eq(1), phase.eq(0), count.eq(lines_so_far + 1)]
             with m.Elif(active):
                 with m.If(pend_valid):
-                    push(pend_y, cr, 0, 0, 0)
+                    push_second(0, 0)
                     m.d.sync += pend_valid.eq(0)
                 m.d.sync += phase.eq(phase + 1)
                 with m.Switch(phase):
@@ -224,7 +272,81 @@ class Bt656ToRGB(wiring.Component):
                         m.d.sync += y0.eq(byte)
                     with m.Case(2):
                         m.d.sync += [cr.eq(byte), new_frame.eq(0)]
-                        push(y0, byte, new_frame, 0, 0)
+                        m.d.comb += emit.eq(1)                 # the first word (Y0, Cb)
                     with m.Case(3):
                         m.d.sync += [pend_y.eq(byte), pend_valid.eq(1)]
+        return m
+
+
+class Bt656ToRGB(wiring.Component):
+    """BT.656 byte stream in, RGB888 pixels out; each field is a frame
+    (:class:`Bt656Decoder`, then :class:`Ycc422ToRGB`, never stalled, then the buffer).
+
+    Parameters (keyword-only)
+    -------------------------
+    lines : int
+        Active lines per field (240 for NTSC): the ``lines``-th line carries ``eof``.
+    buffer : bool
+        Put the 4-entry output buffer in (default). Without it (a consumer that is always
+        ready), ``o`` is the conversion pipeline's registered output and a pixel offered while
+        ``ready`` is low is dropped and counted.
+
+    Ports
+    -----
+    i : In(stream.Signature(8))
+        Bytes from the decoder, one per LLC cycle at most. Always ready (a video decoder cannot
+        stall); a byte is taken whenever ``valid`` is high.
+    o : Out(stream.Signature(RGBPixel))
+        Pixels, at most one per two input bytes, in the order of ``golden.bt656.decode_bt656``.
+        Latency from the byte after a group's Y1 (which tells whether Y1 ends the line): 1
+        (the word register) + :data:`CONVERT_LATENCY` cycles for the group's first pixel, one
+        more for its second. A 4-entry
+        buffer absorbs output stalls; a pixel that finds it full is dropped and counted.
+    errors : Out(16)
+        Saturating count of malformed lines (ending inside a group, or beyond ``lines``).
+    dropped : Out(16)
+        Saturating count of pixels dropped for lack of output space.
+    locked : Out(1)
+        A field edge has been seen since reset (pixels flow only after one, so a reset in the
+        middle of a field yields no partial frame).
+    """
+
+    i: In(stream.Signature(8))
+    o: Out(stream.Signature(RGBPixel))
+    errors: Out(16)
+    dropped: Out(16)
+    locked: Out(1)
+
+    def __init__(self, *, lines=240, buffer=True):
+        try:
+            self._decoder = Bt656Decoder(lines=lines)
+        except ValueError:
+            self._MustUse__silence = True
+            raise
+        self._buffer = bool(buffer)
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.decoder = dec = self._decoder
+        m.submodules.convert = conv = Ycc422ToRGB()
+        wiring.connect(m, wiring.flipped(self.i), dec.i)
+        m.d.comb += [conv.i.valid.eq(dec.o_valid), conv.i.payload.eq(dec.o),
+                     conv.o.ready.eq(1),                # never stalls
+                     self.errors.eq(dec.errors), self.locked.eq(dec.locked)]
+        if self._buffer:
+            fifo = m.submodules.fifo = SyncFIFOBuffered(width=RGBPixel.size, depth=4)
+            m.d.comb += [
+                self.o.valid.eq(fifo.r_rdy),
+                self.o.payload.eq(fifo.r_data),
+                fifo.r_en.eq(self.o.ready),
+                fifo.w_en.eq(conv.o.valid & fifo.w_rdy),
+                fifo.w_data.eq(conv.o.payload.as_value()),
+            ]
+            room = fifo.w_rdy
+        else:
+            m.d.comb += [self.o.valid.eq(conv.o.valid), self.o.payload.eq(conv.o.payload)]
+            room = self.o.ready
+        with m.If(conv.o.valid & ~room & (self.dropped != 0xFFFF)):
+            m.d.sync += self.dropped.eq(self.dropped + 1)
         return m

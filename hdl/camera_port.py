@@ -1,14 +1,17 @@
-"""One camera port of the SoC: BT.656 bytes in the camera's clock domain to RGB888 pixels in
-the core domain.
+"""One camera port of the SoC: BT.656 bytes in the camera's clock domain to 4:2:2 words
+(:data:`hdl.bt656.YCbCr422`, 19 bits a pixel) in the core domain, where the SoC converts them
+to RGB888 (:class:`hdl.bt656.Ycc422ToRGB`) after its camera buffer: the FIFOs and the buffer
+carry 19 bits a pixel instead of 27.
 
-``ADV7180 byte (27 MHz LLC) -> Bt656ToRGB (EAV/SAV, field bit, blanking, YCbCr -> RGB888)
--> overflow guard -> AsyncFIFO -> core domain``
+``ADV7180 byte (27 MHz LLC) -> Bt656Decoder (EAV/SAV, field bit, blanking) -> overflow guard
+-> AsyncFIFO -> core domain``
 
 A camera cannot stall: the decoder takes a byte every LLC cycle whatever happens downstream.
-When the clock-domain FIFO is full, the pixel is dropped, counted in ``overflow``, and so is the
-rest of that frame up to the next ``sof`` (a frame with a hole would be a corrupt frame, one cut
-short is a malformed stream that every unit downstream recovers from at the next ``sof``). The
-FIFO therefore only ever holds whole-frame prefixes, never a frame with pixels missing inside.
+When the clock-domain FIFO has no room for a group's two words, the group's first word is
+dropped, counted in ``overflow``, and so is the rest of that frame up to the next ``sof`` (a
+frame with a hole would be a corrupt frame, one cut short is a malformed stream that every unit
+downstream recovers from at the next ``sof``). The FIFO therefore only ever holds whole groups
+of whole-frame prefixes, never a frame with pixels missing inside.
 
 Counters cross into the core domain as Gray codes through two-flop synchronisers (each counts
 by at most one per camera cycle, so a Gray code changes one bit at a time).
@@ -19,8 +22,7 @@ from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
-from .bt656 import Bt656ToRGB
-from .types import RGBPixel
+from .bt656 import Bt656Decoder, YCbCr422
 
 __all__ = ["CameraPort", "sync_counter"]
 
@@ -71,15 +73,15 @@ class CameraPort(wiring.Component):
     i : In(stream.Signature(8)), camera domain
         Decoder bytes; always ready (a camera cannot stall); ``valid`` low skips a cycle (tie it
         high on a board: the ADV7180 drives one byte per LLC cycle).
-    o : Out(stream.Signature(RGBPixel)), core domain
-        Pixels; backpressure is absorbed by the FIFO, then by dropping whole frame tails
-        (counted). Latency about 10 camera cycles + 5 core cycles; valid and payload come from
-        registers.
+    o : Out(stream.Signature(YCbCr422)), core domain
+        4:2:2 words, whole groups; backpressure is absorbed by the FIFO, then by dropping whole
+        frame tails (counted). Latency about 5 camera cycles + 5 core cycles; valid and payload
+        come from registers.
     errors : Out(16), core domain
         The decoder's malformed-line count (saturating).
     overflow : Out(16), core domain
-        Pixels dropped because the FIFO was full, including the rest of each frame so cut
-        (saturating).
+        Words (pixels) dropped because the FIFO had no room for a group, including the rest of
+        each frame so cut (saturating).
     locked : Out(1), core domain
         The decoder has seen a field edge since reset.
     """
@@ -91,11 +93,10 @@ class CameraPort(wiring.Component):
         self._domain = domain
         self._lines = lines
         self._fifo_depth = fifo_depth
-        # no output buffer: the overflow guard below is always ready
-        self.decoder = DomainRenamer(domain)(Bt656ToRGB(lines=lines, buffer=False))
+        self.decoder = DomainRenamer(domain)(Bt656Decoder(lines=lines))
         super().__init__({
             "i": In(stream.Signature(8)),
-            "o": Out(stream.Signature(RGBPixel)),
+            "o": Out(stream.Signature(YCbCr422)),
             "errors": Out(16), "overflow": Out(16), "locked": Out(1),
         })
 
@@ -104,26 +105,30 @@ class CameraPort(wiring.Component):
         cam = m.d[self._domain]
         m.submodules.decoder = dec = self.decoder
         fifo = _DistributedAsyncFIFO if self._fifo_depth <= 64 else AsyncFIFO
-        m.submodules.fifo = q = fifo(width=RGBPixel.size, depth=self._fifo_depth,
+        m.submodules.fifo = q = fifo(width=YCbCr422.size, depth=self._fifo_depth,
                                      w_domain=self._domain, r_domain="sync")
         wiring.connect(m, wiring.flipped(self.i), dec.i)
 
-        # overflow guard: a pixel that finds the FIFO full, and the rest of its frame, dropped
+        # overflow guard: a group whose two words do not both fit, and the rest of its frame,
+        # dropped; a group's second word always fits after its first
         cutting = Signal()
+        second = Signal()           # the next word is the second of a group kept
         overflow = Signal(16)
-        px = dec.o.payload
-        keep = dec.o.valid & q.w_rdy & (px.sof | ~cutting)
-        m.d.comb += [dec.o.ready.eq(1), q.w_en.eq(keep), q.w_data.eq(px.as_value())]
-        with m.If(dec.o.valid):
+        px = dec.o
+        room = Signal()
+        m.d.comb += room.eq(q.w_level < self._fifo_depth - 1)
+        keep = dec.o_valid & (second | (room & (px.sof | ~cutting)))
+        m.d.comb += [q.w_en.eq(keep), q.w_data.eq(px.as_value())]
+        with m.If(dec.o_valid):
             with m.If(keep):
-                cam += cutting.eq(0)
+                cam += [cutting.eq(0), second.eq(~second)]
             with m.Else():
                 cam += cutting.eq(1)
                 with m.If(overflow != 0xFFFF):
                     cam += overflow.eq(overflow + 1)
 
         # a registered 2-entry buffer: the FIFO's read logic and the consumer's do not chain
-        m.submodules.out = out = SyncFIFOBuffered(width=RGBPixel.size, depth=2)
+        m.submodules.out = out = SyncFIFOBuffered(width=YCbCr422.size, depth=2)
         m.d.comb += [out.w_en.eq(q.r_rdy), out.w_data.eq(q.r_data), q.r_en.eq(out.w_rdy),
                      self.o.valid.eq(out.r_rdy), self.o.payload.eq(out.r_data),
                      out.r_en.eq(self.o.ready)]

@@ -56,6 +56,7 @@ class FrameTracker(Elaboratable):
     Registered outputs: ``in_frame`` (between an accepted ``sof`` and the end of that frame; the
     signal given to the constructor, else a new one),
     ``width`` (learned line length of the current frame, 0 until its first ``eol``),
+    ``last_x`` (``width - 1`` from the frame's first ``eol`` on; stale before it),
     ``errors`` (16-bit) and ``dropped`` (32-bit, :func:`hdl.counter.wide_counter`: 16-bit carry
     chains) saturating counters.
     """
@@ -78,6 +79,7 @@ class FrameTracker(Elaboratable):
 
         self.in_frame = Signal() if in_frame is None else in_frame
         self.width = Signal(range(max_width + 1))
+        self.last_x = Signal(bits_for(max_width))
         self.errors = Signal(16)
         self.dropped = Signal(32)
 
@@ -90,9 +92,12 @@ class FrameTracker(Elaboratable):
         width_known = Signal()
         too_long = Signal()
         bad = Signal()
-        last_x = Signal.like(next_x)     # width - 1, registered with width
-        last_m1 = Signal.like(next_x)    # width - 2
+        last_x = self.last_x             # width - 1, registered with width
         at_last = Signal()               # next_x == last_x, registered (no comparator in `bad`)
+        # next_x == width, registered: once the width is known, next_x never exceeds it (a beat
+        # at next_x == width is too long and ends the frame), so this flag is the comparison
+        # next_x >= width
+        past_last = Signal()
         has_width = Signal()             # width != 0, registered
         m.d.comb += [
             self.x.eq(Mux(self.sof, 0, next_x)),
@@ -100,7 +105,7 @@ class FrameTracker(Elaboratable):
             width_known.eq(has_width & ~self.sof),
             too_long.eq(~self.sof & ((next_x >= self.max_width) |
                                      (next_y >= self.max_height) |
-                                     (width_known & (next_x >= self.width)))),
+                                     (width_known & past_last))),
             bad.eq(too_long |
                    (width_known & self.eol & ~at_last) |
                    (self.eof & ~self.eol)),
@@ -111,16 +116,18 @@ class FrameTracker(Elaboratable):
 
         with m.If(self.beat):
             with m.If(self.accept):
-                m.d.sync += [dropping.eq(0), self.in_frame.eq(~self.eof)]
+                m.d.sync += [dropping.eq(0), self.in_frame.eq(~self.eof),
+                             past_last.eq(width_known & at_last & ~self.eol)]
                 with m.If(self.eol):
                     m.d.sync += [next_x.eq(0), next_y.eq(self.y + 1),
                                  at_last.eq(Mux(width_known, last_x == 0, self.x == 0))]
                     with m.If(~width_known):
                         m.d.sync += [self.width.eq(self.x + 1), has_width.eq(1),
-                                     last_x.eq(self.x), last_m1.eq(self.x - 1)]
+                                     last_x.eq(self.x)]
                 with m.Else():
-                    m.d.sync += [next_x.eq(self.x + 1), next_y.eq(self.y),
-                                 at_last.eq(self.x == last_m1)]
+                    step = Signal.like(next_x)
+                    m.d.comb += step.eq(self.x + 1)
+                    m.d.sync += [next_x.eq(step), next_y.eq(self.y), at_last.eq(step == last_x)]
                     with m.If(self.sof):
                         m.d.sync += [self.width.eq(0), has_width.eq(0)]
                 with m.If(self.sof & self.in_frame):

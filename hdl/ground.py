@@ -111,13 +111,23 @@ class GroundClassifier(FramedUnit):
         ]
 
         # --- ground sets (distributed RAM, two banks) --------------------------------------
-        # distributed RAM (a block RAM each would be a waste of 16 kbit for 512 bits)
-        hset = memory.Memory(shape=1, depth=512, init=[], attrs={"ram_style": "distributed"})
-        lset = memory.Memory(shape=1, depth=512, init=[], attrs={"ram_style": "distributed"})
-        m.submodules.hset = hset
-        m.submodules.lset = lset
-        hset_wr = hset.write_port(); lset_wr = lset.write_port()
-        hset_rd = hset.read_port(domain="comb"); lset_rd = lset.read_port(domain="comb")
+        # distributed RAM (a block RAM each would be a waste of 16 kbit for 512 bits); one
+        # 256 x 1 memory per bank, read by the classification while the search writes the
+        # other: each has one address, so it is single-port RAM (RAM16X1S: one LUT per 16
+        # bits, where a RAM16X1D with separate read and write addresses takes two)
+        def ground_set(name):
+            """The two banks of a set: (address, write port, read port) each."""
+            banks = []
+            for k in range(2):
+                mem = memory.Memory(shape=1, depth=256, init=[],
+                                    attrs={"ram_style": "distributed"})
+                m.submodules[f"{name}{k}"] = mem
+                addr = Signal(8, name=f"{name}{k}_addr")
+                wr, rd = mem.write_port(), mem.read_port(domain="comb")
+                m.d.comb += [wr.addr.eq(addr), rd.addr.eq(addr)]
+                banks.append((addr, wr, rd))
+            return banks
+        hset, lset = ground_set("hset"), ground_set("lset")
 
         # --- classification pipeline -------------------------------------------------------
         def in_range(v):
@@ -131,7 +141,13 @@ class GroundClassifier(FramedUnit):
         with m.If(track.accept & p.sof & sets_pending):
             m.d.sync += [bank.eq(~bank), learned.eq(1), fallback.eq(fallback_next),
                          sets_pending.eq(0)]
-        m.d.comb += [hset_rd.addr.eq(Cat(h0, bank)), lset_rd.addr.eq(Cat(y0, bank))]
+        # bank `bank` is read (at h0 / y0), the other one written (at the search's set_addr)
+        for k in range(2):
+            mine = bank if k else ~bank
+            for (addr, wr, _rd), read_addr, en in ((hset[k], h0, search.hset_en),
+                                                   (lset[k], y0, search.lset_en)):
+                m.d.comb += [addr.eq(Mux(mine, read_addr, search.set_addr)),
+                             wr.data.eq(search.set_data), wr.en.eq(en & ~mine)]
 
         def absdiff(a, b):
             return Mux(a >= b, a - b, b - a)[:8]
@@ -142,7 +158,8 @@ class GroundClassifier(FramedUnit):
         with m.If(advance):
             m.d.sync += [v1.eq(v0), y1.eq(y0), dh1.eq(absdiff(h0, cfg.hue_centre0)),
                          dy1.eq(absdiff(y0, cfg.luma_centre0)), rel1.eq(s_ok0 & rng0),
-                         rng1.eq(rng0), hs1.eq(hset_rd.data), ls1.eq(lset_rd.data),
+                         rng1.eq(rng0), hs1.eq(Mux(bank, hset[1][2].data, hset[0][2].data)),
+                         ls1.eq(Mux(bank, lset[1][2].data, lset[0][2].data)),
                          learned1.eq(learned), fb1.eq(fallback), flags1.eq(flags0)]
         luma_ok = Signal(); hue_ok = Signal(); sat_ok = Signal(); ground = Signal()
         m.d.comb += [
@@ -221,11 +238,7 @@ class GroundClassifier(FramedUnit):
         with m.Else():
             m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
         m.d.comb += [search.req.eq(busy), search.commit.eq(commit),
-                     search.model_valid.eq(model_valid), search.hist.eq(rd.data),
-                     hset_wr.addr.eq(Cat(search.set_addr, ~bank)),
-                     hset_wr.data.eq(search.set_data), hset_wr.en.eq(search.hset_en),
-                     lset_wr.addr.eq(Cat(search.set_addr, ~bank)),
-                     lset_wr.data.eq(search.set_data), lset_wr.en.eq(search.lset_en)]
+                     search.model_valid.eq(model_valid), search.hist.eq(rd.data)]
 
         region_end = Signal()
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &

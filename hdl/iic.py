@@ -158,18 +158,26 @@ class _Core(wiring.Component):
         set_arb = Signal()
         set_nack = Signal()
 
+        # One quarter-period timer for every state that times a quarter (the state says so
+        # through `timed`, and `wait_high` if the quarter runs only while SCL reads high)
+        timed = Signal()
+        wait_high = Signal()
+        running = Signal()
+        quarter_done = Signal()
+        m.d.comb += [running.eq(~wait_high | scl),
+                     quarter_done.eq(timed & running & (timer == 0))]
+        with m.If(timed):
+            with m.If(quarter_done | ~running):     # ~running: stretched, restart the quarter
+                m.d.sync += timer.eq(self._clk_div - 1)
+            with m.Else():
+                m.d.sync += timer.eq(timer - 1)
+
         def quarter(wait_scl_high=False):
             """Condition that ends a quarter period (and reloads the timer)."""
-            done = Signal()
-            running = scl if wait_scl_high else Const(1)
-            m.d.comb += done.eq(running & (timer == 0))
-            with m.If(done):
-                m.d.sync += timer.eq(self._clk_div - 1)
-            with m.Elif(running):
-                m.d.sync += timer.eq(timer - 1)
-            with m.Else():
-                m.d.sync += timer.eq(self._clk_div - 1)   # stretched: restart the quarter
-            return done
+            m.d.comb += timed.eq(1)
+            if wait_scl_high:
+                m.d.comb += wait_high.eq(1)
+            return quarter_done
 
         with m.FSM(name="engine") as fsm:
             with m.State("IDLE"):

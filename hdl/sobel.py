@@ -154,7 +154,6 @@ class SobelEdges(FramedUnit):
                 m.d.sync += dst.emit.eq(0)
 
         # 1. Feed: an input beat or a made-up flush beat, and its tag.
-        width = track.width
         fcol = Signal(range(self._max_width))   # column of the flush beat
         frow = Signal()                         # flush beats still in the made-up row
         single_row = Signal()                   # the frame being flushed has one row
@@ -163,7 +162,8 @@ class SobelEdges(FramedUnit):
         f_g = Signal()
         f_tag = Signal(_Tag)
         last_col = Signal()
-        m.d.comb += last_col.eq(fcol == width - 1)
+        # flushing follows an accepted eof, which has eol: the width is known, last_x valid
+        m.d.comb += last_col.eq(fcol == track.last_x)
         with m.If(flushing):
             m.d.comb += [
                 f_addr.eq(fcol),

@@ -21,6 +21,7 @@ from amaranth.lib.wiring import In, Out
 from golden.matcher import SUBPIXEL_BITS
 
 from . import regmap
+from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
 from .freespace import free_space_tables
@@ -139,8 +140,10 @@ class SystemSoC(wiring.Component):
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
     :class:`hdl.pipeline.StereoPipeline`).
 
-    Camera buffering: a pixel waits in its port's FIFO (16), its queue (256) and a few
-    registers, about 277 pixels or 20 us of one camera, for its partner's field start (the
+    Camera buffering: a pixel waits, as a 4:2:2 word (:data:`hdl.bt656.YCbCr422`, 19 bits),
+    in its port's FIFO (16) and its queue (256), then is converted to RGB888 on its way to the
+    pairing (:class:`hdl.bt656.Ycc422ToRGB`, one per camera); with a few registers that is
+    about 277 pixels or 20 us of one camera, for its partner's field start (the
     cameras' phase difference, up to ``skew`` = 896 core cycles = 242 pixel times: a lonely
     field start waits that long before its frame is dropped, so the buffer must hold it) and
     for the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
@@ -210,12 +213,16 @@ class SystemSoC(wiring.Component):
         pipe = StereoPipeline(**self._pipeline)
         m.submodules.pairing = ResetInserter(video_rst)(pairing)
         m.submodules.pipeline = ResetInserter(video_rst)(pipe)
-        buffer = PairBuffer(shape=RGBPixel, depth=self._buffer_depth)
+        # the cameras' 4:2:2 words wait in the buffer, RGB888 from there on
+        buffer = PairBuffer(shape=YCbCr422, depth=self._buffer_depth)
         m.submodules.camera_buffer = ResetInserter(video_rst)(buffer)
         wiring.connect(m, ports[0].o, buffer.i0)
         wiring.connect(m, ports[1].o, buffer.i1)
-        wiring.connect(m, buffer.o0, pairing.left_i)
-        wiring.connect(m, buffer.o1, pairing.right_i)
+        for side, queue in (("left", buffer.o0), ("right", buffer.o1)):
+            convert = Ycc422ToRGB()
+            m.submodules[f"{side}_convert"] = ResetInserter(video_rst)(convert)
+            wiring.connect(m, queue, convert.i)
+            wiring.connect(m, convert.o, getattr(pairing, f"{side}_i"))
         bufs = []
         for side in ("left", "right"):      # registered buffers: pairing and pipeline logic
             buf = SyncFIFOBuffered(width=RGBPixel.size, depth=2)     # do not chain

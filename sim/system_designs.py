@@ -33,7 +33,7 @@ def _soc(**params):
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
     "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=16),
-                           "one BT.656 camera port: decoder, YCbCr->RGB, AsyncFIFO as in the SoC (hdl/camera_port.py)",
+                           "one BT.656 camera port: decoder, AsyncFIFO of 4:2:2 words as in the SoC (hdl/camera_port.py)",
                            clocks={"cam_clk": ("cam_rst", ("i",))}),
     "pairing": SystemDesign(_pairing, dict(skew=896, max_width=1024, max_height=1024),
                             "stereo frame pairing (hdl/pairing.py)"),

@@ -102,14 +102,16 @@ def test_stalled_sink_drops_and_counts():
     assert dropped == len(gold.beats) - 4          # the 4-entry buffer keeps the first 4
 
 
-def test_malformed_lines_counted_and_resynchronised():
+@pytest.mark.parametrize("n_cut", [1, 2, 3])
+def test_malformed_lines_counted_and_resynchronised(n_cut):
     f = fields(4, 2, 3, 8)
     data = bytearray(encode_bt656(f))
-    # cut the second active line of the first field short by 2 bytes
+    # cut the second active line of the first field short by n_cut bytes: its last group ends
+    # after Cr (1: the group's first pixel alone), after Y0 (2) or after Cb (3)
     sav = bytes([0xFF, 0, 0])
     idx = [i for i in range(len(data) - 3) if data[i:i + 3] == sav and data[i + 3] == 0x80]
     cut = idx[1] + 4 + 6
-    del data[cut:cut + 2]
+    del data[cut:cut + n_cut]
     data = bytes(data)
     gold = decode_bt656(data, lines=2)   # also: 3 lines per field but only 2 allowed
     beats, errors, dropped = run(data, lines=2)
