@@ -46,12 +46,11 @@ V2_THRESHOLD = 128
 #: motorcycle pair, ground off (sim/bench_matcher.py), left / right: 128 / 96 bad-2 5.7 %,
 #: 8,688 points within 2 px; 144 / 96 5.5 %, 8,008; 160 / 96 5.4 %, 7,421; 176 / 96 5.2 %,
 #: 6,881; 192 / 96 5.2 %, 6,334 (right 64 / 80 / 112 / 128 with left 128: bad-2 5.9 / 5.8 /
-#: 6.0 / 6.7 %). The SoC at NTSC field rate (``python -m sim system --scene motorcycle``,
-#: 720 x 240, 16-pixel camera FIFOs) keeps up with 176 and 192 (zero drops, bit-exact) but not
-#: with 160 or lower: a row with many left edges takes the matcher longer than a line time,
-#: the line store holds one line of slack and the camera buffers about 280 pixels, and the
-#: camera FIFOs overflow.
-RTL_THRESHOLDS = (176, 96)
+#: 6.0 / 6.7 %). A row with many left edges takes the matcher longer than a line time and the
+#: line store holds one line of slack, so the SoC at NTSC field rate (``python -m sim system
+#: --scene motorcycle``, 720 x 240) keeps up at 128 only with 512 pixels of camera buffer a
+#: camera (hdl/soc.py, two 4:2:2 pixels a word): with 256 it overflowed at 160 and below.
+RTL_THRESHOLDS = (128, 96)
 
 
 @dataclass(frozen=True)

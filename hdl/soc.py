@@ -24,6 +24,7 @@ from . import regmap
 from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
+from .pixel_pairs import PixelPairer, PixelUnpairer, pair_layout
 from .freespace import free_space_tables
 from .iic import IICMaster
 from .pairing import FramePairing
@@ -135,15 +136,16 @@ class SystemSoC(wiring.Component):
     Elaboration parameters: ``max_width``, ``max_height`` (pipeline; default one NTSC field of
     the ADV7180, 720 x 240: every counter and comparator of the pipeline is sized by them),
     ``lines`` (active lines per field), ``camera_fifo_depth`` (each camera port's clock-domain
-    FIFO, distributed RAM), ``buffer_depth`` (each camera's queue in the shared block RAM of
-    :class:`hdl.camera_buffer.PairBuffer`), ``skew`` (pairing), ``fifo_depth`` (results),
+    FIFO, distributed RAM), ``buffer_depth`` (pixels of each camera's queue in the shared block
+    RAM of :class:`hdl.camera_buffer.PairBuffer`, two a word), ``skew`` (pairing), ``fifo_depth`` (results),
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
     :class:`hdl.pipeline.StereoPipeline`).
 
     Camera buffering: a pixel waits, as a 4:2:2 word (:data:`hdl.bt656.YCbCr422`, 19 bits),
-    in its port's FIFO (16) and its queue (256), then is converted to RGB888 on its way to the
+    in its port's FIFO (16) and its queue (512 pixels, paired into 36-bit words by
+    :class:`hdl.pixel_pairs.PixelPairer`), then is converted to RGB888 on its way to the
     pairing (:class:`hdl.bt656.Ycc422ToRGB`, one per camera); with a few registers that is
-    about 277 pixels or 20 us of one camera, for its partner's field start (the
+    about 533 pixels or 39 us of one camera, for its partner's field start (the
     cameras' phase difference, up to ``skew`` = 896 core cycles = 242 pixel times: a lonely
     field start waits that long before its frame is dropped, so the buffer must hold it) and
     for the pipeline (one pixel a clock, 3.7 clocks per camera pixel at 50 MHz: it catches up at
@@ -153,12 +155,16 @@ class SystemSoC(wiring.Component):
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
-                 camera_fifo_depth=16, buffer_depth=256, skew=896, fifo_depth=256,
+                 camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=256,
                  clk_div=125, uart_divisor=434, cost="census"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
+        if not isinstance(buffer_depth, int) or buffer_depth < 4 or buffer_depth & (buffer_depth - 1):
+            self._MustUse__silence = True
+            raise ValueError(f"buffer_depth must be a power of two >= 4 (pixels), not "
+                             f"{buffer_depth!r}")
         self._buffer_depth = buffer_depth
         self._skew = skew
         self._fifo_depth = fifo_depth
@@ -213,15 +219,21 @@ class SystemSoC(wiring.Component):
         pipe = StereoPipeline(**self._pipeline)
         m.submodules.pairing = ResetInserter(video_rst)(pairing)
         m.submodules.pipeline = ResetInserter(video_rst)(pipe)
-        # the cameras' 4:2:2 words wait in the buffer, RGB888 from there on
-        buffer = PairBuffer(shape=YCbCr422, depth=self._buffer_depth)
+        # the cameras' 4:2:2 words wait in the buffer two to a word (36 bits: 512 x 36, one
+        # RAMB16 for both cameras), RGB888 from there on
+        buffer = PairBuffer(shape=pair_layout(YCbCr422), depth=self._buffer_depth // 2)
         m.submodules.camera_buffer = ResetInserter(video_rst)(buffer)
-        wiring.connect(m, ports[0].o, buffer.i0)
-        wiring.connect(m, ports[1].o, buffer.i1)
-        for side, queue in (("left", buffer.o0), ("right", buffer.o1)):
+        for side, port, i, o in (("left", ports[0], buffer.i0, buffer.o0),
+                                 ("right", ports[1], buffer.i1, buffer.o1)):
+            pairer, unpairer = PixelPairer(YCbCr422), PixelUnpairer(YCbCr422)
             convert = Ycc422ToRGB()
+            m.submodules[f"{side}_pairer"] = ResetInserter(video_rst)(pairer)
+            m.submodules[f"{side}_unpairer"] = ResetInserter(video_rst)(unpairer)
             m.submodules[f"{side}_convert"] = ResetInserter(video_rst)(convert)
-            wiring.connect(m, queue, convert.i)
+            wiring.connect(m, port.o, pairer.i)
+            wiring.connect(m, pairer.o, i)
+            wiring.connect(m, o, unpairer.i)
+            wiring.connect(m, unpairer.o, convert.i)
             wiring.connect(m, convert.o, getattr(pairing, f"{side}_i"))
         bufs = []
         for side in ("left", "right"):      # registered buffers: pairing and pipeline logic

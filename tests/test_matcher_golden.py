@@ -395,7 +395,7 @@ def test_default_params_versions():
     assert p2.matcher == v2_params() and p2.frontend.sobel.threshold == V2_THRESHOLD
     rtl = default_params(64, 48)
     assert rtl.matcher == v2_params(consistency="none")
-    assert (rtl.frontend.sobel.threshold, rtl.right_threshold) == RTL_THRESHOLDS == (176, 96)
+    assert (rtl.frontend.sobel.threshold, rtl.right_threshold) == RTL_THRESHOLDS == (128, 96)
     custom = default_params(64, 48, version=1, thresholds=(50, 40))
     assert (custom.frontend.sobel.threshold, custom.right_threshold) == (50, 40)
     assert default_params(64, 48, version=2, uniqueness=10).matcher.uniqueness == 10

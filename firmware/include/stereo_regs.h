@@ -87,10 +87,10 @@
 
 /* SOBEL (read/write): Vertical-edge detector (golden/sobel.py). */
 #define STEREO_SOBEL_OFFSET                          0x18u        /**< Vertical-edge detector (golden/sobel.py). */
-#define STEREO_SOBEL_RESET                           0x010800B0u  /**< SOBEL value after reset */
+#define STEREO_SOBEL_RESET                           0x01080080u  /**< SOBEL value after reset */
 #define STEREO_SOBEL_EDGE_THRESHOLD_SHIFT            0u           /**< edge_threshold: minimum |Gx| of an edge pixel */
 #define STEREO_SOBEL_EDGE_THRESHOLD_MASK             0x7FFu       /**< edge_threshold mask (11 bits) */
-#define STEREO_SOBEL_EDGE_THRESHOLD_RESET            176u         /**< edge_threshold reset value */
+#define STEREO_SOBEL_EDGE_THRESHOLD_RESET            128u         /**< edge_threshold reset value */
 #define STEREO_SOBEL_RATIO_SHIFT                     16u          /**< ratio: dominance, units of 1/4: edge only if 4|Gx| >= ratio |Gy| */
 #define STEREO_SOBEL_RATIO_MASK                      0x000F0000u  /**< ratio mask (4 bits) */
 #define STEREO_SOBEL_RATIO_RESET                     8u           /**< ratio reset value */
