@@ -6,7 +6,7 @@ The bit-exact specification (decoding rules, colour conversion, error counting) 
 
 Structure: a byte-serial decoder (:class:`Bt656Decoder`) gives each pixel as a 4:2:2 word
 (:data:`YCbCr422`: its Y and one chroma byte, 19 bits; at most one word per two input bytes),
-then :class:`Ycc422ToRGB` puts each group's two words together and computes RGB888 in a 5-stage
+then :class:`Ycc422ToRGB` puts each group's two words together and computes RGB888 in a 6-stage
 conversion pipeline (:class:`YCbCrToRGB`: operands, products, sums, clamp), then a 4-entry
 buffer absorbs short output stalls. The SoC's camera ports (:mod:`hdl.camera_port`) carry the
 words through their clock-domain FIFOs and convert in the core domain.
@@ -33,11 +33,11 @@ YCbCr422 = frame_layout(y=8, c=8)
 #: One pixel with the Cb, Cr of its 4:2:2 group.
 YCbCrPixel = frame_layout(y=8, cb=8, cr=8)
 #: Cycles from a pixel into :class:`YCbCrToRGB` to its RGB value out.
-CONVERT_LATENCY = 5
+CONVERT_LATENCY = 6
 
 
 class YCbCrToRGB(wiring.Component):
-    """BT.601 studio-range YCbCr to RGB888 (``golden.bt656.ycbcr_to_rgb``), 5 pipeline stages.
+    """BT.601 studio-range YCbCr to RGB888 (``golden.bt656.ycbcr_to_rgb``), 6 pipeline stages.
 
     Ports
     -----
@@ -50,10 +50,11 @@ class YCbCrToRGB(wiring.Component):
         :data:`CONVERT_LATENCY` cycles later.
 
     Stages: (1) ``c = Y - 16``, ``d = Cb - 128``, ``e = Cr - 128``; (2) the five constant
-    products (``-100 d`` and ``-208 e`` for G); (3) per channel, the sum of the products' high
-    parts (``p >> 8``) and the sum of their low bytes plus the rounding constant 128; (4) the
-    high sum plus the low sum's carry (its bits from 8 up), which is the whole sum ``>> 8``
-    (floor); (5) the clamp to 0..255. Each stage is one multiplier or adders of at most 11 bits
+    products (``-100 d`` and ``-208 e`` for G); (3) the products registered again (routing
+    to and from a multiplier block); (4) per channel, the sum of the products' high parts
+    (``p >> 8``) and the sum of their low bytes plus the rounding constant 128; (5) the high
+    sum plus the low sum's carry (its bits from 8 up), which is the whole sum ``>> 8``
+    (floor); (6) the clamp to 0..255. Each stage is one multiplier or adders of at most 11 bits
     between registers (the full 19-bit sums would be one 19-bit carry chain).
     """
 
@@ -77,11 +78,17 @@ class YCbCrToRGB(wiring.Component):
         # (x - 128 of a byte is the byte with its top bit flipped, read as signed)
         m.d.sync += [c.eq(self.i.y - 16), d.eq(self.i.cb ^ 0x80), e.eq(self.i.cr ^ 0x80)]
         # stage 2: the five products (G's two negated: every sum below is an addition)
-        py, pre, pbd = Signal(signed(18)), Signal(signed(17)), Signal(signed(18))
-        ngd, nge = Signal(signed(15)), Signal(signed(16))
-        m.d.sync += [py.eq(k["y"] * c), pre.eq(k["r_cr"] * e), pbd.eq(k["b_cb"] * d),
-                     ngd.eq(-k["g_cb"] * d), nge.eq(-k["g_cr"] * e)]
-        # stage 3: each sum split at bit 8 (v = 256 (v >> 8) + v[:8]): the high parts summed,
+        py_p, pre_p, pbd_p = Signal(signed(18)), Signal(signed(17)), Signal(signed(18))
+        ngd_p, nge_p = Signal(signed(15)), Signal(signed(16))
+        py, pre, pbd = Signal.like(py_p), Signal.like(pre_p), Signal.like(pbd_p)
+        ngd, nge = Signal.like(ngd_p), Signal.like(nge_p)
+        m.d.sync += [py_p.eq(k["y"] * c), pre_p.eq(k["r_cr"] * e), pbd_p.eq(k["b_cb"] * d),
+                     ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e)]
+        # stage 3: the products registered again: the multipliers' own registers have one
+        # load each and sit by their multiplier (ECP5: the path from a register that feeds
+        # the sums to a multiplier block far away took 8 ns of routing, measured)
+        m.d.sync += [py.eq(py_p), pre.eq(pre_p), pbd.eq(pbd_p), ngd.eq(ngd_p), nge.eq(nge_p)]
+        # stage 4: each sum split at bit 8 (v = 256 (v >> 8) + v[:8]): the high parts summed,
         # and the low bytes with the rounding constant, whose bits from 8 up are the carry
         terms = {"r": (py, pre), "g": (py, ngd, nge), "b": (py, pbd)}
         high = {"r": signed(10), "g": signed(10), "b": signed(11)}
@@ -93,10 +100,10 @@ class YCbCrToRGB(wiring.Component):
             lo3 = Signal(10, name=f"{n}_low")
             m.d.sync += [hi3.eq(sum(t[8:].as_signed() for t in ts) + py[7]),
                          lo3.eq((py[:8] ^ 128) + sum(t[:8] for t in ts[1:]))]
-            # stage 4: the carry of the low bytes into the high part: the sum >> 8 (floor)
+            # stage 5: the carry of the low bytes into the high part: the sum >> 8 (floor)
             sums[n] = Signal(high[n], name=f"sum_{n}")
             m.d.sync += sums[n].eq(hi3 + lo3[8:])
-        # stage 5: clamp to 0..255
+        # stage 6: clamp to 0..255
         out = self.o
         for n, q in sums.items():
             m.d.sync += getattr(out, n).eq(Mux(q[-1], 0, Mux(q[8:-1].any(), 255, q[:8])))
