@@ -93,6 +93,8 @@ class FrameTracker(Elaboratable):
         too_long = Signal()
         bad = Signal()
         last_x = self.last_x             # width - 1, registered with width
+        last_m1 = Signal.like(next_x)    # width - 2 (at_last from x, not from the x + 1 adder:
+        #                                  one LUT level less on the tracker's deepest path)
         at_last = Signal()               # next_x == last_x, registered (no comparator in `bad`)
         # next_x == width, registered: once the width is known, next_x never exceeds it (a beat
         # at next_x == width is too long and ends the frame), so this flag is the comparison
@@ -123,11 +125,10 @@ class FrameTracker(Elaboratable):
                                  at_last.eq(Mux(width_known, last_x == 0, self.x == 0))]
                     with m.If(~width_known):
                         m.d.sync += [self.width.eq(self.x + 1), has_width.eq(1),
-                                     last_x.eq(self.x)]
+                                     last_x.eq(self.x), last_m1.eq(self.x - 1)]
                 with m.Else():
-                    step = Signal.like(next_x)
-                    m.d.comb += step.eq(self.x + 1)
-                    m.d.sync += [next_x.eq(step), next_y.eq(self.y), at_last.eq(step == last_x)]
+                    m.d.sync += [next_x.eq(self.x + 1), next_y.eq(self.y),
+                                 at_last.eq(self.x == last_m1)]
                     with m.If(self.sof):
                         m.d.sync += [self.width.eq(0), has_width.eq(0)]
                 with m.If(self.sof & self.in_frame):
