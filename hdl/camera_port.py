@@ -23,18 +23,9 @@ from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
 from .bt656 import Bt656Decoder, YCbCr422
+from .fifos import DistributedAsyncFIFO
 
 __all__ = ["CameraPort", "sync_counter"]
-
-
-class _DistributedAsyncFIFO(AsyncFIFO):
-    """An ``AsyncFIFO`` whose storage is distributed RAM (Yosys otherwise takes a block RAM
-    even for 16 words, for the two clocks)."""
-
-    def elaborate(self, platform):
-        m = super().elaborate(platform)
-        m.submodules["storage"].attrs["ram_style"] = "distributed"
-        return m
 
 
 def sync_counter(m, value, *, i_domain, o_domain, name):
@@ -104,7 +95,7 @@ class CameraPort(wiring.Component):
         m = Module()
         cam = m.d[self._domain]
         m.submodules.decoder = dec = self.decoder
-        fifo = _DistributedAsyncFIFO if self._fifo_depth <= 64 else AsyncFIFO
+        fifo = DistributedAsyncFIFO if self._fifo_depth <= 64 else AsyncFIFO
         m.submodules.fifo = q = fifo(width=YCbCr422.size, depth=self._fifo_depth,
                                      w_domain=self._domain, r_domain="sync")
         wiring.connect(m, wiring.flipped(self.i), dec.i)

@@ -202,10 +202,10 @@ def rtl_unsupported(mp):
     """The matcher settings of ``mp`` the RTL cannot run, as ``--flag value`` strings."""
     out = [f"--{name} {getattr(mp, name)}" for name, value in RTL_MATCHER.items()
            if getattr(mp, name) != value]
-    if mp.subpixel and mp.cost != "census":
-        out.append("--subpixel on with --cost sad (the RTL's subpixel step needs the census "
-                   "cost)")
-    from hdl.matcher import MATCHER_WIDEN
+    from hdl.matcher import MATCHER_WIDEN, has_subpixel
+    if mp.subpixel and not has_subpixel(mp.cost):
+        out.append(f"--subpixel on with --cost {mp.cost} (the RTL's subpixel step needs the "
+                   "census cost)")
     if int(mp.widen) > MATCHER_WIDEN:
         out.append(f"--widen {int(mp.widen)} (the RTL widens by 0 to {MATCHER_WIDEN})")
     return out

@@ -192,8 +192,9 @@ class StereoUnit:
 def _rtl_matcher(job):
     """The matcher parameters, checked against what the RTL computes: the subpixel step
     (golden/matcher.py step 6) exists only with the census cost."""
+    from hdl.matcher import has_subpixel
     mp = job.params.matcher
-    if mp.subpixel and mp.cost != "census":
+    if mp.subpixel and not has_subpixel(mp.cost):
         raise ValueError("the RTL computes subpixel d and confidence only with the census "
                          "cost: set matcher.subpixel=0 with matcher.cost=sad")
     return mp
