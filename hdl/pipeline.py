@@ -59,17 +59,19 @@ class StereoPipeline(wiring.Component):
         Some unit is inside a frame (the pairing starts the next pair only when none is).
 
     Elaboration parameters: ``max_width``, ``max_height`` (line buffers), ``max_disparity``,
-    ``window``, ``queue_depth`` (edge jobs buffered), ``cost``: the matcher's window cost,
+    ``window``, ``queue_depth`` (edge jobs buffered), ``extra_rows`` (the matcher's line slots
+    beyond ``window + 1``: 2 gives cameras that cannot stall two more lines of slack in drop
+    mode, for one RAMB16 more per camera), ``cost``: the matcher's window cost,
     ``"census"`` (the default: the front ends' Sobel units send census words, the matcher sums
     their Hamming distances) or ``"sad"`` (luminance, sum of absolute differences); it must
     equal the golden ``matcher.cost`` the pipeline is compared with.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, cost="census"):
+                 queue_depth=16, extra_rows=0, cost="census"):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._matcher = dict(max_disparity=max_disparity, window=window,
-                             queue_depth=queue_depth, cost=cost)
+                             queue_depth=queue_depth, extra_rows=extra_rows, cost=cost)
         self.max_width, self.max_height = max_width, max_height
         self.max_disparity = max_disparity
         self.window = window

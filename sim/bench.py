@@ -44,7 +44,7 @@ from golden.matcher import DISPARITIES
 from sim import bench_matcher
 from station import bench as station_bench
 from sim.bench_ground import bench_section as bench_ground_section
-from sim import bench_depth, bench_sim
+from sim import bench_depth, bench_sim, matcher_bench
 from sim.timing import bench_timing
 
 __all__ = ["main", "score", "ACCEPT_EVAL_FRACTION"]
@@ -729,6 +729,9 @@ def write_markdown(path, rep):
     L += [f"| *commercial head* | 752x480 | | | {t['commercial_fps_752x480']:.0f} | | | | |",
           f"| *1 pixel/clock limit* | 752x480 | {REFERENCE_SIZE[0] * REFERENCE_SIZE[1]} | 1.0 | "
           f"{t['one_pixel_per_clock_fps_752x480']} | | | | |", ""]
+    if "matcher" in t:
+        L += ["### Matcher throughput per scene, and drop mode at camera rate "
+              "(`sim/matcher_bench.py`)", "", *matcher_bench.markdown(t["matcher"]), ""]
     s = rep["sim_speed"]
     L += ["## 3. Simulation speed", "",
           f"`{s['design']}` unit, {s['size'][0]}x{s['size'][1]} crop, {s['frames']} frames, the "
@@ -824,8 +827,7 @@ def main(argv=None):
 
     bench.progress("throughput: pipeline RTL on the Verilator harness")
     rep["throughput"], full_frame = throughput(bench, args.quick, (left, right))
-    from sim.matcher_bench import matcher_throughput
-    rep["throughput"]["matcher"] = matcher_throughput(bench, args.quick)
+    rep["throughput"]["matcher"] = matcher_bench.matcher_throughput(bench, args.quick)
 
     bench.progress("simulation speed per backend (frontend, 32x16, 2 frames)")
     rep["sim_speed"] = sim_speed(bench, args.quick, left, full_frame)

@@ -14,7 +14,7 @@ from golden.freespace import free_frame
 from hdl import types
 from .streams import Packer, frames_words, words_to_frames
 
-__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pixel_mismatches", "records_from_words",
+__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pipeline_for", "pixel_mismatches", "records_from_words",
            "stream_mismatches", "free_streams"]
 
 
@@ -207,11 +207,13 @@ def _matcher(job):
                    cost=mp.cost)
 
 
-def _pipeline(job):
+def pipeline_for(job, *, extra_rows=0):
+    """The pipeline RTL elaborated for ``job`` (``extra_rows``: the matcher's, see
+    :class:`hdl.pipeline.StereoPipeline`)."""
     from hdl.pipeline import StereoPipeline
     mp = _rtl_matcher(job)
     return StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window,
-                          cost=mp.cost)
+                          extra_rows=extra_rows, cost=mp.cost)
 
 
 def _frontend(job):
@@ -251,7 +253,7 @@ UNITS = {
                       lambda job, side: [getattr(g, side).output(job.params.matcher)
                                          for g in job.golden],
                       "block matcher on the golden front ends' outputs"),
-    "pipeline": StereoUnit("pipeline", _pipeline, types.RGBPixel,
+    "pipeline": StereoUnit("pipeline", pipeline_for, types.RGBPixel,
                            lambda job, side: [rgb(f) for f in getattr(job, side)],
                            "the whole stereo pipeline",
                            streams=free_streams(free_left="left", free_right="right")),
