@@ -185,23 +185,25 @@ def _score_float(rec, scored, gt):
             "within2": int((err <= 2).sum()), "avgerr": float(err.mean()) if m else 0.0}
 
 
-def equal_counts(recs, scored, gt, maps, confs, fractions=(1.0, 0.75, 0.5, 0.25, 0.1)):
-    """bad-1 / bad-2 of every method's N most confident scored points, N = fractions of our
-    scored match count."""
+def equal_counts(ours, scored, gt, maps, confs, fractions=(1.0, 0.75, 0.5, 0.25, 0.1)):
+    """bad-1 / bad-2 of every method's N most confident scored points, N = fractions of the
+    scored match count of the first of ``ours`` (name -> records: ranked by ``conf``, then
+    lower cost); a method with fewer than N points gets None."""
     from golden.matcher import record_disparity
-    keep = scored[recs["y"], recs["x"]]
-    ours = recs[keep]
-    order = np.lexsort((ours["cost"], -ours["conf"]))           # conf desc, then cost asc
-    err_ours = np.abs(record_disparity(ours)[order] - gt[ours["y"][order], ours["x"][order]])
     ranked = {}
+    for name, recs in ours.items():
+        r = recs[scored[recs["y"], recs["x"]]]
+        r = r[np.lexsort((r["cost"], -r["conf"]))]              # conf desc, then cost asc
+        ranked[name] = np.abs(record_disparity(r) - gt[r["y"], r["x"]])
+    n_ours = len(next(iter(ranked.values())))
     for name, dmap in maps.items():
         ys, xs = np.nonzero(scored & np.isfinite(dmap))
         o = np.argsort(-confs[name][ys, xs], kind="stable")
         ranked[name] = np.abs(dmap[ys[o], xs[o]] - gt[ys[o], xs[o]])
     rows = []
     for frac in fractions:
-        n = max(1, int(round(frac * len(ours))))
-        row = {"n": n, "ours": _bads(err_ours[:n])}
+        n = max(1, int(round(frac * n_ours)))
+        row = {"n": n}
         for name, err in ranked.items():
             row[name] = _bads(err[:n]) if len(err) >= n else None
         rows.append(row)
@@ -321,7 +323,8 @@ def run(bench=None, quick=False):
 
     bm_rows, maps, confs = opencv_references(left, right, scored, gt)
     rep["opencv_same_pixels"] = bm_rows
-    rep["equal_counts"] = equal_counts(f2.records, scored, gt, maps, confs)
+    rep["equal_counts"] = equal_counts({"RTL": f_rtl.records, "v2": f2.records}, scored, gt,
+                                       maps, confs)
     say("matcher_v2.opencv", "cv2.StereoBM / StereoSGBM on golden.color.luma, scored on v2's "
         f"pixels; equal counts: confidence = largest uniquenessRatio of {RATIO_SWEEP[0]}.."
         f"{RATIO_SWEEP[-1]} keeping the pixel valid")
@@ -330,6 +333,7 @@ def run(bench=None, quick=False):
     for name, fn_ in HARD_CASES.items():
         rr = fn_(right)
         hard[name] = {"v1": _method_row(_frame(left, rr, p1), scored1, gt),
+                      "RTL": _method_row(_frame(left, rr, _params(w, h, "rtl")), scored, gt),
                       "v2": _method_row(_frame(left, rr, p2), scored, gt)}
         yl, yr = _luma_pair(left, rr)
         for bname, m in ((f"StereoBM {b}", _bm(b)) for b in BM_BLOCKS):
@@ -340,7 +344,8 @@ def run(bench=None, quick=False):
             hard[name][bname] = _score_float(rec, scored, gt)
     rep["hard_cases"] = hard
     say("matcher_v2.hard_cases", "the right image changed as named in "
-        "sim.bench_matcher.HARD_CASES; v1 scored on its own edges, v2 and StereoBM on v2's")
+        "sim.bench_matcher.HARD_CASES; v1 scored on its own edges, the RTL default, v2 and "
+        "StereoBM on v2's")
 
     rep["scenes"] = scenes(quick)
     say("matcher_v2.scenes", "sim.scenes.make_scene(name) (ground model off), scored over "
@@ -409,14 +414,14 @@ def markdown(rep):
           f"{_pct(cv['v1']['exact'])} % exact / {_pct(cv['v1']['within1'])} % within 1; v2 "
           f"{_pct(cv['v2']['exact'])} % / {_pct(cv['v2']['within1'])} %.", "",
           "### At equal numbers of points (most confident first)", "",
-          "| N | ours bad-1 / bad-2 % | " + " | ".join(
-              f"{n} bad-1 / bad-2 %" for n in rep["opencv_same_pixels"]) + " |",
-          "|---" * (2 + len(rep["opencv_same_pixels"])) + "|"]
+          "N: fractions of the RTL default's scored matches; ours ranked by `conf`, OpenCV's "
+          "by the largest uniquenessRatio keeping the pixel.", ""]
+    names = [n for n in rep["equal_counts"][0] if n != "n"]
+    L += ["| N | " + " | ".join(f"{n} bad-1 / bad-2 %" for n in names) + " |",
+          "|---" * (1 + len(names)) + "|"]
     for row in rep["equal_counts"]:
-        cells = [f"{_pct(row['ours']['bad1'])} / {_pct(row['ours']['bad2'])}"]
-        for n in rep["opencv_same_pixels"]:
-            r = row[n]
-            cells.append("-" if r is None else f"{_pct(r['bad1'])} / {_pct(r['bad2'])}")
+        cells = ["-" if row[n] is None else f"{_pct(row[n]['bad1'])} / {_pct(row[n]['bad2'])}"
+                 for n in names]
         L.append(f"| {row['n']} | " + " | ".join(cells) + " |")
     L += ["", "### Hard cases (right image changed)", "",
           "| case | method | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err |",

@@ -59,9 +59,13 @@ def test_quick_bench_has_the_matcher_v2_section(quick_run):
     rep = json.loads((out / "report.json").read_text())["matcher_v2"]
     assert {"v2", "v2 without consistency"} <= set(rep["methods"])
     assert {"StereoBM 7", "StereoBM 15", "StereoSGBM 5"} == set(rep["opencv_same_pixels"])
-    for row in rep["equal_counts"]:
-        assert row["ours"]["n"] == row["n"]
+    for row in rep["equal_counts"]:        # the RTL default sets N; every method is ranked
+        assert row["RTL"]["n"] == row["n"]
+        assert {"v2", "StereoBM 15", "StereoSGBM 5"} <= set(row)
+    assert rep["equal_counts"][0]["RTL"]["bad2"] == rep["methods"][
+        "RTL (the default: golden.matcher.RTL)"]["bad2"]
     assert "gain 1.2, offset +10" in rep["hard_cases"] and rep["scenes"]["mixed"]["v2"]
+    assert {"v1", "RTL", "v2", "StereoBM 15"} <= set(rep["hard_cases"]["gain 1.2, offset +10"])
     # the ladder from the RTL's rules to v2 ends at v2 itself
     ladder = rep["rtl_ladder"]
     assert list(ladder) == [name for name, _ in bench_matcher.RTL_LADDER]
