@@ -184,7 +184,7 @@ def _prepare(name, simulator, component, params, vhdl_std):
     build_args, test_args, timescale = [], [], ("1ns", "1ps")
     if simulator == "verilator":
         build_args = ["-Wno-fatal", "-Wno-lint", "-Wno-style", "-O3", "--x-assign", "fast",
-                      "--x-initial", "fast"]
+                      "--x-initial", "fast", "--no-public-flat-rw", "--public-depth", "1"]
     elif simulator == "ghdl":
         build_args = test_args = [f"--std={vhdl_std}"]
         timescale = None
