@@ -404,10 +404,9 @@ def resources(bench, out_dir, quick):
             "budget": BUDGET, "designs": results}
 
 
-def pipeline_rtl_run(left, right, params, frames, register_params=True):
+def pipeline_rtl_run(left, right, params, frames):
     """The pipeline RTL on the Verilator harness (no idle cycles, no backpressure), as
-    sim.backends.run_unit runs it, keeping the harness's own timing. ``register_params=False``
-    builds it without the simulation wrapper's registers (to measure their gain)."""
+    sim.backends.run_unit runs it, keeping the harness's own timing."""
     from sim.units import UNITS, Job
     from sim.config import config_values
     from sim.verilator import run_verilator
@@ -417,8 +416,7 @@ def pipeline_rtl_run(left, right, params, frames, register_params=True):
     t0 = time.perf_counter()
     run = run_verilator(dut, inputs=unit.words(job), out_frames=unit.outputs(job),
                         runtime=config_values(dut, params), seed=0, idle=0.0, stall=0.0,
-                        timeout=1_000_000, name=unit.name, register_params=register_params,
-                        register_inputs=register_params)
+                        timeout=1_000_000, name=unit.name)
     wall = time.perf_counter() - t0
     mism = unit.mismatches(job, run.outputs, dut)
     golden_stats = job.golden[-1].stats
@@ -527,20 +525,14 @@ def sim_speed(bench, quick, left, full_frame):
                "cycles_per_second_wall": round(total / wall)}
         out["backends"][be] = row
         bench.source(f"sim_speed.{be}", origin)
-    name, fw, fh, run, (l, r, params, frames) = full_frame
-    print(f"      {name} {fw}x{fh}: the pipeline again without the harness's input registers "
-          "(one more build)", file=sys.stderr, flush=True)
-    plain = pipeline_rtl_run(l, r, params, frames, register_params=False)[0]
+    name, fw, fh, run, _ = full_frame
     out["verilator_pipeline_full_frame"] = {
         "scene": name, "size": [fw, fh], "simulated_cycles": run.total_cycles,
         "sim_seconds": run.seconds,
-        "cycles_per_second_sim": round(run.total_cycles / run.seconds) if run.seconds else None,
-        "plain_sim_seconds": plain.seconds,
-        "plain_cycles_per_second_sim": round(plain.total_cycles / plain.seconds),
-        "speedup_vs_plain": round(plain.seconds / run.seconds, 2)}
+        "cycles_per_second_sim": round(run.total_cycles / run.seconds) if run.seconds else None}
     bench.source("sim_speed.verilator_pipeline_full_frame",
-                 f"the throughput run on {name} ({fw}x{fh}): harness total_cycles / seconds; "
-                 "'plain' = the same run built with register_params=False, measured right after")
+                 f"the throughput run on {name} ({fw}x{fh}): harness total_cycles / seconds "
+                 "(the harness settings compared: sim_speed.harness)")
     return out
 
 
@@ -751,9 +743,7 @@ def write_markdown(path, rep):
     v = s["verilator_pipeline_full_frame"]
     L += ["", f"Verilator harness on the whole pipeline ({v['scene']}, {v['size'][0]}x"
           f"{v['size'][1]}): {v['simulated_cycles']} cycles in {v['sim_seconds']:.3f} s = "
-          f"{v['cycles_per_second_sim']} cycles/s; built without the simulation wrapper's "
-          f"input registers: {v['plain_cycles_per_second_sim']} cycles/s "
-          f"({v['speedup_vs_plain']}x in favour of the registers, measured in the same run).", "",
+          f"{v['cycles_per_second_sim']} cycles/s.", "",
           *bench_sim.markdown(s["harness"]), ""]
     sw = rep["software_speed"]
     L += ["## 4. Software speed", "",
