@@ -3,29 +3,24 @@
 
 Organisation
 ============
-Two camera inputs, a *scanner* and an *engine*, decoupled by a queue::
+Two camera inputs, each into a line store, a *scanner* and an *engine*, decoupled by a queue::
 
-    left  --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+
-                                                                    +--> scanner --queue--> engine --> o
-    right --FrameTracker--> row slots (Y) + flag slots (edge, neg) --+    (one sliding-window cost lane)
+    left  --> LineStore: row slots (Y) + flag slots (edge, neg) --+
+                                                                  +--> Scanner --queue--> engine --> o
+    right --> LineStore: row slots (Y) + flag slots (edge, neg) --+   (one sliding-window cost lane)
 
 ``Y`` is what the front end sends in the pixel's ``y`` field: its 3x3 census word with the
 census cost (``cost = "census"``, the pipeline's default: the Sobel unit computes it), its
 luminance with ``cost = "sad"``. The line store is the same either way (8 bits a pixel).
 
-Row slots. Each camera keeps its last ``ROWS = window + 1 + extra_rows`` lines (ROWS even) in
-line slots, packed two lines per memory: pair memory ``q`` (``max_width`` x 16 bits: one RAMB16
-in 1K x 18 mode) holds slot ``2q`` in its low byte and slot ``2q + 1`` in its high byte, so one
-read gives one column of two lines and ``ROWS / 2`` memories give a column of every line. A
-Spartan-3 RAMB16 has no byte write enables, so an even line first goes to a one-line ``pend``
-memory, and the odd line after it writes both bytes of the pair (the even byte read back from
-``pend`` one cycle earlier). A frame of odd height ends with an even line alone in ``pend``:
-a *flush* (``width`` cycles, after the frame's last beat) writes it with a zero high byte. The
-flags (edge, neg) go into one memory of ``ROWS * 2**ceil(log2(max_width))`` x 2 bits as they
-arrive. Matching centre row ``s`` needs lines ``s - r .. s + r``; an odd line ``y`` rewrites the
-pair of lines ``y - 1 - ROWS`` and ``y - ROWS``, so it may be written only while
-``y < retired + ROWS - r``, where ``retired`` is the number of centre rows the engine has
-finished; an even line (``pend`` and flags only) one line later. That is the backpressure rule.
+Line stores (:class:`~hdl.matcher_store.LineStore`, one per camera): the last ``ROWS = window +
+1 + extra_rows`` lines (ROWS even) in line slots, line ``y`` in slot ``y mod ROWS``, two lines
+per block RAM ("pair memories"), and their edge flags; an input is held while the line it would
+write is still needed: an odd line ``y`` only while ``y < retired + ROWS - r`` (``wlim``), where
+``retired`` is the number of centre rows the engine has finished, an even line one line later.
+The matcher keeps ``retired`` and ``wlim`` and reads each store's bookkeeping (``rows``,
+``yrows``, ``ended``...) and its read ports: the scanner the flag memories, the engine the left
+store's pair memories (left stage) and the right store's (walker).
 
 Disparity window. A frame searches ``d = d_min + k``, ``k = 0 .. ND - 1`` with
 ``ND = min(max_disparity + 1, DISPARITY_SPAN)`` = 64 candidate bits whatever the elaborated
@@ -33,18 +28,12 @@ maximum (255 by default): every mask below is indexed by ``k``; the right camera
 the ``d_min`` offset and the record stage adds ``d_min`` back. ``d_min`` / ``d_max`` are
 latched from the ports between frames.
 
-Scanner. Once both cameras have received lines up to ``s + r`` (or have ended), it walks centre
-row ``s`` one column per cycle, reading only the flag memories (the right one at column
-``c - d_min``): the right row's edges go into two shift registers (Gx positive / negative) so
-that the candidate set of the left pixel at ``x`` is a fixed window of bits
-(``k -> x - d_min - k``, widened by ``widen`` bits each side; with ``sign_any`` both masks
-ORed, else the one of the left edge's sign), masked with
-``k <= d_max - d_min`` (a registered mask) and ``d_min + k <= x - r`` (a thermometer shifted
-one bit per column). Three stages (flags, candidate mask, count and push) advance together while the queue
-has room. It counts left edges (``edge_pixels``, ``border``, ``no_candidate``) and pushes one
-job ``(x, candidate mask)`` per left edge that has candidates, then a row-end marker; after the
-last row a frame-end marker. It scans every row, border rows included (they only count), so
-each row costs about ``width + 5`` cycles, in parallel with the engine.
+Scanner (:class:`~hdl.matcher_scan.Scanner`): once both cameras have received lines up to
+``s + r`` (or have ended), it walks centre row ``s`` one column per cycle through the flag
+memories and pushes one job ``(x, candidate mask)`` per left edge that has candidates, then a
+row-end marker; after the last row a frame-end marker. Its counts (``edge_pixels``, ``border``,
+``no_candidate``, ``drops``) come out as one-cycle events that the matcher accumulates with
+the engine's. About ``width + 5`` cycles a row, in parallel with the engine.
 
 Engine, a pipeline that never stalls (the output FIFO has a place reserved for every job
 in flight: ``credits``):
@@ -149,27 +138,23 @@ from operator import or_
 
 from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array
 from amaranth.lib import wiring, stream, data, fifo
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
-from amaranth.utils import bits_for, ceil_log2
+from amaranth.utils import bits_for
 
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS, SUBPIXEL_BITS
 
 from .types import EdgePixel
 from .counter import saturating_sum, wide_accumulator, wide_counter
-from .framing import FrameTracker
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_post import SubpixelConfidence
+from .matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, STORE_VIEW, Scanner,
+                           job_layout)
+from .matcher_store import LineStore
 from .matcher_sad import SadTree, term_max
 from .matcher_winner import Winner
 from .fifos import DistributedSyncFIFOBuffered
-from .skid import SkidBuffer
 
 __all__ = ["Matcher", "match_record_layout", "has_subpixel", "MATCHER_WIDEN"]
-
-#: The largest candidate spread ``widen`` the scanner implements (golden/matcher.py step 2).
-MATCHER_WIDEN = 2
-
 
 def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, *,
                         cost="sad", window=7):
@@ -306,7 +291,6 @@ class Matcher(wiring.Component):
         KB = bits_for(ND - 1)              # window index width
         ROWS = self._rows
         MW = self._max_width
-        XB = ceil_log2(MW) if MW > 1 else 1
         XW = bits_for(MW)                  # holds 0..max_width
         YW = bits_for(self._max_height)
         CB = bits_for(term_max(self._cost) * W * W) + 1     # cost width with room for INF
@@ -317,158 +301,28 @@ class Matcher(wiring.Component):
         retired = Signal(YW)              # centre rows finished by the engine
         wlim = Signal(YW + 1, init=ROWS - r)      # retired + ROWS - r: the write limit
         wlim_m1 = Signal(YW + 1, init=ROWS - r - 1)
-        sc_done = Signal()                # scanner has ended the frame
         eng_done = Signal()               # engine has popped the frame-end marker
         complete = Signal()               # frame finished: reset all per-frame state
         size_errors = Signal(16)
 
-        cams = {}
+        m.submodules.scanner = scan = Scanner(max_width=MW, max_height=self._max_height,
+                                              max_disparity=D, window=W, rows=ROWS)
+        stores = {}
         for name in ("left", "right"):
-            # A registered ready at the boundary: the backpressure logic below does not reach
-            # into the front ends.
-            m.submodules[f"skid_{name}"] = skid = SkidBuffer(EdgePixel)
-            wiring.connect(m, wiring.flipped(getattr(self, name)), skid.i)
-            port = skid.o
-            p = port.payload
-            c = type("Cam", (), {})()
-            cams[name] = c
-            c.track = track = FrameTracker(max_width=MW, max_height=self._max_height,
-                                           abort=self.frame_abort)
-            m.submodules[f"track_{name}"] = track
-            c.open = Signal(name=f"{name}_open")       # joined the current matcher frame
-            c.ended = Signal(name=f"{name}_ended")     # its frame has ended (no more writes)
-            c.rows = Signal(YW, name=f"{name}_rows")   # complete lines written
-            c.wrow = Signal(YW + 1, name=f"{name}_wrow")  # 1 + line of the last written beat
-            c.width = Signal(XW, name=f"{name}_width")
-            c.slot = Signal(SB, name=f"{name}_slot")   # slot being written
-            c.yrows = Signal(YW, name=f"{name}_yrows")  # lines readable in the pair memories
-            # Line pairs: pair memory q holds the lines of slots 2q (low byte) and 2q + 1 (high
-            # byte). An even line waits in `pend`; the odd line after it writes both bytes.
-            c.ymem = []
-            for q in range(ROWS // 2):
-                mem = Memory(shape=16, depth=MW, init=[])
-                m.submodules[f"{name}_pair{q}"] = mem
-                c.ymem.append(mem)
-            c.pend = Memory(shape=8, depth=MW, init=[])
-            m.submodules[f"{name}_pend"] = c.pend
-            c.fmem = Memory(shape=2, depth=ROWS << XB, init=[])
-            m.submodules[f"{name}_flags"] = c.fmem
-
-            writable = Signal(name=f"{name}_writable")
-            # An odd line rewrites a pair (the two lines ROWS older); an even line only `pend`
-            # and its flags, so it may run one line further ahead.
-            # (line y < wlim, or y == wlim for an even line). Registered: the flags for the
-            # line being written and the next one, chosen by whether a line ended last cycle
-            # (wlim only grows within a frame, so a value a cycle old is on the safe side).
-            ok_this = Signal(name=f"{name}_ok_this")
-            ok_next = Signal(name=f"{name}_ok_next")
-            bumped = Signal(name=f"{name}_bumped")
-            m.d.sync += [ok_this.eq((c.rows < wlim) | (~c.rows[0] & (c.rows == wlim))),
-                         ok_next.eq((c.rows < wlim_m1) | (c.rows[0] & (c.rows == wlim_m1)))]
-            m.d.comb += writable.eq(Mux(bumped, ok_next, ok_this))
-            in_data = Signal(name=f"{name}_in_data")   # a beat of the camera's current frame
-            m.d.comb += in_data.eq(track.in_frame & c.open & ~c.ended)
-            with m.If(p.sof):
-                m.d.comb += port.ready.eq(~c.open & ~complete)
-            with m.Elif(in_data & ~sc_done & ~self.drop_mode):
-                m.d.comb += port.ready.eq(writable)
-            with m.Else():
-                m.d.comb += port.ready.eq(1)
-            m.d.comb += [
-                track.beat.eq(port.valid & port.ready),
-                track.sof.eq(p.sof), track.eol.eq(p.eol), track.eof.eq(p.eof),
-            ]
-            counted = Signal(name=f"{name}_counted")   # a beat of the camera's frame
-            write = Signal(name=f"{name}_write")       # ... that the scanner may still use
-            m.d.comb += [counted.eq(track.accept & (p.sof | in_data)),
-                         write.eq(counted & ~sc_done)]
-            slot_now = Signal(SB, name=f"{name}_slot_now")
-            m.d.comb += slot_now.eq(Mux(p.sof, 0, c.slot))
-            odd = Signal(name=f"{name}_odd")
-            m.d.comb += odd.eq(~p.sof & track.y[0])
-            # The writes happen a cycle after the beat, from registers (stage B): the frame
-            # tracker's checks and the write logic are not one path.
-            b_write = Signal(name=f"{name}_b_write")
-            b_odd = Signal(name=f"{name}_b_odd")
-            b_x = Signal(XB, name=f"{name}_b_x")
-            b_slot = Signal(SB, name=f"{name}_b_slot")
-            b_y = Signal(8, name=f"{name}_b_y")
-            b_flags = Signal(2, name=f"{name}_b_flags")
-            b_eol = Signal(name=f"{name}_b_eol")
-            b_rows = Signal(YW, name=f"{name}_b_rows")
-            m.d.sync += [b_write.eq(write), b_odd.eq(odd), b_x.eq(track.x), b_slot.eq(slot_now),
-                         b_y.eq(p.y), b_flags.eq(Cat(p.edge, p.neg & p.edge)), b_eol.eq(p.eol),
-                         b_rows.eq(track.y + 1)]
-            pend_w = c.pend.write_port()
-            pend_r = c.pend.read_port()
-            m.d.comb += [pend_w.addr.eq(b_x), pend_w.data.eq(b_y), pend_w.en.eq(b_write & ~b_odd)]
-            # Pair write one cycle after the odd line's stage B, with the even byte read from
-            # pend. The same stage flushes a last even line (frame of odd height) with a zero byte.
-            pw_en = Signal(name=f"{name}_pw_en")
-            pw_addr = Signal(XB, name=f"{name}_pw_addr")
-            pw_y = Signal(8, name=f"{name}_pw_y")
-            pw_pair = Signal(SB, name=f"{name}_pw_pair")
-            pw_eol = Signal(name=f"{name}_pw_eol")
-            pw_rows = Signal(YW, name=f"{name}_pw_rows")
-            fl_active = Signal(name=f"{name}_flush")
-            fl_x = Signal(XW, name=f"{name}_flush_x")
-            m.d.sync += pw_en.eq(0)
-            with m.If(fl_active):
-                m.d.comb += pend_r.addr.eq(fl_x)
-                m.d.sync += [pw_en.eq(1), pw_addr.eq(fl_x), pw_y.eq(0), pw_pair.eq(c.slot >> 1),
-                             pw_eol.eq(fl_x + 1 == c.width), pw_rows.eq(c.rows),
-                             fl_x.eq(fl_x + 1)]
-                with m.If(fl_x + 1 == c.width):
-                    m.d.sync += fl_active.eq(0)
-            with m.Else():
-                m.d.comb += pend_r.addr.eq(b_x)
-                with m.If(b_write & b_odd):
-                    m.d.sync += [pw_en.eq(1), pw_addr.eq(b_x), pw_y.eq(b_y),
-                                 pw_pair.eq(b_slot >> 1), pw_eol.eq(b_eol), pw_rows.eq(b_rows)]
-            for q, mem in enumerate(c.ymem):
-                wp = mem.write_port()
-                m.d.comb += [wp.addr.eq(pw_addr), wp.data.eq(Cat(pend_r.data, pw_y)),
-                             wp.en.eq(pw_en & (pw_pair == q))]
-            with m.If(pw_en & pw_eol):
-                m.d.sync += c.yrows.eq(pw_rows)
-            # Flush: the frame ended after an even line (odd height) that never got its pair.
-            # It rewrites the pair of lines `rows - 1 - ROWS` and `rows - ROWS`, so it waits for
-            # the rule line `rows` would obey. The engine may still need it after the scanner
-            # has ended the frame, so it does not depend on `sc_done`.
-            with m.If(c.open & c.ended & c.rows[0] & (c.yrows != c.rows) & ~fl_active &
-                      ~pw_en & ~b_write & (c.rows < wlim)):
-                m.d.sync += [fl_active.eq(1), fl_x.eq(0)]
-            c.fl_active = fl_active
-            wp = c.fmem.write_port()
-            m.d.comb += [wp.addr.eq(Cat(b_x, b_slot)), wp.data.eq(b_flags), wp.en.eq(b_write)]
-            with m.If(track.accept & p.sof & ~c.open):
-                m.d.sync += [c.open.eq(1), c.ended.eq(0)]
-            with m.If(write):
-                m.d.sync += c.wrow.eq(track.y + 1)
-            # wrow steps by one at the first written beat of a line (lines are written from
-            # their first beat on, after an eol or the sof) and at no other beat
-            c.fresh = Signal(name=f"{name}_fresh")     # the last written beat ended its line
-            with m.If(write):
-                m.d.sync += c.fresh.eq(p.eol)
-            c.write = write
-            m.d.sync += bumped.eq(counted & p.eol)
-            with m.If(counted):
-                with m.If(p.eol):
-                    m.d.sync += [c.rows.eq(track.y + 1),
-                                 c.slot.eq(Mux(slot_now == ROWS - 1, 0, slot_now + 1))]
-                    with m.If(c.width == 0):
-                        m.d.sync += c.width.eq(track.x + 1)
-            # The camera's frame ends at its eof, at a broken rule, at a sof before its eof, or
-            # at the frame abort (in the tracker's abandon).
-            with m.If(c.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
-                                (port.valid & p.sof & ~c.ended))):
-                m.d.sync += c.ended.eq(1)
-            with m.If(track.accept & p.eof & p.sof & ~c.open):   # one-pixel frame
-                m.d.sync += c.ended.eq(1)
-            c.writable = writable
-
-        L, R = cams["left"], cams["right"]
-        m.d.comb += self.in_frame.eq(L.track.in_frame | R.track.in_frame)
+            m.submodules[f"store_{name}"] = st = LineStore(max_width=MW,
+                                                           max_height=self._max_height,
+                                                           rows=ROWS)
+            stores[name] = st
+            wiring.connect(m, wiring.flipped(getattr(self, name)), st.i)
+            m.d.comb += [st.wlim.eq(wlim), st.wlim_m1.eq(wlim_m1), st.complete.eq(complete),
+                         st.sc_done.eq(scan.done), st.drop_mode.eq(self.drop_mode),
+                         st.frame_abort.eq(self.frame_abort)]
+            m.d.comb += [getattr(scan, f"{name}_{v}").eq(getattr(st, v)) for v in STORE_VIEW]
+            m.d.comb += [st.flag_addr.eq(getattr(scan, f"{name}_flag_addr")),
+                         st.flag_en.eq(getattr(scan, f"{name}_flag_en")),
+                         getattr(scan, f"{name}_flag_data").eq(st.flag_data)]
+        L, R = stores["left"], stores["right"]
+        m.d.comb += self.in_frame.eq(L.in_frame | R.in_frame)
         # The disparity window of the frame: follows d_min / d_max between frames and holds
         # from the first sof a camera delivers until the frame is complete, so a register
         # write takes effect at the next frame whenever it happens.
@@ -478,9 +332,6 @@ class Matcher(wiring.Component):
             m.d.sync += [f_dmin.eq(self.d_min), f_dmax.eq(self.d_max)]
         m.d.comb += complete.eq(eng_done & (L.ended | ~L.open) & (R.ended | ~R.open))
         with m.If(complete):
-            for c in (L, R):
-                m.d.sync += [c.open.eq(0), c.ended.eq(0), c.rows.eq(0), c.wrow.eq(0),
-                             c.width.eq(0), c.slot.eq(0), c.yrows.eq(0), c.fl_active.eq(0)]
             m.d.sync += [retired.eq(0), wlim.eq(ROWS - r), wlim_m1.eq(ROWS - r - 1),
                          eng_done.eq(0)]
             with m.If((L.rows != R.rows) | (L.width != R.width) | (L.open != R.open)):
@@ -489,194 +340,32 @@ class Matcher(wiring.Component):
         # the three error counts summed in two registered 16-bit steps, saturating (2 cycles
         # later, as dropped)
         err_lr = Signal(17); err_lr_sat = Signal(16); err_all = Signal(17)
-        m.d.sync += [err_lr.eq(L.track.errors + R.track.errors),
+        m.d.sync += [err_lr.eq(L.errors + R.errors),
                      err_all.eq(err_lr_sat + size_errors)]
         m.d.comb += [err_lr_sat.eq(Mux(err_lr[16], 0xFFFF, err_lr[:16])),
                      self.errors.eq(Mux(err_all[16], 0xFFFF, err_all[:16]))]
-        saturating_sum(m, self.dropped, L.track.dropped, R.track.dropped)   # 2 cycles later
+        saturating_sum(m, self.dropped, L.dropped, R.dropped)   # 2 cycles later
 
-        # ---------------------------------------------------------------- queue
-        KIND_JOB, KIND_ROW, KIND_FRAME = 0, 1, 2
-        job_layout = data.StructLayout({"kind": 2, "x": XW, "mask": ND})
-        m.submodules.queue = queue = fifo.SyncFIFOBuffered(width=job_layout.size,
+        # ---------------------------------------------------------------- scanner and queue
+        m.d.comb += [scan.d_min.eq(f_dmin), scan.d_max.eq(f_dmax),
+                     scan.mode_full.eq(self.mode_full), scan.sign_any.eq(self.sign_any),
+                     scan.drop_mode.eq(self.drop_mode), scan.widen.eq(self.widen),
+                     scan.complete.eq(complete)]
+        jobs = job_layout(MW, ND)
+        m.submodules.queue = queue = fifo.SyncFIFOBuffered(width=jobs.size,
                                                            depth=self._queue_depth)
-        push = data.View(job_layout, queue.w_data)
-        pop = data.View(job_layout, queue.r_data)
-
-        # ---------------------------------------------------------------- scanner
-        # Three stages, all advancing together while the queue has room (or in drop mode):
-        # 1 reads the flags of column c1 (right edges shift into pos/neg masks), 2 forms the
-        # candidate mask of left pixel c2 - WD, 3 counts it and pushes its job. The left pixel
-        # is WD = MATCHER_WIDEN columns behind the right one, so that the masks already hold
-        # the right edges up to WD columns to the right of its candidates; the scan runs WD
-        # columns past the row's end (columns beyond it are not edges).
-        WD = MATCHER_WIDEN
-        XS = bits_for(MW + WD)            # scanner columns 0 .. width + WD
-        s_row = Signal(YW)
-        s_slot = Signal(SB)
-        s_inside_row = Signal()
-        s_width = Signal(XW)
-        s_last = Signal(XS)               # s_width + WD - 1: the last column read
-        ca = Signal(XS)                   # column address issued
-        # Right column address: ca - d_min (two's complement, XS + 1 bits; negative = outside)
-        CW = max(XS, DB) + 1
-        car = Signal(CW)
-        v1 = Signal()                     # stage 1 holds the data of column c1
-        c1 = Signal(XS)
-        c1r = Signal(CW)                  # c1 - d_min
-        # bit j: right column (c1 - d_min - j) is a positive (negative) edge
-        pos_mask = Signal(ND + 2 * WD)
-        neg_mask = Signal(ND + 2 * WD)
-        # left pixels c1 - 1 .. c1 - WD (delayed by one column each)
-        l_edge = [Signal(name=f"l_edge{k}") for k in range(WD)]
-        l_neg = [Signal(name=f"l_neg{k}") for k in range(WD)]
+        m.d.comb += [queue.w_data.eq(scan.o.payload), queue.w_en.eq(scan.o.valid),
+                     scan.o.ready.eq(queue.w_rdy)]
+        pop = data.View(jobs, queue.r_data)
         # per-frame statistics as wide as a frame's counts can be (at most one per pixel; SAD
         # evaluations at most ND + 2 per pixel, the widened candidates): no bit that is always
-        # 0 in a counter or in the register block's read multiplexer
+        # 0 in a counter or in the register block's read multiplexer. The frame's counts are
+        # read at its frame-end record, many cycles after the scanner's last event. (The
+        # counters are hdl.counter accumulators, 16-bit carry chains; they wrap, which no frame
+        # reaches: at most max_width x max_height x 64 evaluations.)
         pixels = MW * self._max_height
         stat = {name: Signal(bits_for(pixels * (ND + 2) if name == "sad_evaluations" else pixels),
                              name=f"cnt_{name}") for name in STAT_KEYS}
-
-        rp_lf = L.fmem.read_port()
-        rp_rf = R.fmem.read_port()
-        adv = Signal()
-        # In drop mode the scanner waits for the queue too, until the row's flags are being
-        # overwritten (s_doomed); then it runs and drops the jobs that do not fit.
-        s_doomed = Signal()
-        m.d.comb += [adv.eq(queue.w_rdy | (self.drop_mode & s_doomed)),
-                     rp_lf.addr.eq(Cat(ca[:XB], s_slot)), rp_rf.addr.eq(Cat(car[:XB], s_slot)),
-                     rp_lf.en.eq(adv), rp_rf.en.eq(adv)]
-        r_in_row = Signal()
-        m.d.comb += r_in_row.eq(c1 < s_width)
-        rr_in_row = Signal()              # right column c1 - d_min inside the row
-        m.d.comb += rr_in_row.eq(~c1r[CW - 1] & (c1r[:CW - 1] < s_width))
-        r_edge = Signal()
-        r_neg = Signal()
-        m.d.comb += [r_edge.eq(rp_rf.data[0] & rr_in_row), r_neg.eq(rp_rf.data[1] & rr_in_row)]
-
-        # Stage 2: left pixel c2 - WD against the masks of right columns c2, c2 - 1, ...
-        v2 = Signal(); c2 = Signal(XS); le2 = Signal(); ln2 = Signal()
-        # bit k: xl2 >= d_min + k + r (a thermometer, shifted per column)
-        xmask = Signal(ND)
-        # bit k: d_min + k <= d_max. Registered in two steps from the (static) registers.
-        span = Signal(DB + 1)             # d_max - d_min, negative: empty window
-        xmin = Signal(DB + 2)             # d_min + r + WD - 1: column c2 - 1 of that x
-        rng = Signal(ND)
-        m.d.sync += [span.eq(f_dmax - f_dmin), xmin.eq(f_dmin + r + WD - 1),
-                     rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
-        xl2 = Signal(XS)
-        m.d.comb += xl2.eq(c2 - WD)
-        # the right edges that make candidates: of the left edge's Gx sign, or of either
-        same = Signal(ND + 2 * WD)
-        m.d.comb += same.eq(Mux(self.sign_any, pos_mask | neg_mask,
-                                Mux(ln2, neg_mask, pos_mask)))
-        # candidate k: right column xl2 - d_min - k (bit k + WD) or, widened by w, any of the
-        # bits k + WD - w .. k + WD + w
-        spread = [same[WD:WD + ND]]
-        for w in range(1, WD + 1):
-            spread.append(spread[-1] | same[WD - w:WD - w + ND] | same[WD + w:WD + w + ND])
-        adaptive = spread[WD]             # widen >= WD: the widest spread
-        for w in reversed(range(WD)):
-            adaptive = Mux(self.widen == w, spread[w], adaptive)
-        cand2 = Signal(ND)
-        m.d.comb += cand2.eq(rng & xmask & Mux(self.mode_full, (1 << ND) - 1, adaptive))
-        # Stage 3: count and push.
-        v3 = Signal(); edge3 = Signal(); border3 = Signal(); cand3 = Signal(ND)
-        x3 = Signal(XW); last3 = Signal()
-        want_push = Signal()
-        m.d.comb += want_push.eq(edge3 & ~border3 & (cand3 != 0))
-        # Drop-mode doom test for the scanner's own row (its flags are being overwritten):
-        # wrow > s_lim, registered one step ahead from the next wrow (wrow + 1 at a write that
-        # starts a line; the sof's wrow of 1 is never above s_lim). s_lim changes only at
-        # ROW_END and at `complete`, cycles before the scanner is in SCAN again, and the test
-        # matters only in SCAN: there the register equals the test on this cycle's wrow.
-        s_lim = Signal(YW + 1, init=ROWS)     # s_row + ROWS
-        s_doom = {id(c): Signal(name=f"s_doom_{n}") for n, c in cams.items()}
-        m.d.sync += [s_doom[id(c)].eq((c.wrow > s_lim) | (c.write & c.fresh & (c.wrow == s_lim)))
-                     for c in (L, R)]
-        m.d.comb += s_doomed.eq(s_doom[id(L)] | s_doom[id(R)])
-
-        s_need = Signal(YW + 1, init=r)   # s_row + r
-        ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
-        m.d.comb += [ok_l.eq(L.open & (L.rows > s_need)), ok_r.eq(R.open & (R.rows > s_need)),
-                     has_l.eq(L.open & (L.rows > s_row)), has_r.eq(R.open & (R.rows > s_row))]
-        lacks = Signal()
-        m.d.comb += lacks.eq((L.ended & ~has_l) | (R.ended & ~has_r))
-        size_bad = Signal()
-        m.d.comb += size_bad.eq((L.rows != 0) & (R.rows != 0) & (L.width != R.width))
-        active = Signal()
-        m.d.comb += active.eq(~sc_done & (L.open | R.open) & ~complete)
-        sc_end = Signal(); sc_go = Signal(); sc_inside = Signal()
-        m.d.sync += [sc_end.eq(active & (lacks | size_bad)),
-                     sc_go.eq(active & (ok_l | L.ended) & (ok_r | R.ended) & has_l & has_r),
-                     sc_inside.eq(ok_l & ok_r & (s_row >= r))]
-        # The scanner's counts go through one-cycle event registers: the decision (adv, the
-        # doom test) and the 32-bit counters are not one path. The frame's counts are read at
-        # its frame-end record, many cycles after the scanner's last event. (The counters are
-        # hdl.counter accumulators, 16-bit carry chains; they wrap, which no frame reaches:
-        # at most max_width x max_height x 64 evaluations.)
-        ev = {name: Signal(name=f"ev_{name}") for name in
-              ("edge_pixels", "border", "no_candidate", "drops")}
-        m.d.sync += [e.eq(0) for e in ev.values()]
-        with m.FSM(name="scanner"):
-            with m.State("WAIT"):
-                # The decision is taken on registered conditions (computed below from this
-                # cycle's counts); SETTLE gives them a cycle after the row changed.
-                with m.If(sc_end):
-                    m.next = "FRAME_END"
-                with m.Elif(sc_go):
-                    m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L.width),
-                                 s_last.eq(L.width + WD - 1), ca.eq(0),
-                                 car.eq(-f_dmin), c1r.eq(-f_dmin),
-                                 v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
-                                 pos_mask.eq(0), neg_mask.eq(0)]
-                    m.d.sync += [e.eq(0) for e in l_edge]
-                    m.next = "SCAN"
-            with m.State("SETTLE"):
-                m.next = "WAIT"
-            with m.State("SCAN"):
-                with m.If(adv):
-                    with m.If(ca <= s_last):
-                        m.d.sync += [ca.eq(ca + 1), car.eq(car + 1)]
-                    m.d.sync += [v1.eq(ca <= s_last), c1.eq(ca), c1r.eq(car)]
-                    with m.If(v1):
-                        m.d.sync += [pos_mask.eq(Cat(r_edge & ~r_neg, pos_mask[:-1])),
-                                     neg_mask.eq(Cat(r_edge & r_neg, neg_mask[:-1])),
-                                     l_edge[0].eq(rp_lf.data[0] & r_in_row),
-                                     l_neg[0].eq(rp_lf.data[1])]
-                        m.d.sync += [l_edge[k].eq(l_edge[k - 1]) for k in range(1, WD)]
-                        m.d.sync += [l_neg[k].eq(l_neg[k - 1]) for k in range(1, WD)]
-                    m.d.sync += [v2.eq(v1), c2.eq(c1), le2.eq(l_edge[-1]), ln2.eq(l_neg[-1])]
-                    with m.If(v2):
-                        m.d.sync += xmask.eq(Cat(c2 >= xmin, xmask[:-1]))
-                    m.d.sync += [v3.eq(v2 & (c2 >= WD)), edge3.eq(v2 & (c2 >= WD) & le2),
-                                 border3.eq(~s_inside_row | (xl2 < r) | (xl2 + r >= s_width)),
-                                 cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_last))]
-                    with m.If(edge3):
-                        m.d.sync += ev["edge_pixels"].eq(1)
-                        with m.If(border3):
-                            m.d.sync += ev["border"].eq(1)
-                        with m.Elif(cand3 == 0):
-                            m.d.sync += ev["no_candidate"].eq(1)
-                        with m.Elif(~queue.w_rdy | (self.drop_mode & s_doomed)):
-                            m.d.sync += ev["drops"].eq(1)     # drop mode only
-                    m.d.comb += [push.kind.eq(KIND_JOB), push.x.eq(x3), push.mask.eq(cand3),
-                                 queue.w_en.eq(want_push & ~(self.drop_mode & s_doomed))]
-                    with m.If(last3):
-                        m.next = "ROW_END"
-            with m.State("ROW_END"):
-                m.d.comb += [push.kind.eq(KIND_ROW), queue.w_en.eq(1)]
-                with m.If(queue.w_rdy):
-                    m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1), s_lim.eq(s_lim + 1),
-                                 s_slot.eq(Mux(s_slot == ROWS - 1, 0, s_slot + 1))]
-                    m.next = "SETTLE"
-            with m.State("FRAME_END"):
-                m.d.comb += [push.kind.eq(KIND_FRAME), queue.w_en.eq(1)]
-                with m.If(queue.w_rdy):
-                    m.d.sync += sc_done.eq(1)
-                    m.next = "SETTLE"
-        with m.If(complete):
-            m.d.sync += [s_row.eq(0), s_need.eq(r), s_lim.eq(ROWS), s_slot.eq(0), sc_done.eq(0)]
 
         # ---------------------------------------------------------------- engine
         # left stage (LS): takes an item from the queue; for a job, reads its W left columns
@@ -736,17 +425,15 @@ class Matcher(wiring.Component):
             m.d.sync += [lrow.eq(0), lneed.eq(r), llim.eq(ROWS - r), lslot.eq(0)]
 
         # Left column reads: decision (LS) -> address -> BRAM -> raw words -> shadow.
-        lports = [mem.read_port() for mem in L.ymem]
         l2_addr = Signal(XW + 1); l2_v = Signal()
         l3_v = Signal()
         l4_v = Signal(); l4_raw = [Signal(16, name=f"l4_raw{q}") for q in range(ROWS // 2)]
         m.d.sync += l2_v.eq(0)
         with m.If(ls_full & (ls_kind == KIND_JOB) & (ls_k != W)):
             m.d.sync += [l2_addr.eq(ls_base + ls_k), l2_v.eq(1), ls_k.eq(ls_k + 1)]
-        for pt in lports:
-            m.d.comb += pt.addr.eq(l2_addr)
+        m.d.comb += L.pair_addr.eq(l2_addr)
         m.d.sync += [l3_v.eq(l2_v), l4_v.eq(l3_v)]
-        m.d.sync += [raw.eq(pt.data) for raw, pt in zip(l4_raw, lports)]
+        m.d.sync += [raw.eq(L.pair_data[16 * q:16 * q + 16]) for q, raw in enumerate(l4_raw)]
         lcol = slot_bytes(l4_raw)
         # shadow[i][s]: window column i (0 = x - r), line slot s
         shadow = [[Signal(8, name=f"shadow_{i}_{j}") for j in range(ROWS)] for i in range(W)]
@@ -808,7 +495,6 @@ class Matcher(wiring.Component):
                          w_y.eq(ls_y), w_lim.eq(ls_lim), w_top.eq(ls_top), ls_full.eq(0)]
 
         # D1: column address and candidate.
-        rports = [mem.read_port() for mem in R.ymem]
         seen = Signal()
         fire1 = Signal()
         m.d.comb += fire1.eq(t1_ohf != 0)
@@ -826,8 +512,7 @@ class Matcher(wiring.Component):
                      t2["mk"].eq(t1_mk), t2["d"].eq(d1v), t2["d1"].eq(d1v + 1),
                      t2["x"].eq(t1_x), t2["y"].eq(t1_y), t2["lim"].eq(t1_lim),
                      t2["top"].eq(t1_top), t2["first"].eq(t1_first)]
-        for pt in rports:
-            m.d.comb += pt.addr.eq(t2_addr)
+        m.d.comb += R.pair_addr.eq(t2_addr)
 
         def stage(prev, name):
             nxt = {k_: Signal.like(v, name=f"{name}_{k_}") for k_, v in prev.items()}
@@ -837,7 +522,7 @@ class Matcher(wiring.Component):
         t3 = stage(t2, "t3")
         t4 = stage(t3, "t4")
         r4_raw = [Signal(16, name=f"r4_raw{q}") for q in range(ROWS // 2)]
-        m.d.sync += [raw.eq(pt.data) for raw, pt in zip(r4_raw, rports)]
+        m.d.sync += [raw.eq(R.pair_data[16 * q:16 * q + 16]) for q, raw in enumerate(r4_raw)]
         rcol = slot_bytes(r4_raw)
         lwin = [[Signal(8, name=f"lwin_{i}_{j}") for j in range(ROWS)] for i in range(W)]
         rwin = [[Signal(8, name=f"rwin_{i}_{j}") for j in range(ROWS)] for i in range(W)]
@@ -944,8 +629,8 @@ class Matcher(wiring.Component):
         with m.If(rt.frame):
             m.d.comb += [ofifo.w_en.eq(1), orec.eof.eq(1)]
         # drops: the scanner's (queue full) and the engine's (window overwritten), one count
-        adds = {"edge_pixels": ev["edge_pixels"], "border": ev["border"],
-                "no_candidate": ev["no_candidate"], "drops": ev["drops"] + e_drop,
+        adds = {"edge_pixels": scan.edge_pixels, "border": scan.border,
+                "no_candidate": scan.no_candidate, "drops": scan.drops + e_drop,
                 "sad_evaluations": Mux(e_v, e_evals, 0), "rejected": e_reject,
                 "matches": e_match}
         for name in STAT_KEYS:

@@ -1,0 +1,194 @@
+"""The matcher's scanner (hdl/matcher_scan.py) on its own: driven by a model of the two line
+stores (flag memories answering its read ports one cycle later, lines arriving at random), its
+jobs ``(x, candidate mask)``, row markers and counts against golden/matcher.py's candidate rule
+(:func:`golden.matcher.candidates`) on small random frames, under random queue backpressure.
+The whole matcher: tests/test_matcher.py."""
+import random
+
+import numpy as np
+import pytest
+from amaranth.sim import Simulator
+
+from amaranth.utils import bits_for
+
+from golden.matcher import MatcherParams, candidates
+from hdl.matcher_scan import KIND_FRAME, KIND_JOB, KIND_ROW, Scanner
+
+MW, MH = 32, 16
+XB = 5                                   # ceil(log2(MW)): the column bits of a flag address
+
+
+def random_flags(rng, h, w, density):
+    edge = (rng.random((h, w)) < density).astype(np.int64)
+    return {"edge": edge, "neg": rng.integers(0, 2, (h, w)) & edge}
+
+
+def expected(left, right, params):
+    """Jobs (y, x, mask) and counts of golden.matcher's candidate rule."""
+    ys, xs, inside, cand = candidates(left, right, params)
+    has = cand.any(axis=1)
+    jobs = [(int(y), int(x), sum(1 << k for k in np.flatnonzero(c)))
+            for y, x, ok, c in zip(ys, xs, inside & has, cand) if ok]
+    counts = {"edge_pixels": len(ys), "border": int((~inside).sum()),
+              "no_candidate": int((inside & ~has).sum()), "drops": 0}
+    return jobs, counts
+
+
+def scan(params, left, right, *, max_disparity, heights, widths, seed, stall):
+    """Run the scanner over one frame; returns (jobs, number of row markers, counts)."""
+    window = params.window
+    rows = window + 1
+    r = window // 2
+    dut = Scanner(max_width=MW, max_height=MH, max_disparity=max_disparity, window=window,
+                  rows=rows)
+    rng = random.Random(seed)
+    cams = {"left": left, "right": right}
+    hw = {side: (h, w) for side, h, w in zip(cams, heights, widths)}
+    XW = bits_for(MW)
+    state = {"row": 0, "done": False}
+    got = {"jobs": [], "markers": 0, "counts": dict.fromkeys(
+        ("edge_pixels", "border", "no_candidate", "drops"), 0)}
+
+    async def stores(ctx):
+        # lines arrive at random; a camera's frame ends after its last line
+        for side in cams:
+            ctx.set(getattr(dut, f"{side}_open"), 1)
+            ctx.set(getattr(dut, f"{side}_width"), hw[side][1])
+        lines = dict.fromkeys(cams, 0)
+        while any(lines[s] < hw[s][0] for s in cams):
+            for _ in range(rng.randrange(60)):
+                await ctx.tick()
+            side = rng.choice([s for s in cams if lines[s] < hw[s][0]])
+            lines[side] += 1
+            ctx.set(getattr(dut, f"{side}_rows"), lines[side])
+            ctx.set(getattr(dut, f"{side}_wrow"), lines[side])
+            if lines[side] == hw[side][0]:
+                ctx.set(getattr(dut, f"{side}_ended"), 1)
+
+    def flag_memory(side):
+        flags = cams[side]
+        h, w = flags["edge"].shape
+
+        async def bench(ctx):
+            addr = getattr(dut, f"{side}_flag_addr")
+            en = getattr(dut, f"{side}_flag_en")
+            data = getattr(dut, f"{side}_flag_data")
+            y = 0                        # the scanner's row: row markers taken so far
+            while True:
+                _, _, a, e, valid, ready, kind = await ctx.tick().sample(
+                    addr, en, dut.o.valid, dut.o.ready, dut.o.payload.kind)
+                if e:
+                    x, slot = a & ((1 << XB) - 1), a >> XB
+                    assert slot == y % rows, (side, slot, y)
+                    if x < w and y < h:
+                        ctx.set(data, int(flags["edge"][y, x]) | (int(flags["neg"][y, x]) << 1))
+                    else:                # beyond the line (or a wrapped right column): garbage
+                        ctx.set(data, rng.randrange(4))
+                if valid and ready and kind == KIND_ROW:
+                    y += 1
+        return bench
+
+    async def queue(ctx):
+        # the queue, with random backpressure; counts the events meanwhile
+        while not state["done"]:
+            ready = rng.random() >= stall
+            ctx.set(dut.o.ready, ready)
+            _, _, valid, word, *events = await ctx.tick().sample(
+                dut.o.valid, dut.o.payload.as_value(), dut.edge_pixels, dut.border,
+                dut.no_candidate, dut.drops)
+            for name, e in zip(got["counts"], events):
+                got["counts"][name] += e
+            if not (valid and ready):
+                continue
+            item = {"kind": word & 3, "x": (word >> 2) & ((1 << XW) - 1),
+                    "mask": word >> (2 + XW)}
+            if item["kind"] == KIND_JOB:
+                s = state["row"]
+                for side in cams:      # the lines of the job's window had arrived
+                    assert (ctx.get(getattr(dut, f"{side}_rows")) > s + r or
+                            ctx.get(getattr(dut, f"{side}_ended")))
+                got["jobs"].append((s, item["x"], item["mask"]))
+            elif item["kind"] == KIND_ROW:
+                state["row"] += 1
+                got["markers"] += 1
+            else:
+                assert item["kind"] == KIND_FRAME
+                state["done"] = True
+        for _ in range(4):             # the last events
+            _, _, *events = await ctx.tick().sample(dut.edge_pixels, dut.border,
+                                                    dut.no_candidate, dut.drops)
+            for name, e in zip(got["counts"], events):
+                got["counts"][name] += e
+        assert ctx.get(dut.done)
+
+    async def watchdog(ctx):
+        for _ in range(100000):
+            await ctx.tick()
+        raise AssertionError("no frame end")
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+
+    async def setup(ctx):
+        ctx.set(dut.d_min, params.d_min)
+        ctx.set(dut.d_max, params.d_max)
+        ctx.set(dut.widen, params.widen)
+        ctx.set(dut.sign_any, params.sign == "any")
+        ctx.set(dut.mode_full, params.mode == "full")
+        await stores(ctx)
+    sim.add_testbench(setup)
+    sim.add_testbench(queue)
+    for side in cams:
+        sim.add_testbench(flag_memory(side), background=True)
+    sim.add_testbench(watchdog, background=True)
+    sim.run()
+    return got["jobs"], got["markers"], got["counts"]
+
+
+CASES = [
+    # window, max_disparity, d_min, d_max, widen, sign, mode
+    (3, 20, 0, 20, 0, "same", "adaptive"),
+    (3, 20, 3, 12, 1, "any", "adaptive"),
+    (5, 100, 2, 65, 2, "any", "adaptive"),
+    (7, 30, 1, 30, 2, "same", "adaptive"),
+    (5, 20, 4, 9, 0, "same", "full"),
+]
+
+
+@pytest.mark.parametrize("case", range(len(CASES)))
+def test_jobs_and_counts(case):
+    window, max_d, d_min, d_max, widen, sign, mode = CASES[case]
+    params = MatcherParams(d_min=d_min, d_max=d_max, window=window, widen=widen, sign=sign,
+                           mode=mode)
+    rng = np.random.default_rng(case)
+    h, w = 11, 29
+    left, right = random_flags(rng, h, w, 0.3), random_flags(rng, h, w, 0.25)
+    jobs, markers, counts = scan(params, left, right, max_disparity=max_d, heights=(h, h),
+                                 widths=(w, w), seed=case, stall=0.4)
+    want_jobs, want_counts = expected(left, right, params)
+    assert len(want_jobs) > 20
+    assert jobs == want_jobs
+    assert markers == h
+    assert counts == want_counts
+
+
+def test_common_height():
+    # the right camera ends two lines early: the frame is scanned on the common height
+    params = MatcherParams(d_min=0, d_max=20, window=3, widen=1, sign="same")
+    rng = np.random.default_rng(9)
+    left, right = random_flags(rng, 9, 20, 0.3), random_flags(rng, 9, 20, 0.3)
+    jobs, markers, counts = scan(params, left, right, max_disparity=20, heights=(9, 7),
+                                 widths=(20, 20), seed=9, stall=0.2)
+    crop = {k: v[:7] for k, v in left.items()}, {k: v[:7] for k, v in right.items()}
+    want_jobs, want_counts = expected(*crop, params)
+    assert (jobs, markers, counts) == (want_jobs, 7, want_counts)
+
+
+def test_widths_differ():
+    # frames of different widths: no job, no count, just the frame end
+    params = MatcherParams(d_min=0, d_max=20, window=3)
+    rng = np.random.default_rng(10)
+    left, right = random_flags(rng, 6, 20, 0.3), random_flags(rng, 6, 18, 0.3)
+    jobs, markers, counts = scan(params, left, right, max_disparity=20, heights=(6, 6),
+                                 widths=(20, 18), seed=10, stall=0.2)
+    assert (jobs, markers) == ([], 0) and not any(counts.values())
