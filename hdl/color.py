@@ -31,13 +31,11 @@ class ColorConvert(FramedUnit):
     2. max, min, delta, sextant base and signed numerator; the luma products (from the stage
        1 registers, not from the input register with its many loads: a multiplier block's
        routing on ECP5 is long);
-    3. ``|num|``; the reciprocal table read (addresses delta and max); the luma products
-       registered once more, so that no path both reaches a multiplier block and leaves it
-       (the placer can keep this register beside the block: with the products summed here,
-       block-to-adder routing made the SoC's core clock 75.5 MHz on ECP5 seed 3);
+    3. ``|num|``; the reciprocal table read (addresses delta and max); the sum of two luma
+       products, the rounding constant added to the third;
     4. register of the table outputs (a block-RAM output never feeds a multiplier directly);
-       the sum of two luma products, the rounding constant added to the third;
-    5. the two multiplies; the luma sum;
+       the luma sum;
+    5. the two multiplies;
     6. hue quotient rounding; saturation rounding and clamp;
     7. output register: hue sextant offset and wrap-around.
 
@@ -109,15 +107,15 @@ class ColorConvert(FramedUnit):
         neg = s2["num"] < 0
         s3 = stage(3, v=s2["v"], flags=s2["flags"], delta=s2["delta"], chroma=s2["delta"] != 0,
                    neg=neg, absnum=Mux(neg, -s2["num"], s2["num"])[:8], base=s2["base"],
-                   yr=s2["yr"], yg=s2["yg"], yb=s2["yb"])
-        # 4. table outputs registered; the luma products summed
+                   yrg=s2["yr"] + s2["yg"], yb=s2["yb"] + 128)
+        # 4. table outputs registered
         s4 = stage(4, v=s3["v"], flags=s3["flags"], delta=s3["delta"], chroma=s3["chroma"],
                    neg=s3["neg"], absnum=s3["absnum"], base=s3["base"],
-                   yrg=s3["yr"] + s3["yg"], yb=s3["yb"] + 128,
+                   y=((s3["yrg"] + s3["yb"]) >> 8)[:8],
                    rhue=rd_hue.data, rsat=rd_sat.data)
         # 5. multiplies (|num| <= delta, so the hue product stays below 2**17 + 2**8)
         s5 = stage(5, v=s4["v"], flags=s4["flags"], chroma=s4["chroma"], neg=s4["neg"],
-                   base=s4["base"], y=((s4["yrg"] + s4["yb"]) >> 8)[:8],
+                   base=s4["base"], y=s4["y"],
                    hprod=(s4["absnum"] * s4["rhue"])[:18], sprod=s4["delta"] * s4["rsat"])
         # 6. rounding; saturation clamp: (sprod + 128) >> 8 > 255 exactly when sprod >= 65408
         sprod = s5["sprod"]
