@@ -15,8 +15,9 @@ runs 2 frames on the Verilator harness:
   from the line store's slack, not the rate.) Reported: edges dropped
   (``frame_drops``), records lost against golden, and whether every record is a golden one;
 * **drop mode with** :data:`DROP_EXTRA_ROWS` **more line slots** (``extra_rows``), the same
-  inputs (not with ``--quick``, whose smoke test would build one more pipeline): the line store's slack is what drop mode lacks (the SoC instead buffers its cameras
-  and applies backpressure, ``hdl/soc.py``).
+  inputs (not with ``--quick``, whose smoke test would build one more pipeline): the line
+  store's slack is what drop mode lacks (the SoC instead buffers its cameras and applies
+  backpressure, ``hdl/soc.py``).
 
 ``python -m sim.matcher_bench [--quick]`` prints the table; :func:`matcher_throughput` is what
 ``sim/bench.py`` calls.
