@@ -149,7 +149,7 @@ from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_post import SubpixelConfidence
 from .matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, STORE_VIEW, Scanner,
                            job_layout)
-from .matcher_store import LineStore
+from .matcher_store import LineStore, LineWidths
 from .matcher_sad import SadTree, term_max
 from .matcher_winner import Winner
 from .fifos import DistributedSyncFIFOBuffered
@@ -291,11 +291,9 @@ class Matcher(wiring.Component):
         KB = bits_for(ND - 1)              # window index width
         ROWS = self._rows
         MW = self._max_width
-        XW = bits_for(MW)                  # holds 0..max_width
-        YW = bits_for(self._max_height)
+        _, XW, YW, SB = LineWidths.of(MW, self._max_height, ROWS)
         CB = bits_for(term_max(self._cost) * W * W) + 1     # cost width with room for INF
         INF = (1 << CB) - 1
-        SB = bits_for(ROWS - 1)
 
         # ---------------------------------------------------------------- frame control
         retired = Signal(YW)              # centre rows finished by the engine

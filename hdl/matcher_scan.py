@@ -23,9 +23,11 @@ fit.
 from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.utils import bits_for, ceil_log2
+from amaranth.utils import bits_for
 
 from golden.matcher import DISPARITY_SPAN
+
+from .matcher_store import LineWidths
 
 __all__ = ["Scanner", "job_layout", "KIND_JOB", "KIND_ROW", "KIND_FRAME", "MATCHER_WIDEN",
            "STORE_VIEW"]
@@ -81,10 +83,9 @@ class Scanner(wiring.Component):
         self._max_disparity = max_disparity
         self._window = window
         self._rows = rows
-        XW = bits_for(max_width)
-        YW = bits_for(max_height)
+        XB, XW, YW, SB = LineWidths.of(max_width, max_height, rows)
         DB = bits_for(max_disparity)
-        FA = (ceil_log2(max_width) if max_width > 1 else 1) + bits_for(rows - 1)
+        FA = XB + SB
         ND = min(max_disparity + 1, DISPARITY_SPAN)
         ports = {
             "o": Out(stream.Signature(job_layout(max_width, ND))),
@@ -112,10 +113,7 @@ class Scanner(wiring.Component):
         ND = min(D + 1, DISPARITY_SPAN)
         ROWS = self._rows
         MW = self._max_width
-        XB = ceil_log2(MW) if MW > 1 else 1
-        XW = bits_for(MW)
-        YW = bits_for(self._max_height)
-        SB = bits_for(ROWS - 1)
+        XB, XW, YW, SB = LineWidths.of(MW, self._max_height, ROWS)
         cams = [{name: getattr(self, f"{side}_{name}") for name in STORE_VIEW}
                 for side in ("left", "right")]
         L, R = cams

@@ -28,6 +28,8 @@ frame (``open``) at an accepted ``sof``; its frame ends (``ended``, no more writ
 ``eof``, a broken rule, a ``sof`` before its ``eof`` or the frame abort. ``complete`` (the
 matcher's frame is finished) clears the frame's bookkeeping.
 """
+from typing import NamedTuple
+
 from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.memory import Memory
@@ -38,7 +40,21 @@ from .framing import FrameTracker
 from .skid import SkidBuffer
 from .types import EdgePixel
 
-__all__ = ["LineStore"]
+__all__ = ["LineStore", "LineWidths"]
+
+
+class LineWidths(NamedTuple):
+    """Widths of the line store's addresses and counts, derived from the elaboration limits
+    once for the store, the scanner and the matcher (:meth:`of`)."""
+    col: int        #: a column address, 0 .. max_width - 1 (at least 1 bit)
+    cols: int       #: a column count, 0 .. max_width
+    lines: int      #: a line count, 0 .. max_height
+    slot: int       #: a line slot, 0 .. rows - 1
+
+    @classmethod
+    def of(cls, max_width, max_height, rows):
+        return cls(ceil_log2(max_width) if max_width > 1 else 1, bits_for(max_width),
+                   bits_for(max_height), bits_for(rows - 1))
 
 
 class LineStore(wiring.Component):
@@ -85,17 +101,16 @@ class LineStore(wiring.Component):
         self._max_width = max_width
         self._max_height = max_height
         self._rows = rows
-        YW = bits_for(max_height)
-        XB = ceil_log2(max_width) if max_width > 1 else 1
+        XB, XW, YW, SB = LineWidths.of(max_width, max_height, rows)
         super().__init__({
             "i": In(stream.Signature(EdgePixel)),
             "wlim": In(YW + 1), "wlim_m1": In(YW + 1),
             "complete": In(1), "sc_done": In(1), "drop_mode": In(1), "frame_abort": In(1),
             "open": Out(1), "ended": Out(1), "rows": Out(YW), "wrow": Out(YW + 1),
-            "width": Out(bits_for(max_width)), "yrows": Out(YW), "write": Out(1),
+            "width": Out(XW), "yrows": Out(YW), "write": Out(1),
             "fresh": Out(1),
             "errors": Out(16), "dropped": Out(32), "in_frame": Out(1),
-            "flag_addr": In(XB + bits_for(rows - 1)), "flag_en": In(1), "flag_data": Out(2),
+            "flag_addr": In(XB + SB), "flag_en": In(1), "flag_data": Out(2),
             "pair_addr": In(XB), "pair_data": Out(8 * rows),
         })
 
@@ -103,10 +118,7 @@ class LineStore(wiring.Component):
         m = Module()
         ROWS = self._rows
         MW = self._max_width
-        XB = ceil_log2(MW) if MW > 1 else 1
-        XW = bits_for(MW)
-        YW = bits_for(self._max_height)
-        SB = bits_for(ROWS - 1)
+        XB, XW, YW, SB = LineWidths.of(MW, self._max_height, ROWS)
 
         # A registered ready at the boundary: the backpressure logic below does not reach into
         # the front end.
