@@ -28,19 +28,19 @@ class ColorConvert(FramedUnit):
     most one carry chain per register-to-register path):
 
     1. input register; the three channel comparisons and differences;
-    2. max, min, delta, sextant base and signed numerator; the luma products (from the stage
-       1 registers, not from the input register with its many loads: a multiplier block's
-       routing on ECP5 is long);
-    3. ``|num|``; the reciprocal table read (addresses delta and max); the sum of two luma
-       products, the rounding constant added to the third;
+    2. max, min, delta, sextant base and signed numerator; the luma products' first terms
+       (9 r, 5 r, 9 g, 3 g, 3 b: the weights 77, 150 and 29 by shifts and adds, not by
+       multiplier blocks, whose routing on ECP5 set the SoC's core clock);
+    3. ``|num|``; the reciprocal table read (addresses delta and max); the luma products
+       77 r, 75 g and 29 b;
     4. register of the table outputs (a block-RAM output never feeds a multiplier directly);
-       the luma sum;
-    5. the two multiplies;
+       the sum of two luma products, the rounding constant added to the third;
+    5. the two multiplies; the luma sum;
     6. hue quotient rounding; saturation rounding and clamp;
     7. output register: hue sextant offset and wrap-around.
 
     Resources: one block RAM (the 256 x 17-bit reciprocal table, read by both ports) and the
-    multipliers of the two 8 x 17 products (Yosys may also map the luma weights to them).
+    multipliers of the two 8 x 17 products.
     """
     LATENCY = 7
 
@@ -96,9 +96,13 @@ class ColorConvert(FramedUnit):
         ]
         num = Signal(range(-256, 256))
         m.d.comb += num.eq(Mux(r_max, s1["gb"], Mux(g_max, s1["br"], s1["rg"])))
+        # the luma weights 77, 150 = 2 * 75 and 29 by shifts and adds, one adder a stage:
+        # 77 r = 8 (9 r) + 5 r, 75 g = 8 (9 g) + 3 g, 29 b = 32 b - 3 b
+        r1, g1, b1 = s1["r"], s1["g"], s1["b"]
         s2 = stage(2, v=s1["v"], flags=s1["flags"], mx=mx, delta=(mx - mn)[:8], num=num,
                    base=Mux(r_max, 0, Mux(g_max, 2 * HUE_SEXTANT, 4 * HUE_SEXTANT)),
-                   yr=s1["r"] * 77, yg=s1["g"] * 150, yb=s1["b"] * 29)
+                   r9=(r1 << 3) + r1, r5=(r1 << 2) + r1, g9=(g1 << 3) + g1, g3=(g1 << 1) + g1,
+                   b3=(b1 << 1) + b1, b=b1)
         # 3. |num|, table reads
         rd_hue = recip.read_port()
         rd_sat = recip.read_port()
@@ -107,15 +111,16 @@ class ColorConvert(FramedUnit):
         neg = s2["num"] < 0
         s3 = stage(3, v=s2["v"], flags=s2["flags"], delta=s2["delta"], chroma=s2["delta"] != 0,
                    neg=neg, absnum=Mux(neg, -s2["num"], s2["num"])[:8], base=s2["base"],
-                   yrg=s2["yr"] + s2["yg"], yb=s2["yb"] + 128)
-        # 4. table outputs registered
+                   yr=((s2["r9"] << 3) + s2["r5"])[:15], yg=((s2["g9"] << 3) + s2["g3"])[:15],
+                   yb=((s2["b"] << 5) - s2["b3"])[:13])
+        # 4. table outputs registered; the luma products summed
         s4 = stage(4, v=s3["v"], flags=s3["flags"], delta=s3["delta"], chroma=s3["chroma"],
                    neg=s3["neg"], absnum=s3["absnum"], base=s3["base"],
-                   y=((s3["yrg"] + s3["yb"]) >> 8)[:8],
+                   yrg=(s3["yr"] + (s3["yg"] << 1))[:16], yb=(s3["yb"] + 128)[:14],
                    rhue=rd_hue.data, rsat=rd_sat.data)
         # 5. multiplies (|num| <= delta, so the hue product stays below 2**17 + 2**8)
         s5 = stage(5, v=s4["v"], flags=s4["flags"], chroma=s4["chroma"], neg=s4["neg"],
-                   base=s4["base"], y=s4["y"],
+                   base=s4["base"], y=((s4["yrg"] + s4["yb"]) >> 8)[:8],
                    hprod=(s4["absnum"] * s4["rhue"])[:18], sprod=s4["delta"] * s4["rsat"])
         # 6. rounding; saturation clamp: (sprod + 128) >> 8 > 255 exactly when sprod >= 65408
         sprod = s5["sprod"]
