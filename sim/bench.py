@@ -468,7 +468,7 @@ def throughput(bench, quick, pair):
                "wall_seconds": round(wall, 2)}
         out["scenes"][name] = row
         if full_frame_speed is None:
-            full_frame_speed = (name, w, h, run, (l, r, params, frames))
+            full_frame_speed = (name, w, h, run)
         bench.source(f"throughput.{name}", f"sim.verilator.run_verilator(UNITS['pipeline'], "
                      f"{frames} x {w}x{h} frames, ground {ground}, idle=0, stall=0): cycles "
                      "first input .. last record, /frames; RTL frame_* status vs golden stats")
@@ -525,7 +525,7 @@ def sim_speed(bench, quick, left, full_frame):
                "cycles_per_second_wall": round(total / wall)}
         out["backends"][be] = row
         bench.source(f"sim_speed.{be}", origin)
-    name, fw, fh, run, _ = full_frame
+    name, fw, fh, run = full_frame
     out["verilator_pipeline_full_frame"] = {
         "scene": name, "size": [fw, fh], "simulated_cycles": run.total_cycles,
         "sim_seconds": run.seconds,

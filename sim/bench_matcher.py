@@ -280,7 +280,8 @@ def run(bench=None, quick=False):
     scored1 = f1.left.edge.astype(bool) & np.isfinite(gt)
     p1b = replace(p1, frontend=p2.frontend, right_threshold=p2.right_threshold)   # v1 on v2's edges
     f1b = _frame(left, right, p1b)
-    f_rtl = _frame(left, right, _params(w, h, "rtl"))
+    p_rtl = _params(w, h, "rtl")
+    f_rtl = _frame(left, right, p_rtl)
     methods = {"RTL (the default: golden.matcher.RTL)": _method_row(f_rtl, scored, gt),
                "v1, its own edges (T 192)": _method_row(f1, scored1, gt),
                "v1 on v2's edges": _method_row(f1b, scored, gt),
@@ -333,7 +334,7 @@ def run(bench=None, quick=False):
     for name, fn_ in HARD_CASES.items():
         rr = fn_(right)
         hard[name] = {"v1": _method_row(_frame(left, rr, p1), scored1, gt),
-                      "RTL": _method_row(_frame(left, rr, _params(w, h, "rtl")), scored, gt),
+                      "RTL": _method_row(_frame(left, rr, p_rtl), scored, gt),
                       "v2": _method_row(_frame(left, rr, p2), scored, gt)}
         yl, yr = _luma_pair(left, rr)
         for bname, m in ((f"StereoBM {b}", _bm(b)) for b in BM_BLOCKS):

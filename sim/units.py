@@ -15,8 +15,7 @@ from hdl import types
 from .streams import Packer, frames_words, words_to_frames
 
 __all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pipeline_for", "pixel_mismatches",
-           "records_from_words",
-           "stream_mismatches", "free_streams"]
+           "records_from_words", "stream_mismatches", "free_streams"]
 
 
 @dataclass
