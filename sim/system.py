@@ -176,10 +176,10 @@ def build(params):
 
 def _build(params):
     from hdl.soc import SystemSoC
-    from sim.export import silenced, text_hash, verilog_source
+    from sim.export import SIMULATION_PASSES, silenced, text_hash, verilog_source
     from sim.verilator import VERILATOR_FLAGS, verilator_env
     soc = silenced(SystemSoC(**params))
-    verilog = verilog_source("soc", soc, params)
+    verilog = verilog_source("soc", soc, params, passes=SIMULATION_PASSES)
     harness = HARNESS.read_text()
     key = text_hash(verilog, harness, " ".join(VERILATOR_FLAGS))
     base = ROOT / "build" / "system"

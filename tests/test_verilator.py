@@ -189,7 +189,7 @@ def test_cached_build_found_without_export(monkeypatch):
 
     def no_export(*args, **kwargs):
         raise AssertionError("the design was exported again")
-    monkeypatch.setattr(vl, "export_verilog", no_export)
+    monkeypatch.setattr(vl, "verilog_source", no_export)
     again = vl.build("color")
     assert again.cached and again.exe == first.exe
 
@@ -222,6 +222,20 @@ def test_input_register_wrapper():
     assert "clk" in inputs and "rst" in inputs and "i__payload" in inputs and "o__ready" in inputs
     assert wrapped.count("always @(posedge clk) in_q_") == len(inputs) - 1
     assert re.search(r"reg +in_q_\d+ = 1'b1;\n  always @\(posedge clk\) in_q_\d+ <= rst;", wrapped)
+
+
+def test_simulation_model_is_the_design_without_processes():
+    """The Verilator model's conversion (sim.export.SIMULATION_PASSES) keeps the module's ports
+    and says what it ran in its header; every process is gone (all multiplexers), which is what
+    makes it faster. That it computes the same is what every bit-exact Verilator test checks."""
+    from sim.export import SIMULATION_PASSES, registered, verilog_source
+    from sim.verilator import module_ports
+    component, params = registered("ground")
+    plain = verilog_source("ground", component, params)
+    model = verilog_source("ground", component, params, passes=SIMULATION_PASSES)
+    assert module_ports(model, "ground") == module_ports(plain, "ground")
+    assert "// simulation model: Yosys proc; opt; opt_clean after the conversion\n" in model
+    assert "always @*" in plain and "always @*" not in model and "simulation model" not in plain
 
 
 @pytest.mark.parametrize("seed", [3, 8])

