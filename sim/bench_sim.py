@@ -3,9 +3,11 @@
 :func:`harness_speed` runs the whole pipeline on the motorcycle pair (2 frames, inputs always
 valid, no backpressure) on the Verilator harness with two settings, alternating, in one run:
 
-- ``before``: the harness as it was (run-time parameters behind registers, the design
-  evaluated twice per cycle: ``register_inputs=False``);
-- ``after``: every input behind a register, one evaluation per cycle (the default).
+- ``before``: the harness as it was when issue 11 was filed (Amaranth's plain conversion,
+  run-time parameters behind registers, the design evaluated twice per cycle:
+  ``register_inputs=False, passes=()``);
+- ``after``: the default (the Yosys passes of :data:`sim.export.SIMULATION_PASSES`, every
+  input behind a register, one evaluation per cycle).
 
 Both must move the same words in the same cycles. It reports cycles per second (the harness's
 own clock: simulation only; and the wall time of :func:`sim.verilator.run_verilator`: process
@@ -29,7 +31,7 @@ __all__ = ["harness_speed", "TARGET_CYCLES_PER_SECOND", "TARGET_SIM_RUN_SECONDS"
 #: Issue 11's targets: the whole pipeline under Verilator, and a warm ``sim run`` on the pair.
 TARGET_CYCLES_PER_SECOND = 1_200_000
 TARGET_SIM_RUN_SECONDS = 2.0
-SETTINGS = {"before": dict(register_inputs=False), "after": dict(register_inputs=True)}
+SETTINGS = {"before": dict(register_inputs=False, passes=()), "after": {}}
 
 
 def _pipeline_case(left, right, frames):
@@ -107,8 +109,10 @@ def harness_speed(bench, quick, pair, rounds=3):
                and r.status == ref.status for rs in runs.values() for r, _ in rs)
     out = {"design": name, "size": [w, h], "frames": frames, "rounds": rounds,
            "simulated_cycles": ref.total_cycles, "same_words_and_cycles": same,
-           "settings": {"before": "parameters behind registers, two evaluations per cycle",
-                        "after": "every input behind a register, one evaluation per cycle"},
+           "settings": {"before": "plain conversion, parameters behind registers, two "
+                                  "evaluations per cycle",
+                        "after": "Yosys proc; opt, every input behind a register, one "
+                                 "evaluation per cycle"},
            "target_cycles_per_second": TARGET_CYCLES_PER_SECOND}
     for key, rs in runs.items():
         sim_s = statistics.median(r.seconds for r, _ in rs)
@@ -123,7 +127,7 @@ def harness_speed(bench, quick, pair, rounds=3):
         out["after"]["cycles_per_second_sim"] >= TARGET_CYCLES_PER_SECOND
     bench.source("harness_speed.before/after",
                  f"sim.bench_sim.harness_speed: run_verilator({name}, {frames} x {w}x{h}, idle=0, "
-                 f"stall=0) with register_inputs False/True alternating, {rounds} rounds, medians "
+                 f"stall=0) with the settings before/after alternating, {rounds} rounds, medians "
                  "of the harness's seconds and of run_verilator's wall time")
     print(f"      warm sim run {' '.join(sim_args)}", file=sys.stderr, flush=True)
     out["sim_run"] = _sim_run_seconds(sim_args, repeats=3)
@@ -139,9 +143,9 @@ def markdown(section):
     b, a = s["before"], s["after"]
     lines = [f"Verilator harness, {s['design']} {s['size'][0]}x{s['size'][1]} x{s['frames']} "
              f"frames ({s['simulated_cycles']} cycles), medians of {s['rounds']} alternating "
-             f"rounds: before (parameters behind registers, two evaluations per cycle) "
-             f"{b['cycles_per_second_sim']} cycles/s, after (every input behind a register, one "
-             f"evaluation per cycle) {a['cycles_per_second_sim']} cycles/s: **{s['ratio_sim']}x** "
+             f"rounds: before ({s['settings']['before']}) {b['cycles_per_second_sim']} cycles/s, "
+             f"after ({s['settings']['after']}) {a['cycles_per_second_sim']} cycles/s: "
+             f"**{s['ratio_sim']}x** "
              f"(with process start-up and data transfer: {b['cycles_per_second_wall']} -> "
              f"{a['cycles_per_second_wall']} cycles/s, {s['ratio_wall']}x); same words and cycles: "
              f"{s['same_words_and_cycles']}; target {s['target_cycles_per_second']} cycles/s "

@@ -375,7 +375,8 @@ def verilog_source(name, component, params, passes=()):
             "tools: " + ", ".join(f"{k} {v}" for k, v in tool_versions().items()),
             "clock clk (rising edge), synchronous reset rst (active high)",
             "memory read registers start at 0, as in Amaranth (sim.export.init_read_registers)",
-            *([f"simulation model: Yosys {'; '.join(passes)} after the conversion"] if passes else []),
+            *([f"simulation model: Yosys {'; '.join(passes)} after the conversion"]
+              if passes else []),
             "ports:"] + ["  " + line for line in p.describe()]
     text = "".join(f"// {line}\n" for line in head) + body
     _converted[key] = (component, text)

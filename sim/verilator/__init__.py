@@ -292,17 +292,18 @@ _built = {}     # (name, hash) -> VerilatorBuild, for this process
 
 
 def build(name, component=None, params=None, verilog=None, register_params=True,
-          register_inputs=True):
+          register_inputs=True, passes=SIMULATION_PASSES):
     """Build (or reuse) the harness for design ``name``. ``component`` defaults to the
-    registered design; ``verilog`` (text) defaults to its conversion with the Yosys passes of
-    :data:`sim.export.SIMULATION_PASSES` (a faster model, the same cycles). ``register_inputs``: wrap a
-    clocked design so that every input comes from a register and the harness evaluates it once
-    per cycle (:func:`input_register_wrapper`); else ``register_params``: so that its run-time
-    parameters do (:func:`param_register_wrapper`). Both off only to measure what they gain.
+    registered design; ``verilog`` (text) defaults to its conversion with the Yosys ``passes``
+    (:data:`sim.export.SIMULATION_PASSES`: a faster model, the same cycles; ``()``: Amaranth's
+    plain conversion). ``register_inputs``: wrap a clocked design so that every input comes
+    from a register and the harness evaluates it once per cycle
+    (:func:`input_register_wrapper`); else ``register_params``: so that its run-time parameters
+    do (:func:`param_register_wrapper`). Both off, or no passes, only to measure what they gain.
     Safe to call from several processes at once (a lock file per design)."""
     harness = HARNESS.read_text()
     flags = (" ".join(VERILATOR_FLAGS), CFLAGS, OPT, f"register_params={register_params}",
-             f"register_inputs={register_inputs}", "; ".join(SIMULATION_PASSES))
+             f"register_inputs={register_inputs}", "; ".join(passes))
     base = BUILD / "verilator" / name
     if component is None:
         component, params = registered(name, params)
@@ -325,7 +326,7 @@ def build(name, component=None, params=None, verilog=None, register_params=True,
                 _built[(name, skey)] = b
                 return b
     if verilog is None:
-        verilog = verilog_source(name, component, params or {}, passes=SIMULATION_PASSES)
+        verilog = verilog_source(name, component, params or {}, passes=passes)
     names = module_ports(verilog, name)
     register_inputs = register_inputs and "clk" in names
     header = ports_header(name, p, clk="clk" in names, rst="rst" in names,
@@ -384,7 +385,7 @@ class VerilatorRun:
 
 def run_verilator(design, *, inputs, out_frames=None, out_words=None, params=None, runtime=None,
                   seed=0, idle=0.0, stall=0.0, timeout=10000, max_cycles=None, name=None,
-                  register_params=True, register_inputs=True):
+                  register_params=True, register_inputs=True, passes=SIMULATION_PASSES):
     """Simulate ``design`` on whole streams.
 
     ``design``: a registered design name, a component, or a factory returning one.
@@ -395,17 +396,17 @@ def run_verilator(design, *, inputs, out_frames=None, out_words=None, params=Non
     plain input ports, set before reset is released.
     ``seed``, ``idle``, ``stall``: random idle cycles before each input word and random
     ``ready``-low cycles on the outputs (probabilities, 0 = none).
-    ``register_params``, ``register_inputs``: the simulation wrapper (:func:`build`).
+    ``register_params``, ``register_inputs``, ``passes``: the simulation model (:func:`build`).
     """
     if isinstance(design, str):
         name = name or design
         b = build(design, params=params, register_params=register_params,
-                  register_inputs=register_inputs)
+                  register_inputs=register_inputs, passes=passes)
     else:
         component = design() if isinstance(design, type) or not hasattr(design, "elaborate") else design
         name = name or type(component).__name__.lower()
         b = build(name, component=component, register_params=register_params,
-                  register_inputs=register_inputs)
+                  register_inputs=register_inputs, passes=passes)
     p = b.ports
     out_frames, out_words, runtime = dict(out_frames or {}), dict(out_words or {}), dict(runtime or {})
     args = [str(b.exe), "--seed", str(seed), "--idle", repr(float(idle)), "--stall",
