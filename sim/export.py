@@ -383,7 +383,7 @@ def verilog_source(name, component, params, passes=()):
     return text
 
 
-_converted = {}     # (name, id(component), passes) -> (component, text): a component converts once
+_converted = {}     # (name, id(component), passes) -> (component, text): each converts once
 
 
 def export_verilog(name, component=None, params=None, out_dir=None):

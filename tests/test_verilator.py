@@ -188,7 +188,7 @@ def test_cached_build_found_without_export(monkeypatch):
     monkeypatch.setattr(vl, "_built", {})
 
     def no_export(*args, **kwargs):
-        raise AssertionError("the design was exported again")
+        raise AssertionError("the design was converted again")
     monkeypatch.setattr(vl, "verilog_source", no_export)
     again = vl.build("color")
     assert again.cached and again.exe == first.exe
