@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from sim import bench_matcher
-from sim.bench import BM_BLOCKS, score
+from sim.bench import BM_BLOCKS, acceptance, score
 
 ROOT = Path(__file__).resolve().parent.parent
 ACCURACY_KEYS = ("density", "bad1", "bad2", "avgerr", "sad_eval_fraction")
@@ -90,3 +90,32 @@ def test_score():
     assert r["density"] == 0.75
     assert r["bad1"] == pytest.approx(2 / 3) and r["bad2"] == pytest.approx(1 / 3)
     assert r["avgerr"] == pytest.approx((0 + 1.5 + 3) / 3)
+
+
+def _check_report(density, bad2, thinned_bad2, bm_density=0.79, bm_bad2=0.15, matched=900):
+    """A report with only what :func:`sim.bench.acceptance` reads."""
+    row = {"n": matched, "StereoBM 7": {"n": matched, "bad1": 0.2, "bad2": thinned_bad2}}
+    return {"pipeline_default": {"density": density, "bad2": bad2, "matched": matched,
+                                 "sad_eval_fraction": 0.02},
+            "stereobm_7": {"density": bm_density, "bad2": bm_bad2},
+            "matcher_v2": {"equal_counts": [row, {"n": matched // 2, "StereoBM 7": None}]},
+            "ground_masks": {"failed": []}}
+
+
+@pytest.mark.parametrize("density, bad2, thinned_bad2, passes", [
+    (0.80, 0.06, 0.50, True),       # denser and better: passes without the equal-count check
+    (0.78, 0.06, 0.14, True),       # sparser: better than StereoBM 7 thinned to as many points
+    (0.78, 0.06, 0.05, False),      # sparser, and StereoBM 7's best points beat it
+    (0.80, 0.16, 0.50, False),      # denser but worse than StereoBM 7 at the same pixels
+])
+def test_acceptance_compares_at_equal_counts_when_sparser(density, bad2, thinned_bad2, passes):
+    check = acceptance(_check_report(density, bad2, thinned_bad2))
+    assert check["pass"] is passes, check["text"]
+    assert ("at equal counts" in check["text"]) is (density < 0.79)
+
+
+def test_acceptance_fails_when_sparser_without_an_equal_count_row():
+    rep = _check_report(0.78, 0.06, 0.14)
+    rep["matcher_v2"]["equal_counts"][0]["n"] = 901          # not the default's count
+    check = acceptance(rep)
+    assert not check["pass"] and "no equal-count row" in check["text"]
