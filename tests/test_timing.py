@@ -42,12 +42,18 @@ def test_bad_arguments(capsys):
     assert capsys.readouterr().err.startswith("error: unknown design")
     with pytest.raises(SystemExit, match="error: bad seed list"):
         main(["--seeds", "one"])
+    assert main(["--designs", "color", "--jobs", "0"]) == 2
+    assert capsys.readouterr().err.startswith("error: --jobs 0")
 
 
 @pytest.mark.slow
 def test_flow_on_color(tmp_path):
-    assert main(["--designs", "color", "--seeds", "1", "--out", str(tmp_path)]) == 0
+    # two designs through the pool of two processes: the larger (color) is run first, the
+    # report keeps the order asked for
+    assert main(["--designs", "uart,color", "--seeds", "1", "--jobs", "2", "--out",
+                 str(tmp_path)]) == 0
     report = json.loads((tmp_path / "report.json").read_text())
+    assert list(report) == ["uart", "color"]
     r = report["color"]
     assert set(r) >= {"fmax_mhz", "worst_mhz", "critical_path"}
     assert 10 < r["fmax_mhz"]["1"] < 500 and r["worst_mhz"] == r["fmax_mhz"]["1"]
