@@ -33,7 +33,7 @@ sim: setup
 	$(PY) -m sim run --out build/sim
 
 test: setup firmware
-	$(PY) -m pytest -q -n 2
+	$(PY) -m pytest -q -n 2 --durations=15
 
 verilog: setup
 	$(PY) -m sim.export --out build/verilog
