@@ -102,7 +102,10 @@ class GroundClassifier(FramedUnit):
         bank = Signal(); learned = self.learned; fallback = self.hue_fallback
 
         hold_sof = Signal()
-        m.d.comb += hold_sof.eq(self.i.valid & p.sof & (busy | (track.in_frame & ~searched)))
+        # search.pending: this unit's search or, on a shared engine, the other unit's (both
+        # units then start their frames in the same cycle)
+        m.d.comb += hold_sof.eq(self.i.valid & p.sof &
+                                (busy | search.pending | (track.in_frame & ~searched)))
         advance = Signal()
         m.d.comb += [
             advance.eq(~self.o.valid | self.o.ready),
@@ -265,8 +268,9 @@ class SharedGroundClassifier(GroundClassifier):
     """A :class:`GroundClassifier` without a search engine of its own: its search runs on a
     :class:`hdl.ground_search.GroundSearch` shared with another unit, behind port ``search``
     (the engine's ``config`` then sets the search's parameters). Bit-exact with the
-    classifier; only the time its input waits for the search grows, when the engine serves the
-    other unit first (at most ``search_cycles`` more).
+    classifier; only the time its input waits for the search grows: a ``sof`` waits until the
+    searches of both units are done (``pending``), at most ``search_cycles`` more, so units on
+    one engine start their frames in the same cycle.
 
     Ports: those of :class:`GroundClassifier`, and
     search : Out(:data:`hdl.ground_search.GroundSearchBus`)

@@ -28,7 +28,8 @@ def search_cycles(jnd_hue, jnd_luma):
     join of its halves, the shift and the clamp), the set pass (one read per bin and window
     position: 192 x (2 jnd_hue + 1) + 256 x (2 jnd_luma + 1)), its 6-stage pipeline and the
     hand-over. With an engine shared by two units, the unit served second waits for the
-    first's search too (at most one ``search_cycles`` more)."""
+    first's search too (at most one ``search_cycles`` more), and the first unit waits for the
+    second's (``pending``): both start their next frames in the same cycle."""
     return 3 + 512 + 5 + 23 + 192 * (2 * jnd_hue + 1) + 256 * (2 * jnd_luma + 1) + 6
 
 
@@ -41,13 +42,15 @@ def search_cycles(jnd_hue, jnd_luma):
 #: unit it drives the memory's read address when ``rd_own``, writes the word {model, count 0}
 #: at ``wr_addr`` when ``wr_en``, and writes the bin ``set_addr`` of the unit's idle set bank
 #: when ``hset_en`` / ``lset_en``. At ``done`` a committed search leaves the hue-fallback
-#: decision for the sets just written in ``fallback``.
+#: decision for the sets just written in ``fallback``. ``pending`` is high while any unit on the
+#: engine holds ``req`` (its own included): a unit holds its next ``sof`` until it is low, so the
+#: units sharing an engine start their frames together.
 GroundSearchBus = wiring.Signature({
     "req": Out(1), "commit": Out(1), "model_valid": Out(1), "hist": Out(2 * HIST_BITS),
     "rd_own": In(1), "rd_addr": In(9),
     "wr_en": In(1), "wr_addr": In(9), "wr_model": In(HIST_BITS),
     "hset_en": In(1), "lset_en": In(1), "set_addr": In(8), "set_data": In(1),
-    "done": In(1), "fallback": In(1),
+    "done": In(1), "fallback": In(1), "pending": In(1),
 })
 
 
@@ -62,7 +65,11 @@ class GroundSearch(wiring.Component):
     unit0, unit1 : In(:data:`GroundSearchBus`)
         The units served. A request is taken when the engine is idle; with both waiting,
         the unit not served last goes first. A search takes ``search_cycles`` from the
-        request when taken at once (``CLEAR_CYCLES`` when it only clears).
+        request when taken at once (``CLEAR_CYCLES`` when it only clears). ``pending`` (to
+        every unit) is high while either unit requests: each holds its next ``sof`` until
+        both searches are done, so the two cameras' frames leave the units together (a
+        camera that cannot stall inside a frame, the matcher's drop mode, would otherwise
+        run a search behind the other, about a line at camera rate).
 
     Search: a blend pass over the 512 words (model' = count on the first frame, else
     ((model << blend_shift) - model + count) >> blend_shift; the count is cleared; 5 pipeline
@@ -148,7 +155,7 @@ class GroundSearch(wiring.Component):
             m.d.comb += [u.rd_own.eq(mine & (a_run | b_run)), u.wr_en.eq(mine & a_v5),
                          u.hset_en.eq(mine & b_v4 & ~b_luma4),
                          u.lset_en.eq(mine & b_v4 & b_luma4),
-                         u.done.eq(mine & done)]
+                         u.done.eq(mine & done), u.pending.eq(taken)]
             m.d.comb += [u.rd_addr.eq(Mux(a_run, a_idx, Cat(b_addr[:8], b_luma))),
                          u.wr_addr.eq(a_addr5), u.wr_model.eq(a_out5),
                          u.set_addr.eq(b_bin4), u.set_data.eq(b_set4), u.fallback.eq(fallback)]

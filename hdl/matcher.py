@@ -91,9 +91,12 @@ its row's flags are being overwritten, then drops (counts in ``drops``) an edge 
 not fit, and the engine drops a job when, by the time its last
 column has been read, any input has started writing the line that replaces the top line of its
 window (the check is on the job's row, carried with it). Records are therefore always a subset
-of the golden records, never corrupted. A ``sof`` still waits for the previous frame to finish:
-the camera's vertical blanking must cover the bottom ``r`` rows of scanning plus the queue
-drain.
+of the golden records, never corrupted. A ``sof`` still waits for the previous frame to finish,
+and for the other camera's ``sof`` (or its frame to have started): the two frames start in the
+same cycle, so cameras that never wait inside a frame stay in step; one taken before the other
+would run ahead by the time between them for the whole frame, and the line slots have about a
+line of slack. The camera's vertical blanking must cover the bottom ``r`` rows of scanning plus
+the queue drain.
 
 Resources (default: max_width 1024, window 7, max_disparity 255, a window of 64 disparities)
 =============================================================================================
@@ -320,6 +323,10 @@ class Matcher(wiring.Component):
                          st.flag_en.eq(getattr(scan, f"{name}_flag_en")),
                          getattr(scan, f"{name}_flag_data").eq(st.flag_data)]
         L, R = stores["left"], stores["right"]
+        # Drop mode: a sof waits for the other camera's (or for its frame to have started), so
+        # both frames start in the same cycle and the cameras, which never wait inside a frame,
+        # stay in step. (A frame cannot end without the other camera's frame anyway.)
+        m.d.comb += [L.partner.eq(R.sof_here | R.open), R.partner.eq(L.sof_here | L.open)]
         m.d.comb += self.in_frame.eq(L.in_frame | R.in_frame)
         # The disparity window of the frame: follows d_min / d_max between frames and holds
         # from the first sof a camera delivers until the frame is complete, so a register

@@ -20,7 +20,7 @@ rewrites the pair of lines ``y - 1 - rows`` and ``y - rows``, so it may be writt
 finished); an even line (``pend`` and flags only) one line later (``y <= wlim``). Outside
 ``drop_mode`` the input is held (``ready`` low) until then; in ``drop_mode`` it is always ready
 inside a frame and writes regardless. A ``sof`` waits until the store has left the previous
-frame (``complete``). Beats of a frame the scanner has finished (``sc_done``) are consumed and
+frame (``complete``), in ``drop_mode`` also for ``partner`` (the other camera's ``sof``). Beats of a frame the scanner has finished (``sc_done``) are consumed and
 not written.
 
 Frames. One :class:`~hdl.framing.FrameTracker` checks the input. The store joins the matcher's
@@ -70,6 +70,9 @@ class LineStore(wiring.Component):
     complete, sc_done, drop_mode, frame_abort : In(1)
         Frame finished (clears the frame's state); the scanner has ended the frame (no more
         writes); camera mode; abort the tracker's frame.
+    sof_here, partner : Out(1), In(1)
+        A ``sof`` is offered (from the registered buffer); in ``drop_mode`` a ``sof`` is taken
+        only with ``partner`` (the other camera's ``sof`` is offered too, or it has started).
     open, ended : Out(1)
         Joined the current frame; its frame has ended (registers).
     rows : Out(bits_for(max_height))
@@ -106,6 +109,7 @@ class LineStore(wiring.Component):
             "i": In(stream.Signature(EdgePixel)),
             "wlim": In(YW + 1), "wlim_m1": In(YW + 1),
             "complete": In(1), "sc_done": In(1), "drop_mode": In(1), "frame_abort": In(1),
+            "sof_here": Out(1), "partner": In(1),
             "open": Out(1), "ended": Out(1), "rows": Out(YW), "wrow": Out(YW + 1),
             "width": Out(XW), "yrows": Out(YW), "write": Out(1),
             "fresh": Out(1),
@@ -154,8 +158,10 @@ class LineStore(wiring.Component):
         m.d.comb += writable.eq(Mux(bumped, ok_next, ok_this))
         in_data = Signal()                # a beat of the camera's current frame
         m.d.comb += in_data.eq(track.in_frame & self.open & ~self.ended)
+        m.d.comb += self.sof_here.eq(port.valid & p.sof)
         with m.If(p.sof):
-            m.d.comb += port.ready.eq(~self.open & ~self.complete)
+            m.d.comb += port.ready.eq(~self.open & ~self.complete &
+                                      (~self.drop_mode | self.partner))
         with m.Elif(in_data & ~self.sc_done & ~self.drop_mode):
             m.d.comb += port.ready.eq(writable)
         with m.Else():

@@ -26,7 +26,9 @@ class StereoPipeline(wiring.Component):
     left, right : In(stream of :data:`RGBPixel`)
         The two cameras, rectified rows, equal frame sizes. Both apply backpressure (the front
         ends pass the matcher's through); with ``drop_mode`` the matcher drops work instead of
-        stalling inside a frame (for cameras that cannot wait).
+        stalling inside a frame (for cameras that cannot wait). Between frames both wait until
+        both ground searches are done, then start in the same cycle: cameras that cannot stall
+        inside a frame stay in step (the matcher's line slots have about a line of slack).
     o : Out(stream of :func:`~hdl.matcher.match_record_layout`)
         ``(x, y, d, cost)`` records of matched left obstacle-edge pixels in raster order, then one
         record with ``eof`` set per frame, when the ``frame_*`` statistics take that frame's values.

@@ -239,14 +239,15 @@ def _eof_bit(port):
 
 def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None, vcd=None,
                 timeout=10000, settle=20, probes=("errors", "dropped"), eof_probes=None,
-                reset_aborts_frames=False, processes=()):
+                reset_aborts_frames=False, processes=(), same_idle=False):
     """Simulate ``dut`` under Amaranth's simulator with several stream ports.
 
     ``inputs`` maps input port names to word lists (which may hold :class:`Reset` and
     :class:`Configure` items);
     ``outputs`` maps output port names to the number of frames (words with ``eof``) to collect,
     or to ``("count", n)`` for a fixed number of words. Every port has its own seeded random
-    generator, so a failure is reproducible from ``seed``. ``setup(ctx)`` (optional, async) sets
+    generator, so a failure is reproducible from ``seed`` (with ``same_idle`` every input's is
+    seeded alike: inputs that are never held see the same idle cycles, as genlocked cameras). ``setup(ctx)`` (optional, async) sets
     configuration inputs before the first word; the ports named in ``probes`` are read ``settle``
     cycles after the last output. ``eof_probes`` maps output names to signals sampled with each
     of their eof words (``eof_values``); with ``reset_aborts_frames`` a :class:`Reset` discards
@@ -282,7 +283,7 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
                 while state["start"] is None:
                     await ctx.tick()
             port = getattr(dut, name)
-            rng = random.Random(seed * 16 + 1 + k)
+            rng = random.Random(seed * 16 + 1 + (0 if same_idle else k))
             eof_bit, offered, chunk = _eof_bit(port), 0, []
             for word in list(words) + [None]:
                 if word is not None and not isinstance(word, Configure):

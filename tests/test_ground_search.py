@@ -1,6 +1,7 @@
 """One ground search engine shared by two ground units (hdl/ground_search.py): each unit is
 bit-exact with its own golden ground model, with stalls, with the two units' searches
-colliding, with a malformed frame on one camera only; the second search waits for the first."""
+colliding, with a malformed frame on one camera only; the second search waits for the first, and
+the first unit for the second: both start their frames together."""
 import numpy as np
 import pytest
 from amaranth.hdl import Module
@@ -13,7 +14,8 @@ from hdl.ground_search import GroundSearch, search_cycles
 from hdl.types import YHSPixel, GroundPixel
 from sim.data import motorcycle, crop
 from sim.export import silenced
-from sim.streams import Packer, frames_words, malformed_cases, run_streams, words_to_frames
+from sim.streams import (Configure, Packer, frames_words, malformed_cases, run_streams,
+                         words_to_frames)
 from tests.test_ground import floor_image, grey_floor, yhs
 
 PIN, POUT = Packer(YHSPixel), Packer(GroundPixel)
@@ -48,13 +50,16 @@ class GroundPair(wiring.Component):
         return m
 
 
-def run_pair(frames, params, *, extra=None, max_width=64, **kw):
+def run_pair(frames, params, *, extra=None, max_width=64, watch=None, **kw):
     """Run both units; ``frames`` maps a side to its frames, ``extra`` a side to words sent
-    before them. Asserts each side's last frames equal its own golden model's masks."""
+    before them, ``watch(dut)`` (optional) gives one more background testbench. Asserts each
+    side's last frames equal its own golden model's masks."""
     async def setup(ctx):
         for name, _ in GroundParams.FIELDS:
             ctx.set(getattr(dut.config, name), int(getattr(params, name)))
     dut = GroundPair(max_width=max_width, max_height=32)
+    if watch is not None:
+        kw["processes"] = [watch(dut)]
     extra = extra or {}
     inputs = {side: list(extra.get(side, ())) + frames_words(PIN, frames[side]) for side in SIDES}
     r = run_streams(dut, inputs, {f"{side}_o": len(frames[side]) for side in SIDES},
@@ -100,11 +105,27 @@ def test_motorcycle_crops_left_and_right():
     run_pair(frames, p, seed=9, idle=0.25, stall=0.25)
 
 
-def test_second_search_waits_one_search_time():
-    """Always-valid inputs, region at the bottom, frames longer than a search: the left unit
-    runs as alone (a clear after reset, then one search per frame); the right one waits for the
-    left's clear, then for the left's first search: one ``search_cycles`` more in all; after
-    that the two searches follow each other without waiting."""
+def sof_cycles(log):
+    """``watch`` for :func:`run_pair`: appends (cycle, side) of every output ``sof`` taken."""
+    def watch(dut):
+        async def bench(ctx):
+            cycle = 0
+            async for _ in ctx.tick():
+                cycle += 1
+                for side in SIDES:
+                    port = getattr(dut, f"{side}_o")
+                    if ctx.get(port.valid) and ctx.get(port.ready) and ctx.get(port.payload.sof):
+                        log.append((cycle, side))
+        return bench
+    return watch
+
+
+def test_units_start_their_frames_together():
+    """Always-valid inputs, region at the bottom, frames longer than a search: each unit holds
+    its sof until both units' searches are done (the clears after reset, then one search each
+    per frame, one after the other), so both frames leave in the same cycle. (Before, the left
+    unit ran as alone and the right one a clear, then a search, behind it: a camera that cannot
+    stall inside a frame, the matcher's drop mode, then lagged the other by about a line.)"""
     rng = np.random.default_rng(4)
     h, w = 32, 40
     frames = {side: [yhs(floor_image(rng, h, w, (40, 160, 60))) for _ in range(3)]
@@ -112,10 +133,13 @@ def test_second_search_waits_one_search_time():
     p = GroundParams(ref_x=4, ref_y=h - 2, ref_w=24, ref_h=2, jnd_hue=0, jnd_luma=0)
     s = search_cycles(0, 0)
     assert s < h * w and CLEAR_CYCLES < h * w
-    r = run_pair(frames, p)
+    log = []
+    r = run_pair(frames, p, watch=sof_cycles(log))
+    starts = {side: [c for c, sd in log if sd == side] for side in SIDES}
+    assert len(starts["left"]) == 3 and starts["left"] == starts["right"], starts
     tail = GroundClassifier.LATENCY - 1
-    alone = 3 * h * w + CLEAR_CYCLES + 2 * s + tail      # test_ground's single-unit figure
-    assert r.cycles == alone + s
+    # both clears, then both searches at each of the two frame boundaries
+    assert r.cycles == 3 * h * w + 2 * CLEAR_CYCLES + 4 * s + tail
 
 
 @pytest.mark.parametrize("case", ["short_line", "cut_short", "reset"])
@@ -128,6 +152,11 @@ def test_malformed_frame_on_one_camera(case):
               for side in SIDES}
     words, errors, dropped = malformed_cases(PIN, bad)[case]
     p = GroundParams(ref_x=1, ref_y=3, ref_w=8, ref_h=3, jnd_hue=1, jnd_luma=1, min_support=4)
-    r = run_pair(frames, p, extra={"left": words}, seed=2, idle=0.2, stall=0.2, max_width=16)
+    extra = {"left": words}
+    if case == "reset":
+        # the right camera's frames start after the reset (both units hold their sof until
+        # both clears are done, so the right one would otherwise be inside its first frame)
+        extra["right"] = [Configure(lambda ctx: ctx.tick().repeat(2 * CLEAR_CYCLES + 200))]
+    r = run_pair(frames, p, extra=extra, seed=2, idle=0.2, stall=0.2, max_width=16)
     assert r.probes == {"left_errors": errors, "left_dropped": dropped,
                         "right_errors": 0, "right_dropped": 0}

@@ -18,7 +18,7 @@ from golden.matcher import MatcherParams, match, matched_values, record_dtype, S
 from golden.sobel import sobel_edges, SobelParams
 from hdl.matcher import Matcher
 from hdl.types import EdgePixel
-from sim.streams import Packer, frames_words, Reset, run_streams
+from sim.streams import Configure, Packer, frames_words, Reset, run_streams
 
 EDGE = Packer(EdgePixel)
 
@@ -76,12 +76,14 @@ class MatchRun:
 
 
 def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(), drop_mode=False,
-                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None, retune=None):
+                seed=0, idle=0.0, stall=0.0, timeout=20000, vcd=None, retune=None,
+                same_idle=False):
     """Drive ``dut`` (a :class:`Matcher`) with two word lists (``Reset`` items allowed: they
     reset the whole unit and discard the frame being output) and collect ``frames``
     end-of-frame markers, with the statistics ports sampled at each (``sim.streams.run_streams``:
     every input and the output has its own seeded random generator, ``idle`` / ``stall``
-    probabilities). ``retune = (cycles, params)`` writes the disparity window of ``params``
+    probabilities; ``same_idle``: both inputs with the same idle cycles). ``retune = (cycles,
+    params)`` writes the disparity window of ``params``
     that many cycles after the start. Returns a :class:`MatchRun`; raises :class:`Deadlock`
     when nothing comes out for ``timeout`` cycles."""
     stat_ports = [getattr(dut, f"frame_{n}") for n in STAT_KEYS]
@@ -103,7 +105,7 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
     res = run_streams(dut, {"left": left_words, "right": right_words}, {"o": frames}, seed=seed,
                       idle=idle, stall=stall, setup=setup, vcd=vcd, timeout=timeout,
                       probes=("errors", "dropped", "frames"), eof_probes={"o": stat_ports},
-                      reset_aborts_frames=True,
+                      reset_aborts_frames=True, same_idle=same_idle,
                       processes=[write_window] if retune is not None else [])
     run = MatchRun()
     rec = Packer(dut.record).unpack(res.words["o"])
@@ -401,6 +403,25 @@ def test_drop_mode_without_pressure_is_exact():
     params = MatcherParams(d_max=15, window=3)
     run_and_check("drop_idle", lambda: small_matcher(extra_rows=2), fl, fr, params, seeds=(9,),
                   idle=0.7, drop_mode=True)
+
+
+def test_drop_mode_frames_start_together():
+    """Drop mode, the right camera's second sof long before the left's (the left waits 1,000
+    cycles after the first frame's end): the right sof waits for the left one, so both frames
+    start in the same cycle, the cameras (which never wait inside a frame) stay in step and the
+    second frame is exact like the first. (Taken at the end of the first frame, the right one
+    ran 300 words, 9 lines, ahead: most of the frame was dropped.)"""
+    fl, fr = synthetic_frames(1, seed=71)
+    params = MatcherParams(d_max=15, window=3)
+    want, _ = golden_records(fl[0], fr[0], params)
+    pause = Configure(lambda ctx: ctx.tick().repeat(1000))
+    lw = frames_words(EDGE, fl)
+    run = run_matcher(small_matcher(extra_rows=2), lw + [pause] + lw, frames_words(EDGE, fr) * 2,
+                      frames=2, params=params, drop_mode=True, seed=4, idle=0.7,
+                      same_idle=True)
+    assert len(want) > 10
+    for got, st in zip(run.records, run.stats):
+        assert np.array_equal(got, want) and st["drops"] == 0
 
 
 @pytest.mark.parametrize("kw, message", [

@@ -147,6 +147,7 @@ def test_drop_mode_never_holds_the_input():
 
     async def bench(ctx):
         ctx.set(dut.drop_mode, 1)
+        ctx.set(dut.partner, 1)          # the other camera's sof is there too
         ctx.set(dut.wlim, ROWS - R)
         ctx.set(dut.wlim_m1, ROWS - R - 1)
         await stream_put(ctx, dut.i, words)
