@@ -20,8 +20,8 @@ rewrites the pair of lines ``y - 1 - rows`` and ``y - rows``, so it may be writt
 finished); an even line (``pend`` and flags only) one line later (``y <= wlim``). Outside
 ``drop_mode`` the input is held (``ready`` low) until then; in ``drop_mode`` it is always ready
 inside a frame and writes regardless. A ``sof`` waits until the store has left the previous
-frame (``complete``), in ``drop_mode`` also for ``partner`` (the other camera's ``sof``). Beats of a frame the scanner has finished (``sc_done``) are consumed and
-not written.
+frame (``complete``), in ``drop_mode`` also for ``partner`` (the other camera's ``sof``).
+Beats of a frame the scanner has finished (``sc_done``) are consumed and not written.
 
 Frames. One :class:`~hdl.framing.FrameTracker` checks the input. The store joins the matcher's
 frame (``open``) at an accepted ``sof``; its frame ends (``ended``, no more writes) at its
