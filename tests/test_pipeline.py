@@ -80,7 +80,6 @@ def test_drop_mode_cameras_stay_in_step():
     and 4.7 lines; the matcher's line slots have about a line of slack, so most of each frame
     was dropped: 5 of 111 records kept per frame.)"""
     from dataclasses import replace
-    from golden.pipeline import pipeline_frames
     from hdl.pipeline import StereoPipeline
     from sim.config import apply_config
     from sim.matcher_bench import CAMERA_IDLE
@@ -115,7 +114,7 @@ def test_drop_mode_cameras_stay_in_step():
                       processes=[watch])
     got = records_from_words(dut.o.payload.shape(), run.words["o"],
                              record_dtype(params.matcher))
-    golden = [f.records for f in pipeline_frames([l, l], [r, r], params)]
+    golden = [f.records for f in job.golden]
     assert len(got) == 2 and len(golden[0]) > 100
     for g, want in zip(got, golden):
         assert {tuple(x) for x in g.tolist()} <= {tuple(x) for x in want.tolist()}
