@@ -248,11 +248,12 @@ def run_streams(dut, inputs, outputs, *, seed=0, idle=0.0, stall=0.0, setup=None
     or to ``("count", n)`` for a fixed number of words. Every port has its own seeded random
     generator, so a failure is reproducible from ``seed`` (with ``same_idle`` every input's is
     seeded alike: inputs that are never held see the same idle cycles, as genlocked cameras).
-    ``setup(ctx)`` (optional, async) sets configuration inputs before the first word; the ports named in ``probes`` are read ``settle``
-    cycles after the last output. ``eof_probes`` maps output names to signals sampled with each
-    of their eof words (``eof_values``); with ``reset_aborts_frames`` a :class:`Reset` discards
-    the partly output frame; ``processes`` are more async testbenches, run in the background.
-    Returns a :class:`StreamRun` whose ``words`` maps output names to word lists."""
+    ``setup(ctx)`` (optional, async) sets configuration inputs before the first word; the ports
+    named in ``probes`` are read ``settle`` cycles after the last output. ``eof_probes`` maps
+    output names to signals sampled with each of their eof words (``eof_values``); with
+    ``reset_aborts_frames`` a :class:`Reset` discards the partly output frame; ``processes``
+    are more async testbenches, run in the background. Returns a :class:`StreamRun` whose
+    ``words`` maps output names to word lists."""
     m = Module()
     m.domains.sync = ClockDomain("sync")
     # The unit's reset is a separate signal: asserting the domain's own reset would stop the
