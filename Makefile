@@ -36,25 +36,25 @@ test: setup firmware
 	$(PY) -m pytest -q -n 2 --durations=15
 
 verilog: setup
-	$(PY) -m sim.export --out build/verilog
+	$(PY) -m sim.flows.verilog --out build/verilog
 
 vhdl: setup
-	$(PY) -m sim.vhdl --out build/vhdl
+	$(PY) -m sim.flows.vhdl --out build/vhdl
 
 synth: setup
-	$(PY) -m sim.synth --out build/synth
+	$(PY) -m sim.flows.synth --out build/synth
 
 timing: setup
-	$(PY) -m sim.timing --out build/timing
+	$(PY) -m sim.flows.timing --out build/timing
 
 firmware: setup
 	$(MAKE) -C firmware all test
 
 cosim: setup firmware
-	$(PY) -m sim.cosim.run
+	$(PY) -m sim.system.cosim.run
 
 bench: setup
-	$(PY) -m sim.bench --out build/bench
+	$(PY) -m sim.bench.report --out build/bench
 
 demo: setup
 	$(PY) -m sim.closedloop.demo --out build/demo
@@ -71,7 +71,7 @@ install-check: setup
 
 # ECP5 bitstream of the SoC on the ULX3S 25F (YoWASP tools; not part of make test)
 bitstream: setup
-	$(PY) -m sim.bitstream --out build/bitstream
+	$(PY) -m sim.flows.bitstream --out build/bitstream
 
 clean:
 	rm -rf build

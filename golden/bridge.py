@@ -3,7 +3,7 @@
 On boards without a soft CPU (the ECP5 board), a host computer takes the CPU's place: it reaches
 the SoC's I/O bus (registers, IIC master, radio UART) through a UART, one 32-bit transfer per
 request. The firmware's host build then drives the board through its HAL bus hook exactly as
-the co-simulation does (``sim/bridge_host.py``); a companion computer can run it the same way.
+the co-simulation does (``sim/system/bridge_host.py``); a companion computer can run it the same way.
 
 Line: 8N1, 115200 baud by default (``divisor`` = core clock / baud).
 

@@ -2,7 +2,7 @@
 
 The model the RTL implements is :class:`GroundModel` (v2, histogram sets; its docstring has the
 rules). The v1 peak-band model (:class:`PeakGroundModel`, :func:`classify`,
-:func:`learn_centres`) stays as the baseline ``sim/bench_ground.py`` measures against.
+:func:`learn_centres`) stays as the baseline ``sim/bench/ground.py`` measures against.
 
 Parameters (:class:`GroundParams`; register widths in ``FIELDS``, units in brackets):
 
@@ -171,7 +171,7 @@ def learn_centres(y, h, s, params, centre_h, centre_y):
 
 
 class PeakGroundModel:
-    """Ground model v1 (the peak bands above), kept as the baseline ``sim/bench_ground.py``
+    """Ground model v1 (the peak bands above), kept as the baseline ``sim/bench/ground.py``
     compares the histogram model with: ``step`` classifies one frame with the current band
     centres, then learns the centres for the next frame."""
 
@@ -349,7 +349,7 @@ class GroundModel:
     relative error is sqrt(2/n): 9 % at n = 256. With fewer (23 saturated pixels on the grey
     concrete of the motorcycle pair) a handful of coloured specks would define the floor's hue.
 
-    Defaults, measured with ``sim/bench_ground.py`` (floor recall / obstacle pixels marked
+    Defaults, measured with ``sim/bench/ground.py`` (floor recall / obstacle pixels marked
     ground, last of three frames): ``frac`` = 48 (4.7 % of the support in a +-1 JND window)
     and ``hue_and_luma`` = 0. With ``hue_and_luma`` = 1 the shadow-band floor drops from 0.984
     to 0.853 recall (the shadow's luminance is not in the reference area) and nothing else

@@ -97,7 +97,7 @@ Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 
 * **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, a wire shift, the constant
   and saturation: ~35 LUT4) per record, no extra cycles. Ranking by it, the 4,496 most
   confident motorcycle points have bad-2 0.4 % (StereoBM 15 at the same count: 3.1 %;
-  sim/bench_matcher.py). Of the rankings tried (``far_min - k c0`` for k = 1, 2, 3, the ratio
+  sim/bench/accuracy.py). Of the rankings tried (``far_min - k c0`` for k = 1, 2, 3, the ratio
   ``(far_min - c0) / c0``, the cost alone) k = 3 was best on the motorcycle pair and the
   synthetic scenes; the half scale and the offset 128 keep its 5-95 % range on the motorcycle
   (-163..+70) inside 0..255.
@@ -135,7 +135,7 @@ __all__ = ["MatcherParams", "match", "candidates", "window_costs", "RECORD_DTYPE
 
 #: The largest disparity any matcher is elaborated for (the RTL's default ``max_disparity``,
 #: the MATCH register's d_min / d_max and the RESULT register's d); disparities are
-#: ``DISPARITY_BITS`` wide. 255 reaches 0.28 m on the default rig (sim/camera.py).
+#: ``DISPARITY_BITS`` wide. 255 reaches 0.28 m on the default rig (sim/scenes/camera.py).
 DISPARITY_BITS = 8
 MAX_DISPARITY = (1 << DISPARITY_BITS) - 1
 #: Disparities one run may search: the window ``[d_min, d_max]`` holds at most DISPARITY_SPAN

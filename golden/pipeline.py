@@ -38,12 +38,12 @@ LEFT_THRESHOLD = 192
 RIGHT_THRESHOLD = 96
 #: Sobel threshold of both cameras with matcher version 2 (``default_params(..., version=2)``):
 #: its census cost, wider candidates and consistency check keep bad-2 below 6 % on the weaker
-#: left edges of 128, which gives more points within 2 px than 192 (sim/bench_matcher.py).
+#: left edges of 128, which gives more points within 2 px than 192 (sim/bench/accuracy.py).
 V2_THRESHOLD = 128
 #: Sobel thresholds (left, right) of the RTL's default (``default_params(...)``, matcher
 #: :data:`golden.matcher.RTL`). A weaker right threshold keeps more true matches among the
 #: candidates; the left one trades points against the matcher's time. Measured on the
-#: motorcycle pair, ground off (sim/bench_matcher.py), left / right: 128 / 96 bad-2 5.7 %,
+#: motorcycle pair, ground off (sim/bench/accuracy.py), left / right: 128 / 96 bad-2 5.7 %,
 #: 8,688 points within 2 px; 144 / 96 5.5 %, 8,008; 160 / 96 5.4 %, 7,421; 176 / 96 5.2 %,
 #: 6,881; 192 / 96 5.2 %, 6,334 (right 64 / 80 / 112 / 128 with left 128: bad-2 5.9 / 5.8 /
 #: 6.0 / 6.7 %). A row with many left edges takes the matcher longer than a line time and the

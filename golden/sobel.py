@@ -48,8 +48,8 @@ threshold T                            64      96      128      160
 =====================================  ======  ======  =======  =======
 Middlebury motorcycle, left (741x500)  5.7 %   4.8 %   4.0 %    3.4 %
 Middlebury motorcycle, right           5.7 %   4.8 %   4.1 %    3.6 %
-``sim.scenes`` "mixed" 752x480 left    3.2 %   2.0 %   1.0 %    0.4 %
-``sim.scenes`` "empty" (no obstacle)   2.5 %   1.6 %   0.8 %    0.2 %
+``sim.scenes.rendered`` "mixed" 752x480 left    3.2 %   2.0 %   1.0 %    0.4 %
+``sim.scenes.rendered`` "empty" (no obstacle)   2.5 %   1.6 %   0.8 %    0.2 %
 =====================================  ======  ======  =======  =======
 
 T = 128 is a sharp step of 32 grey levels (a step of contrast ``c`` between two columns gives

@@ -126,7 +126,7 @@ store, a registered ``ready`` at both inputs (:class:`~hdl.skid.SkidBuffer`). Me
 8 LUT levels on the xc3s estimate (25 with the former two-lane engine); ECP5 LFE5U-25F speed 6,
 nextpnr: 95.3, 99.0 and 94.5 MHz on seeds 1-3 (42.4 before).
 
-Throughput (Verilator, 2 frames, ``python -m sim.matcher_bench``; the figures below are
+Throughput (Verilator, 2 frames, ``python -m sim.bench.throughput``; the figures below are
 version 1's, SAD with thresholds 192 / 96; with the census defaults at 128 / 96 the motorcycle
 took 2.241 cycles per pixel, the synthetic scenes 1.19-1.28):
 always-valid inputs, bit-exact: motorcycle 741 x 500 1.449 input cycles per pixel (1.99 before),

@@ -35,7 +35,7 @@ from golden.matcher import CONFIDENCE_MAX, CONFIDENCE_OFFSET, SUBPIXEL_BITS, SUB
 
 __all__ = ["SubpixelConfidence"]
 
-#: The project's longest carry chain (sim/synth.py MAX_CARRY); the confidence's adder is
+#: The project's longest carry chain (sim/flows/synth.py MAX_CARRY); the confidence's adder is
 #: cost_width + 3 bits.
 _MAX_COST_WIDTH = 13
 

@@ -17,7 +17,7 @@ accepts the assignment; a real board fixes its own.
 camera domains, their data bytes feed the camera ports (a decoder drives one byte per LLC
 cycle), the IIC bus and the radio UART go to their pins, and the CPU bus is driven by a
 :class:`hdl.bridge.UartBridge` on the debug UART, so a host computer (or the firmware's host
-build through ``sim/bridge_host.py``) runs the board. On the Spartan-3 board the soft CPU takes
+build through ``sim/system/bridge_host.py``) runs the board. On the Spartan-3 board the soft CPU takes
 the bridge's place in the vendor flow (README.md, "Boards": EDK MicroBlaze, a PLB v4.6 slave
 whose user logic drives the SoC's I/O bus).
 """

@@ -3,7 +3,7 @@
 Everything else is derived from the tables in this module:
 
 - ``hdl/regs.py`` elaborates the register block RTL from :data:`REGISTERS`;
-- ``sim/gen_regs.py`` writes ``firmware/include/stereo_regs.h`` (the firmware's only view of
+- ``sim/flows/gen_regs.py`` writes ``firmware/include/stereo_regs.h`` (the firmware's only view of
   the map) and ``docs/registers.md``; ``tests/test_regs.py`` fails when the committed files
   differ from a fresh generation.
 

@@ -10,7 +10,7 @@ synchroniser each); the pairing and the pipeline take the same video reset in th
 
 The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor flow; this
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
-also runs in simulation with the firmware driving the bus (``sim/cosim``).
+also runs in simulation with the firmware driving the bus (``sim/system/cosim``).
 """
 from amaranth.hdl import Cat, ClockDomain, ClockSignal, Const, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream

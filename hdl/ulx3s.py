@@ -1,5 +1,5 @@
 """The ECP5 board: the SoC on a Radiona ULX3S (LFE5U-25F, amaranth-boards), built to a real
-bitstream with the open tools (``make bitstream``, ``sim/bitstream.py``).
+bitstream with the open tools (``make bitstream``, ``sim/flows/bitstream.py``).
 
 Clocks: the board's 25 MHz oscillator feeds an EHXPLLL that makes the 50 MHz core clock
 (VCO 600 MHz: CLKI_DIV 1, CLKFB_DIV 2, CLKOP_DIV 12); the two decoders' 27 MHz LLC clocks come in
@@ -7,7 +7,7 @@ on the GPIO header.
 
 CPU: the UART register bridge (``hdl/bridge.py``, protocol ``golden/bridge.py``) on the board's
 USB serial port (FTDI, UART 0) drives the I/O bus; the host runs the firmware's host build
-through it (``sim/bridge_host.py``).
+through it (``sim/system/bridge_host.py``).
 
 PIN-OUT: EXAMPLE, on the GPIO header J1 (amaranth-boards connector ``gpio 0``, 3.3 V):
 

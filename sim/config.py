@@ -5,7 +5,7 @@ from types import SimpleNamespace
 from golden.ground import GroundParams
 from hdl.ground import GroundConfig
 from hdl.regmap import config_fields, param_value
-from .streams import Packer
+from sim.streams import Packer
 
 __all__ = ["apply_config", "config_values"]
 

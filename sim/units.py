@@ -12,7 +12,7 @@ from golden.pipeline import PipelineParams, pipeline_frames
 from golden.frontend import frontend_frames
 from golden.freespace import free_frame
 from hdl import types
-from .streams import Packer, frames_words, words_to_frames
+from sim.streams import Packer, frames_words, words_to_frames
 
 __all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pipeline_for", "pixel_mismatches",
            "records_from_words", "stream_mismatches", "free_streams"]

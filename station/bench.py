@@ -1,4 +1,4 @@
-"""Base-station speed figures for ``make bench`` (sim/bench.py calls these): the radio
+"""Base-station speed figures for ``make bench`` (sim/bench/report.py calls these): the radio
 decoder's throughput and SACOdm's plan time per replan against the seed's "a new path every
 3 seconds", with the colony-alone and post-shortcut ratios to A* on the same maps.
 """

@@ -76,7 +76,7 @@ class CameraModel:
 
     @classmethod
     def from_rig(cls, rig):
-        """The camera model of a ``sim.scenes.Rig`` (left camera at robot-frame (0, +B/2))."""
+        """The camera model of a ``sim.scenes.rendered.Rig`` (left camera at robot-frame (0, +B/2))."""
         return cls(width=rig.width, height=rig.height, focal_px=float(rig.focal_px),
                    baseline_m=float(rig.baseline_m), cx=rig.cx, cy=rig.cy,
                    cam_height_m=float(rig.cam_height_m), pitch_deg=float(rig.pitch_deg),

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from sim import bench_matcher
-from sim.bench import BM_BLOCKS, acceptance, score
+from sim.bench import accuracy as bench_matcher
+from sim.bench.report import BM_BLOCKS, acceptance, score
 
 ROOT = Path(__file__).resolve().parent.parent
 ACCURACY_KEYS = ("density", "bad1", "bad2", "avgerr", "sad_eval_fraction")
@@ -18,7 +18,7 @@ ACCURACY_KEYS = ("density", "bad1", "bad2", "avgerr", "sad_eval_fraction")
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    r = subprocess.run([sys.executable, "-m", "sim.bench", "--quick", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "sim.bench.report", "--quick", "--out", str(out)],
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr[-3000:]
     return out, r
@@ -93,7 +93,7 @@ def test_score():
 
 
 def _check_report(density, bad2, thinned_bad2, bm_density=0.79, bm_bad2=0.15, matched=900):
-    """A report with only what :func:`sim.bench.acceptance` reads."""
+    """A report with only what :func:`sim.bench.report.acceptance` reads."""
     row = {"n": matched, "StereoBM 7": {"n": matched, "bad1": 0.2, "bad2": thinned_bad2}}
     return {"pipeline_default": {"density": density, "bad2": bad2, "matched": matched,
                                  "sad_eval_fraction": 0.02},

@@ -1,11 +1,11 @@
-"""The ECP5 bitstream flow of `make bitstream` (sim/bitstream.py, hdl/ulx3s.py) on a tiny design:
+"""The ECP5 bitstream flow of `make bitstream` (sim/flows/bitstream.py, hdl/ulx3s.py) on a tiny design:
 the same platform (ULX3S 25F with the example pin-out, openFPGALoader not required when not
 programming), the same PLL and the YoWASP tools through YOSYS / NEXTPNR_ECP5 / ECPPACK."""
 from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Module, Signal
 from amaranth.lib import io
 
 from hdl.ulx3s import RobotULX3SPlatform, add_core_pll
-from sim.bitstream import build_bitstream, fmax_report
+from sim.flows.bitstream import build_bitstream, fmax_report
 
 
 class Tiny(Elaboratable):

@@ -93,10 +93,10 @@ def test_read_write_and_errors():
 
 def test_firmware_drives_the_register_block_through_the_bridge():
     """The firmware's host build (app_init_pipeline: ID check, configuration with read-back)
-    over sim.bridge_host and the bridge RTL, as on the ECP5 board."""
+    over sim.system.bridge_host and the bridge RTL, as on the ECP5 board."""
     import ctypes as C
-    from sim.bridge_host import BridgeHost
-    from sim.cosim import fwlib
+    from sim.system.bridge_host import BridgeHost
+    from sim.system.cosim import fwlib
 
     bridge, regs, sim = bridge_and_registers()
     mailbox = {"send": b"", "recv": b""}

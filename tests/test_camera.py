@@ -1,4 +1,4 @@
-"""Camera model (sim/camera.py): depth and positions in metres from matches, checked against the
+"""Camera model (sim/scenes/camera.py): depth and positions in metres from matches, checked against the
 synthetic scenes' ray-cast truth; the camera file's checks."""
 import json
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from golden.pipeline import default_params, pipeline_frames
-from sim.camera import (Camera, MOTORCYCLE, contour_depth, depth_error, load_camera,
+from sim.scenes.camera import (Camera, MOTORCYCLE, contour_depth, depth_error, load_camera,
                         match_table, scene_camera)
 from sim.errors import CliError
-from sim.scenes import backproject, make_scene, scene_names
+from sim.scenes.rendered import backproject, make_scene, scene_names
 
 #: Issue 15, "Depth is right": median relative error of z_m at the matched points.
 MAX_MEDIAN_DEPTH_ERROR = 0.05

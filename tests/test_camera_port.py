@@ -105,7 +105,8 @@ def test_overflow_drops_the_frame_tail_and_counts():
 
 
 def test_exports_with_two_clock_domains(tmp_path):
-    from sim.export import export_verilog, registered
+    from sim.designs import registered
+    from sim.flows.verilog import export_verilog
     port, _ = registered("camera", {"fifo_depth": 16})
     text = export_verilog("camera", port, {"fifo_depth": 16}, tmp_path).read_text()
     for name in ("clk", "rst", "cam_clk", "cam_rst", "i__payload", "o__payload", "overflow"):

@@ -16,10 +16,10 @@ from PIL import Image
 
 from golden.matcher import MatcherParams
 from golden.pipeline import default_params
-from sim import cli, flags as sim_flags
-from sim.data import motorcycle, crop
+from sim.cli import main as cli, flags as sim_flags
+from sim.scenes.data import motorcycle, crop
 from sim.errors import InternalError
-from sim.scenes import make_scene
+from sim.scenes.rendered import make_scene
 
 #: Issue 15: every bad input gives its one error line within this time (nothing is simulated).
 ERROR_SECONDS = 10
@@ -210,8 +210,8 @@ def _bug(*_, **__):
 
 @pytest.mark.parametrize("raiser", [_fail, _bug])
 def test_internal_failure_is_exit_3(pair, monkeypatch, capsys, raiser):
-    import sim.backends
-    monkeypatch.setattr(sim.backends, "run_unit", raiser)
+    import sim.backends.run
+    monkeypatch.setattr(sim.backends.run, "run_unit", raiser)
     code = cli.main(["compare", "--unit", "color", "--left", str(pair["left"])])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 3 and len(err) == 1 and err[0].startswith("internal error:")

@@ -3,8 +3,8 @@ and VHDL-93): every registered design against its golden model, small crops over
 (the ground model learns and blends), idle cycles and backpressure crossed. A missing simulator fails with one line naming what to install."""
 import pytest
 
-from sim.cocotb_tb import SimulatorMissing, check_simulator, run_cocotb
-from sim.export import DESIGNS
+from sim.backends.cocotb import SimulatorMissing, check_simulator, run_cocotb
+from sim.designs import DESIGNS
 
 BACKENDS = [("verilator", "08"), ("icarus", "08"), ("ghdl", "08"), ("ghdl", "93")]
 
@@ -26,7 +26,7 @@ def test_design_matches_golden(name, simulator, std):
 
 
 def test_icarus_fixup():
-    from sim.cocotb_tb import icarus_fixup
+    from sim.backends.cocotb import icarus_fixup
     v = "module m(a);\n  reg \\$auto$verilog_backend.cc:2355:dump_module$1  = 0;\n  always @* begin\n"
     assert icarus_fixup(v) == ("module m(a);\n  reg \\$auto$verilog_backend.cc:2355:dump_module$1  = 0;\n"
                                "  initial #0 \\$auto$verilog_backend.cc:2355:dump_module$1 = 1'b1;\n"
@@ -48,7 +48,7 @@ def test_simulate_given_words_two_inputs_wide_parameter(simulator):
     given words, several input streams, run-time parameters up to 82 bits."""
     import numpy as np
     from hdl.types import RGBPixel, YHSPixel
-    from sim.cocotb_tb import simulate
+    from sim.backends.cocotb import simulate
     from sim.units import rgb as rgb_frame
     from sim.streams import Packer, frames_words, words_to_frames
     from tests.test_verilator import Zip
@@ -73,7 +73,7 @@ def test_verilator_runtime_reused(tmp_path, monkeypatch):
     ahead of the makefile the next build writes, into the next design's build folder."""
     import os
     import time
-    import sim.cocotb_tb as tb
+    import sim.backends.cocotb as tb
     runtime = tmp_path / "runtime"
     monkeypatch.setattr(tb, "_verilator_runtime_dir", lambda build_args: runtime)
     first = tmp_path / "a"

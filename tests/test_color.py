@@ -5,7 +5,7 @@ import pytest
 from golden.color import rgb_to_yhs, luma, RECIP, HUE_STEPS
 from hdl.color import ColorConvert
 from hdl.types import RGBPixel, YHSPixel
-from sim.data import motorcycle, crop
+from sim.scenes.data import motorcycle, crop
 from sim.streams import Packer, check_unit, malformed_cases
 
 PIN, POUT = Packer(RGBPixel), Packer(YHSPixel)

@@ -1,10 +1,10 @@
 """Co-simulation: the firmware (host shared library) drives the RTL IIC master and register
-block in Amaranth's simulator against two ADV7180 models (see sim/cosim/run.py)."""
+block in Amaranth's simulator against two ADV7180 models (see sim/system/cosim/run.py)."""
 
 import pytest
 
-from sim.cosim import fwlib
-from sim.cosim.run import SCENARIOS, check, run_scenario
+from sim.system.cosim import fwlib
+from sim.system.cosim.run import SCENARIOS, check, run_scenario
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """The motorcycle pair read from scikit-image's data folder is what scikit-image returns."""
 import numpy as np
 
-from sim.data import motorcycle
+from sim.scenes.data import motorcycle
 
 
 def test_motorcycle_is_skimages():

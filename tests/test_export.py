@@ -1,10 +1,12 @@
-"""Verilog export (sim/export.py): header, registry, port discovery, command line."""
+"""Verilog export (sim/flows/verilog.py): header, registry, port discovery, command line."""
 import subprocess
 import sys
 
 import pytest
 
-from sim.export import DESIGNS, ROOT, elaborate, export_verilog, ports, registered
+from sim.designs import DESIGNS, elaborate, ports, registered
+from sim.paths import ROOT
+from sim.flows.verilog import export_verilog
 
 
 def test_color_ports():
@@ -37,7 +39,7 @@ def test_header_lists_parameters_tools_and_ports(tmp_path):
 
 
 def test_read_registers_start_at_zero():
-    from sim.export import init_read_registers
+    from sim.flows.verilog import init_read_registers
     v = ("module a(clk);\n  reg [16:0] _0_;\n  reg [3:0] comb;\n  reg \\x$1 ;\n"
          "  always @(posedge clk)\n    _0_ <= 1;\n  always @(posedge clk)\n    \\x$1  <= 1;\n"
          "  always @* comb = 2;\nendmodule\n")
@@ -58,11 +60,11 @@ def test_every_design_exports(name, tmp_path):
 
 
 def test_command_line(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "sim.export", "--out", str(tmp_path)],
+    r = subprocess.run([sys.executable, "-m", "sim.flows.verilog", "--out", str(tmp_path)],
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     for name in DESIGNS:
         assert (tmp_path / f"{name}.v").exists()
-    r = subprocess.run([sys.executable, "-m", "sim.export", "--out", str(tmp_path), "nope"],
+    r = subprocess.run([sys.executable, "-m", "sim.flows.verilog", "--out", str(tmp_path), "nope"],
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 2 and "unknown design 'nope'" in r.stderr

@@ -3,7 +3,7 @@
 import re
 import subprocess
 
-from sim.cosim import fwlib
+from sim.system.cosim import fwlib
 
 
 def test_firmware_builds_and_unit_tests_pass():

@@ -14,7 +14,7 @@ from hdl.ground import CLEAR_CYCLES
 from hdl.pipeline import StereoPipeline
 from hdl.types import RGBPixel
 from sim.config import apply_config
-from sim.data import crop, motorcycle
+from sim.scenes.data import crop, motorcycle
 from sim.streams import Packer, frame_words, stream_get
 from sim.units import records_from_words, rgb
 

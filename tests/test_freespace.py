@@ -55,7 +55,7 @@ def test_params_validate_with_clear_errors():
 
 
 def test_flags_come_from_the_dataclass():
-    from sim.flags import pipeline_flags
+    from sim.cli.flags import pipeline_flags
     flags = {f.names[0]: f for f in pipeline_flags()}
     assert (flags["--band-w"].lo, flags["--band-w"].hi, flags["--band-w"].default) == (1, 2047, 47)
     assert flags["--band-w"].size_dependent
@@ -197,8 +197,8 @@ def test_table_keeps_last_frame_rows():
 def test_frontend_free_space_amaranth_three_frames_with_stalls():
     """The front end's ``free`` output over 3 frames (the ground model learns and blends),
     under stalls; the pixel output is checked too."""
-    from sim.backends import run_unit
-    from sim.scenes import make_scene
+    from sim.backends.run import run_unit
+    from sim.scenes.rendered import make_scene
     from sim.units import UNITS, Job
     scene = make_scene("mixed", 752, 480)
     frames = [np.ascontiguousarray(scene.left[300:316, 200 + 8 * k:240 + 8 * k]) for k in range(3)]
@@ -225,8 +225,8 @@ def test_sim_run_writes_the_rtl_free_space(tmp_path):
     from dataclasses import replace
     from PIL import Image
     from golden.pipeline import pipeline_frames
-    from sim.export import ROOT
-    from sim.scenes import make_scene
+    from sim.paths import ROOT
+    from sim.scenes.rendered import make_scene
     scene = make_scene("mixed", 128, 64)        # floor, wall, boxes: varied free space
     for name, img in (("l", scene.left), ("r", scene.right)):
         Image.fromarray(img).save(tmp_path / f"{name}.png")

@@ -10,7 +10,7 @@ from hdl.frontend import FrontEnd
 from hdl.ground import CLEAR_CYCLES, search_cycles
 from hdl.sobel import SobelEdges
 from hdl.types import RGBPixel, EdgePixel
-from sim.data import motorcycle, crop
+from sim.scenes.data import motorcycle, crop
 from sim.streams import Packer, check_unit, malformed_cases
 from sim.config import apply_config
 
@@ -32,7 +32,7 @@ def run(frames, params, *, name, max_width=64, **kw):
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_synthetic_scene_crops_hue_mode(seed):
-    from sim.scenes import make_scene
+    from sim.scenes.rendered import make_scene
     frames = [make_scene("mixed", 752, 480, brightness=b).left[300:316, 200 + 8 * k:248 + 8 * k]
               for k, b in enumerate((1.0, 0.7, 1.3))]
     p = FrontEndParams(GroundParams.bottom_centre(48, 16, ref_h=4),

@@ -10,7 +10,7 @@ from golden.ground import (GroundMode, GroundParams, ground_frames, classify, le
                            hue_distance, HIST_MAX, histograms)
 from hdl.ground import CLEAR_CYCLES, GroundClassifier, search_cycles
 from hdl.types import YHSPixel, GroundPixel
-from sim.data import motorcycle, crop
+from sim.scenes.data import motorcycle, crop
 from sim.streams import Packer, check_unit, malformed_cases
 
 PIN, POUT = Packer(YHSPixel), Packer(GroundPixel)
@@ -191,7 +191,7 @@ def agreement(frames, rgbs, params):
 
 @pytest.mark.parametrize("scene", ["boxes", "poles", "mixed", "empty"])
 def test_hue_mode_agreement_with_brightness_changes(scene):
-    from sim.scenes import make_scene
+    from sim.scenes.rendered import make_scene
     frames = [make_scene(scene, 320, 240, brightness=b) for b in (1.0, 1.0, 0.7, 1.0, 1.3)]
     p = GroundParams.bottom_centre(320, 240, mode=GroundMode.HUE)
     acc = agreement(frames, [f.left for f in frames], p)
@@ -200,21 +200,21 @@ def test_hue_mode_agreement_with_brightness_changes(scene):
 
 @pytest.mark.parametrize("scene", ["boxes", "poles", "mixed", "empty"])
 def test_luma_mode_agreement_on_mono_scenes(scene):
-    from sim.scenes import SCENES, Rig, render
+    from sim.scenes.rendered import SCENES, Rig, render
     from golden.color import luma
     world = mono_world(SCENES[scene])
     frames = [render(world, Rig.scaled(320, 240), seed=s) for s in (0, 1, 2)]
     grey = [np.repeat(luma(f.left)[..., None], 3, axis=2) for f in frames]
     # these rendered floors spread over more luma codes than the default +-3 smoothing covers
     # (0.94 agreement at jnd_luma = 3); at 5 they agree to 0.98 (the motorcycle pair keeps 3:
-    # 5 lets 11 % of its obstacle pixels through in luminance mode, sim/bench_ground.py)
+    # 5 lets 11 % of its obstacle pixels through in luminance mode, sim/bench/ground.py)
     p = GroundParams.bottom_centre(320, 240, mode=GroundMode.LUMA, jnd_luma=5)
     acc = agreement(frames, grey, p)
     assert min(acc) >= 0.98, acc
 
 
 def test_rtl_synthetic_scene_crop_with_brightness_change():
-    from sim.scenes import make_scene
+    from sim.scenes.rendered import make_scene
     frames = [make_scene("mixed", 160, 120, brightness=b) for b in (1.0, 0.7, 1.3)]
     crops = [yhs(np.ascontiguousarray(f.left[88:108, 40:88])) for f in frames]
     p = GroundParams.bottom_centre(48, 20, ref_h=4)
@@ -318,8 +318,8 @@ def test_raw_outputs(tmp_path):
     import csv
     from PIL import Image
     from golden.pipeline import default_params, pipeline_frames
-    from sim.raw_outputs import write_raw_outputs
-    from sim.scenes import make_scene
+    from sim.cli.raw_outputs import write_raw_outputs
+    from sim.scenes.rendered import make_scene
     scene = make_scene("boxes", 96, 64)
     frame = pipeline_frames([scene.left], [scene.right], default_params(96, 64))[-1]
     paths = write_raw_outputs(tmp_path, frame)
@@ -336,7 +336,7 @@ def test_raw_outputs(tmp_path):
 
 def test_bench_ground_figures():
     """The figures the bench reports, and its check of the v2 requirements."""
-    from sim.bench_ground import FLOOR_LIMITS, check, floor_accuracy
+    from sim.bench.ground import FLOOR_LIMITS, check, floor_accuracy
     floors = floor_accuracy()
     assert set(floors) == {"tiles", "planks", "rug", "shadow"}
     for kind, r in floors.items():
@@ -350,7 +350,7 @@ def test_bench_ground_figures():
 
 def test_bench_ground_table_and_exit_status(tmp_path, monkeypatch, capsys):
     """The per-scene table states each verdict; a missed requirement exits 1 with an error."""
-    import sim.bench_ground as bg
+    import sim.bench.ground as bg
     v = {"recall": 0.9, "obstacle_as_ground": 0.01, "edges_removed": 0.02}
     rep = {"floors": {"tiles": {"v1": v, "v2": v}},
            "motorcycle": {m: {"v1": v, "v2": dict(v, edges_removed=0.2 if m == "hue" else 0.0)}

@@ -12,8 +12,8 @@ from golden.ground import GroundMode, GroundParams, ground_frames
 from hdl.ground import CLEAR_CYCLES, GroundConfig, GroundClassifier, SharedGroundClassifier
 from hdl.ground_search import GroundSearch, search_cycles
 from hdl.types import YHSPixel, GroundPixel
-from sim.data import motorcycle, crop
-from sim.export import silenced
+from sim.scenes.data import motorcycle, crop
+from sim.designs import silenced
 from sim.streams import (Configure, Packer, frames_words, malformed_cases, run_streams,
                          words_to_frames)
 from tests.test_ground import floor_image, grey_floor, yhs

@@ -10,8 +10,8 @@ from golden.iic import (
 )
 from hdl import regmap
 from hdl.iic import IICMaster, XIIC
-from sim.cosim.i2c_tb import make_sim
-from sim.cosim.iobus import io_read, io_write, last_latency
+from sim.system.cosim.i2c_tb import make_sim
+from sim.system.cosim.iobus import io_read, io_write, last_latency
 
 BASE = regmap.IIC_BASEADDR
 CLK_DIV = 4

@@ -1,20 +1,86 @@
 """Layering: the RTL in hdl/ depends on golden/ (its specification) and amaranth only, never on
-the simulation and tooling code in sim/."""
+the simulation and tooling code in sim/; and no module of the project imports itself back
+through others (every import, also those inside functions, counts)."""
 import ast
 from pathlib import Path
 
-HDL = Path(__file__).resolve().parent.parent / "hdl"
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("hdl", "golden", "sim", "station")
+
+
+def _module_name(path):
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _imports(path, modules):
+    """The project modules that ``path`` imports: ``from a import b`` names module ``a.b``
+    where that is a module, else ``a``."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base
+                       for a in node.names]
+        else:
+            continue
+        found.update(t for t in targets if t in modules and t != name)
+    return found
+
+
+def _graph():
+    paths = [p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))]
+    modules = {_module_name(p): p for p in paths}
+    return {name: _imports(path, modules) for name, path in modules.items()}
 
 
 def test_hdl_imports_no_sim():
-    bad = []
-    for path in sorted(HDL.glob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.level == 0:
-                names = [node.module or ""]
-            else:
-                continue
-            bad += [f"{path.name}: {n}" for n in names if n == "sim" or n.startswith("sim.")]
+    bad = [f"{m} imports {t}" for m, targets in _graph().items() if m.startswith("hdl")
+           for t in targets if t == "sim" or t.startswith("sim.")]
     assert bad == []
+
+
+def test_no_import_cycles():
+    graph = _graph()
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):                   # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert cycles == []
+
+
+def test_sim_has_few_top_level_modules():
+    """sim/ is organised by concern in subpackages; only what every concern shares stays at
+    its top."""
+    assert len(list((ROOT / "sim").glob("*.py"))) <= 8

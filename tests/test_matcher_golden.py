@@ -407,9 +407,9 @@ def test_v2_matches_csv(tmp_path):
     # matches.csv of a version 2 run: d decimal (d16 / 16) and the confidence column.
     import csv
     from golden.pipeline import default_params, pipeline_frames
-    from sim.scenes import make_scene
-    from sim.camera import scene_camera
-    from sim.views import write_outputs
+    from sim.scenes.rendered import make_scene
+    from sim.scenes.camera import scene_camera
+    from sim.cli.views import write_outputs
     s = make_scene("boxes", 160, 120)
     params = default_params(160, 120, ground="off", version=2)
     f = pipeline_frames([s.left], [s.right], params)[0]

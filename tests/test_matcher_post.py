@@ -8,7 +8,7 @@ from amaranth.sim import Simulator
 
 from golden.matcher import SUBPIXEL_ONE, confidence, subpixel_offset
 from hdl.matcher_post import SubpixelConfidence
-from sim.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
+from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
 
 D_WIDTH = 8
 

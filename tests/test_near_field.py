@@ -1,5 +1,5 @@
 """Issue 15, "The near field is seen": an obstacle 0.5 m ahead of the default rig, matched with
-the near disparity window (sim.scenes.NEAR_WINDOW, d 117..180 = 0.40..0.62 m) inside the
+the near disparity window (sim.scenes.rendered.NEAR_WINDOW, d 117..180 = 0.40..0.62 m) inside the
 matcher's elaborated maximum of 255, appears with z_m ~ 0.5 in matches.csv and in the top view.
 The golden model gives the figures; the command-line run checks the RTL (Verilator, full
 frame) bit for bit on the same scene and reads its matches.csv."""
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from golden.pipeline import default_params, pipeline_frames
-from sim.camera import contour_depth, depth_error, match_table, scene_camera
-from sim.scenes import LABEL_OBSTACLE0, NEAR_SCENES, NEAR_WINDOW, make_scene, scene_settings
-from sim.views import topview_points
+from sim.scenes.camera import contour_depth, depth_error, match_table, scene_camera
+from sim.scenes.rendered import LABEL_OBSTACLE0, NEAR_SCENES, NEAR_WINDOW, make_scene, scene_settings
+from sim.cli.views import topview_points
 
 #: Issue 15, "Depth is right", for the near scene too.
 MAX_MEDIAN_DEPTH_ERROR = 0.05
@@ -62,7 +62,7 @@ def test_the_obstacle_at_half_a_metre_is_matched(near):
 def test_the_far_window_vetoes_most_far_texture_seen_through_the_near_one(near):
     # texture whose true disparity is below d_min is matched at a wrong one inside the near
     # window; the default window matches it right at the same pixel, the box it cannot see
-    from sim.bench_depth import far_veto
+    from sim.bench.depth import far_veto
     frame, _, last = near
     far = pipeline_frames([frame.left] * 2, [frame.right] * 2, default_params(752, 480))[-1]
     rec, cam = last.records, scene_camera(752, 480)

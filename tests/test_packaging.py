@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from sim.export import ROOT
+from sim.paths import ROOT
 
 PACKAGES = ("hdl", "golden", "sim", "station")
 
@@ -46,8 +46,8 @@ def test_wheel_holds_every_module_and_the_harness(wheel):
                 if p.parts[0] in PACKAGES and p.suffix == ".py"}
     assert expected, "no package sources found"
     assert not expected - names, f"missing from the wheel: {sorted(expected - names)}"
-    assert "sim/verilator/harness.cpp" in names
-    for sub in ("sim/verilator/__init__.py", "sim/cocotb_tb/__init__.py", "sim/cosim/__init__.py"):
+    assert "sim/backends/verilator/harness.cpp" in names
+    for sub in ("sim/backends/verilator/__init__.py", "sim/backends/cocotb/__init__.py", "sim/system/cosim/__init__.py"):
         assert sub in names
     assert not [n for n in names if n.startswith(("tests/", "build/"))]
 

@@ -6,8 +6,8 @@ import pytest
 
 from golden.matcher import record_dtype
 from golden.pipeline import default_params
-from sim.backends import run_unit
-from sim.data import motorcycle, crop
+from sim.backends.run import run_unit
+from sim.scenes.data import motorcycle, crop
 from sim.units import UNITS, Job, records_from_words
 from sim.streams import Packer, words_to_frames
 from hdl.types import FreeBand
@@ -48,7 +48,7 @@ def test_motorcycle_full_frames_verilator(stalls):
 
 @pytest.mark.parametrize("scene, stalls", [("mixed", 3), ("boxes", None), ("poles", 5)])
 def test_synthetic_scenes_full_frames_verilator(scene, stalls):
-    from sim.scenes import make_scene
+    from sim.scenes.rendered import make_scene
     frames = [make_scene(scene, 752, 480, brightness=b) for b in (1.0, 0.8)]
     job = Job([f.left for f in frames], [f.right for f in frames], default_params(752, 480))
     _, matches = check(job, "verilator", stalls)
@@ -57,7 +57,7 @@ def test_synthetic_scenes_full_frames_verilator(scene, stalls):
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_crops_amaranth_with_stalls(seed):
-    from sim.scenes import make_scene
+    from sim.scenes.rendered import make_scene
     left, right, _ = motorcycle()
     scene = make_scene("mixed", 752, 480)
     pairs = [(crop(left, 40, 10, 380, 240), crop(right, 40, 10, 380, 240)),
@@ -82,7 +82,7 @@ def test_drop_mode_cameras_stay_in_step():
     from dataclasses import replace
     from hdl.pipeline import StereoPipeline
     from sim.config import apply_config
-    from sim.matcher_bench import CAMERA_IDLE
+    from sim.bench.throughput import CAMERA_IDLE
     from sim.streams import run_streams
     left, right, _ = motorcycle()
     w, h = 48, 24

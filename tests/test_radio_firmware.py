@@ -4,7 +4,7 @@ import random
 
 import pytest
 
-from sim.cosim import fwlib
+from sim.system.cosim import fwlib
 from station import wire
 from station.radio import (
     FrameDecoder, RadioHealth, RadioPacket, encode_api_frame, encode_payload,

@@ -8,8 +8,8 @@ from amaranth.sim import Simulator
 
 from hdl import regmap
 from hdl.regs import RegisterBlock, status_port_name
-from sim import gen_regs
-from sim.cosim.iobus import BusTimeout, io_read, io_write, last_latency
+from sim.flows import gen_regs
+from sim.system.cosim.iobus import BusTimeout, io_read, io_write, last_latency
 
 BASE = regmap.REGS_BASEADDR
 OFF = {r.name: r.offset for r in regmap.REGISTERS}
@@ -25,7 +25,7 @@ def run(dut, *benches):
 
 def test_generated_files_are_current():
     stale = gen_regs.stale()
-    assert not stale, f"stale generated files: {stale}: run python -m sim.gen_regs"
+    assert not stale, f"stale generated files: {stale}: run python -m sim.flows.gen_regs"
 
 
 def test_header_has_every_field():

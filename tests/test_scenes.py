@@ -1,4 +1,4 @@
-"""Tests of the synthetic stereo scene generator (sim/scenes.py)."""
+"""Tests of the synthetic stereo scene generator (sim/scenes/rendered.py)."""
 
 import colorsys
 import functools
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from sim import scenes
-from sim.scenes import (LABEL_GROUND, LABEL_OBSTACLE0, LABEL_SKY, Box, Cylinder, Pole, Rig,
+from sim.scenes import rendered as scenes
+from sim.scenes.rendered import (LABEL_GROUND, LABEL_OBSTACLE0, LABEL_SKY, Box, Cylinder, Pole, Rig,
                         StereoFrame, World, make_scene, render, save_frame, scene_names)
 
 OBSTACLE_SCENES = ["boxes", "poles", "mixed"]
@@ -31,7 +31,7 @@ def _scene_frame(name) -> StereoFrame:
     return _frame(name) if name in OBSTACLE_SCENES else _frame(name, 376, 240)
 
 
-# ---- independent camera model (written separately from sim/scenes.py on purpose) ----------
+# ---- independent camera model (written separately from sim/scenes/rendered.py on purpose) ----------
 
 def _left_ray(rig, pose, u, v):
     """Left camera origin (3,) and ray directions (..., 3) with unit optical-axis component."""
@@ -402,7 +402,7 @@ def test_backproject_matches_independent_model():
 
 def test_floor_scenes():
     from golden.color import rgb_to_yhs
-    from sim.scenes import FLOOR_KINDS, floor_scene
+    from sim.scenes.rendered import FLOOR_KINDS, floor_scene
     for kind in FLOOR_KINDS:
         rgb, floor = floor_scene(kind, 160, 120, seed=1)
         assert rgb.shape == (120, 160, 3) and rgb.dtype == np.uint8 and floor.shape == (120, 160)

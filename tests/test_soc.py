@@ -13,10 +13,10 @@ from golden.sobel import SobelParams
 from hdl import regmap
 from hdl.soc import StereoSoC
 from hdl.types import RGBPixel
-from sim.cosim.iobus import io_read, io_write
-from sim.data import motorcycle, crop
+from sim.system.cosim.iobus import io_read, io_write
+from sim.scenes.data import motorcycle, crop
 from sim.streams import Packer, frames_words, stream_put
-from sim.system import record_fields
+from sim.system.run import record_fields
 import random
 
 import numpy as np

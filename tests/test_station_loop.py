@@ -139,7 +139,7 @@ def test_small_world_closed_loop_reaches_goal_without_collision():
 
 def test_frame_by_frame_golden_pipeline_equals_the_chained_model():
     from golden.pipeline import default_params, pipeline_frames
-    from sim.scenes import Rig, render
+    from sim.scenes.rendered import Rig, render
     from sim.closedloop.perception import GoldenPipeline
     spec = WORLDS["slalom"]
     rig = Rig.scaled(160, 120)

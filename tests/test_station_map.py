@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sim.scenes import Box, Rig, World, backproject, render
+from sim.scenes.rendered import Box, Rig, World, backproject, render
 from station.camera import CameraModel, fill_band_gaps, observe_bands
 from sim.closedloop.loop import truth_matches
 from station.grid import GridParams, OccupancyGrid

@@ -17,7 +17,7 @@ import tty
 import numpy as np
 import pytest
 
-from sim.cosim import fwlib
+from sim.system.cosim import fwlib
 from station.cli import decode_bytes, make_station
 from station.radio import RadioHealth, RadioPacket, encode_payload
 

@@ -7,7 +7,7 @@ from golden.ground import GroundParams
 from hdl.ground import GroundClassifier, GroundConfig
 from hdl.types import RGBPixel, frame_layout
 from sim.config import config_values
-from sim.export import silenced
+from sim.designs import silenced
 from sim.streams import Packer, frame_words, frames_words, words_to_frames, malformed_cases, Reset
 
 

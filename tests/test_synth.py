@@ -1,11 +1,11 @@
-"""Spartan-3 targets: Yosys resource estimates (sim/synth.py), the reference board platform
+"""Spartan-3 targets: Yosys resource estimates (sim/flows/synth.py), the reference board platform
 and its ISE build tree, the camera input adapter (hdl/platform.py)."""
 import json
 
 import pytest
 
 from hdl.platform import CAMERA_PINS, IIC_PINS, RobotBoardPlatform
-from sim.synth import (BUDGET, build_ise, carry_length, count_cells, longest_path, lut_breakdown,
+from sim.flows.synth import (BUDGET, build_ise, carry_length, count_cells, longest_path, lut_breakdown,
                        lut_levels, synthesize, write_report)
 
 

@@ -1,4 +1,4 @@
-"""System simulation (sim/system.py): the SoC under Verilator from two BT.656 cameras at
+"""System simulation (sim/system/run.py): the SoC under Verilator from two BT.656 cameras at
 independent phases, the firmware's host build on the CPU bus; every camera fault on a small
 field (64 x 16, NTSC line blanking, 4 blanking lines a field)."""
 import subprocess
@@ -11,8 +11,8 @@ from golden.ground import GroundMode, GroundParams
 from golden.matcher import RTL, MatcherParams
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.sobel import SobelParams
-from sim.data import crop, motorcycle
-from sim.system import FAULTS, camera_fields, camera_streams, inject, run_system
+from sim.scenes.data import crop, motorcycle
+from sim.system.run import FAULTS, camera_fields, camera_streams, inject, run_system
 
 W, H, FRAMES = 64, 16, 5
 PARAMS = PipelineParams(

@@ -1,12 +1,12 @@
-"""``make timing`` (sim/timing.py): the ECP5 place-and-route flow, run on one small unit so the
+"""``make timing`` (sim/flows/timing.py): the ECP5 place-and-route flow, run on one small unit so the
 flow cannot rot (the full run over every design and three seeds is part of ``make bench``)."""
 import json
 import re
 
 import pytest
 
-from sim.export import registered
-from sim.timing import SPARTAN3_SCALE, clock_name, clocks_of, main, wrapper_verilog
+from sim.designs import registered
+from sim.flows.timing import SPARTAN3_SCALE, clock_name, clocks_of, main, wrapper_verilog
 
 
 def test_wrapper_covers_every_port():

@@ -5,7 +5,7 @@ from amaranth.sim import Simulator
 import pytest
 
 from hdl.uart import UART, UART_REGS
-from sim.cosim.iobus import io_read, io_write
+from sim.system.cosim.iobus import io_read, io_write
 
 BASE = 0xC002_0000
 DIV = 8

@@ -1,4 +1,4 @@
-"""Full-frame Verilator harness (sim/verilator): bit-exact whole frames, stalls, deadlock,
+"""Full-frame Verilator harness (sim/backends/verilator): bit-exact whole frames, stalls, deadlock,
 several input streams and run-time parameters. Builds are cached under build/verilator/."""
 import re
 
@@ -11,10 +11,10 @@ from amaranth.lib.wiring import In, Out
 from golden.color import rgb_to_yhs
 from hdl.color import ColorConvert
 from hdl.types import RGBPixel, YHSPixel
-from sim.export import DESIGNS, ports, registered, silenced
+from sim.designs import DESIGNS, ports, registered, silenced
 from sim.units import rgb as rgb_frame
 from sim.streams import Deadlock, Packer, frames_words, run_stream_unit, words_to_frames
-from sim.verilator import ports_header, run_verilator
+from sim.backends.verilator import ports_header, run_verilator
 
 IN = Packer(RGBPixel)
 OUT = Packer(YHSPixel)
@@ -183,7 +183,7 @@ def test_every_design_bit_exact(name):
 
 def test_cached_build_found_without_export(monkeypatch):
     """A warm run finds its build from the sources: the design is not converted again."""
-    import sim.verilator as vl
+    import sim.backends.verilator as vl
     first = vl.build("color")
     monkeypatch.setattr(vl, "_built", {})
 
@@ -197,8 +197,9 @@ def test_cached_build_found_without_export(monkeypatch):
 def test_parameter_register_wrapper():
     """The simulation wrapper keeps the ports (an escaped keyword name included) and puts every
     run-time parameter, and only those, behind a register."""
-    from sim.export import registered, ports, verilog_source
-    from sim.verilator import module_ports, param_register_wrapper
+    from sim.designs import registered, ports
+    from sim.flows.verilog import verilog_source
+    from sim.backends.verilator import module_ports, param_register_wrapper
     component, params = registered("ground")
     text = verilog_source("ground", component, params)
     wrapped = param_register_wrapper(text, "ground", ports(component))
@@ -211,8 +212,9 @@ def test_parameter_register_wrapper():
 def test_input_register_wrapper():
     """The one-evaluation-per-cycle wrapper keeps the ports and puts every input but the clock
     behind a register, the reset's starting high."""
-    from sim.export import registered, ports, verilog_source
-    from sim.verilator import module_ports, input_register_wrapper
+    from sim.designs import registered, ports
+    from sim.flows.verilog import verilog_source
+    from sim.backends.verilator import module_ports, input_register_wrapper
     component, params = registered("color")
     text = verilog_source("color", component, params)
     wrapped = input_register_wrapper(text, "color", ports(component))
@@ -225,11 +227,12 @@ def test_input_register_wrapper():
 
 
 def test_simulation_model_is_the_design_without_processes():
-    """The Verilator model's conversion (sim.export.SIMULATION_PASSES) keeps the module's ports
+    """The Verilator model's conversion (sim.flows.verilog.SIMULATION_PASSES) keeps the module's ports
     and says what it ran in its header; every process is gone (all multiplexers), which is what
     makes it faster. That it computes the same is what every bit-exact Verilator test checks."""
-    from sim.export import SIMULATION_PASSES, registered, verilog_source
-    from sim.verilator import module_ports
+    from sim.designs import registered
+    from sim.flows.verilog import SIMULATION_PASSES, verilog_source
+    from sim.backends.verilator import module_ports
     component, params = registered("ground")
     plain = verilog_source("ground", component, params)
     model = verilog_source("ground", component, params, passes=SIMULATION_PASSES)

@@ -1,4 +1,4 @@
-"""The views of a run (sim/views.py): which files, the image shown undimmed at a whole scale,
+"""The views of a run (sim/cli/views.py): which files, the image shown undimmed at a whole scale,
 matches.csv in metres with the valid flag, the contact sheet for several frames."""
 import csv
 import json
@@ -9,9 +9,9 @@ import pytest
 from PIL import Image
 
 from golden.pipeline import default_params, pipeline_frames
-from sim import views
-from sim.camera import scene_camera
-from sim.scenes import make_scene
+from sim.cli import views
+from sim.scenes.camera import scene_camera
+from sim.scenes.rendered import make_scene
 
 CROP = (288, 80, 160, 96)      # x, y, w, h of the 'mixed' scene: pole and red box
 

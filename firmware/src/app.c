@@ -250,7 +250,7 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
 #ifndef HAL_TARGET
 #include <stddef.h>
 
-/** Host builds only: offset and size of every field the ctypes mirrors (sim/cosim/fwlib.py)
+/** Host builds only: offset and size of every field the ctypes mirrors (sim/system/cosim/fwlib.py)
  *  declare, by "struct.field" name, so that check_layout compares them field by field. */
 typedef struct {
     const char *name;

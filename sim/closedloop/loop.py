@@ -3,7 +3,7 @@
 Every control period (0.1 s, the firmware's packet period):
 
 1. the world as it is now (an obstacle may appear) is rendered from the robot's true pose by
-   ``sim.scenes.render`` (default 160x120, focal length scaled from the 752-px reference);
+   ``sim.scenes.rendered.render`` (default 160x120, focal length scaled from the 752-px reference);
 2. ``perceive(left, right)`` returns the sparse matches (x, y, d) (the pipeline's golden
    model by default, ``sim.closedloop.perception``);
 3. the firmware's side: ``station.radio.summarise_matches`` (32 bands, min_support 3), pose
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim.scenes import Box, Cylinder, Rig, World, render
+from sim.scenes.rendered import Box, Cylinder, Rig, World, render
 from station.base import BaseStation, pose_to_wire
 from station.camera import CameraModel
 from station.grid import GridParams, OccupancyGrid

@@ -4,7 +4,7 @@ The closed loop runs the pipeline's golden model because the cycle-accurate RTL 
 longer per frame than the loop's 0.1 s period allows for a whole run. Since the RTL is
 specified to be bit-exact with the golden model, ``rtl_check`` closes that gap: it feeds the
 first frames a run actually rendered (from reset, in order, as the loop did) to the
-``pipeline`` RTL through ``sim.backends.run_unit`` and reports whether its records equal the
+``pipeline`` RTL through ``sim.backends.run.run_unit`` and reports whether its records equal the
 matches the loop used. Equal records mean the run with the RTL in the loop would have been the
 same run.
 """
@@ -23,7 +23,7 @@ def rtl_check(pairs, width, height, backend="amaranth"):
     with ``frames``, ``mismatches`` (RTL vs golden records), ``matches_equal`` (golden records
     vs the matches the loop used), ``bit_exact``, ``cycles`` and ``seconds``."""
     from golden.pipeline import default_params
-    from sim.backends import run_unit
+    from sim.backends.run import run_unit
     from sim.units import UNITS, Job
 
     t0 = time.time()

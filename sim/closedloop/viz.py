@@ -14,7 +14,7 @@ import math
 import numpy as np
 from PIL import Image, ImageDraw
 
-from sim.scenes import Box
+from sim.scenes.rendered import Box
 
 __all__ = ["map_image", "world_png", "world_gif"]
 

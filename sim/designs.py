@@ -1,0 +1,309 @@
+"""The registry of designs every flow and backend shares.
+
+A *design* is one entry of :data:`DESIGNS` or :data:`SYSTEM_DESIGNS`. A unit design is a unit of
+:data:`sim.units.UNITS` (the command line's registry, which knows how to build each unit, feed it
+and what golden expects) with the elaboration parameters it is exported with; a system design
+(:class:`SystemDesign`: the camera port, the frame pairing, the UART, the bridge and the SoC top)
+is exported, converted and synthesised like the others but verified by its own tests. The
+Verilator harness, the cocotb testbenches, the VHDL conversion and the resource report all
+iterate over this registry: a new unit is one entry in :data:`sim.units.UNITS`, and it is a
+design too.
+
+Ports are found from the component's signature (:func:`ports`): every ``stream.Signature``
+member is a stream port (``In`` = sink the harness drives, ``Out`` = source it drains), every
+other ``In`` port is a run-time parameter set before reset is released, every other ``Out`` port
+a status output read at the end. Amaranth names them in Verilog by joining the member path with
+``__`` (``i__valid``, ``i__ready``, ``i__payload``; ``errors``), clock ``clk`` and reset ``rst``.
+"""
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from amaranth.hdl import Shape
+from amaranth.lib import data, stream, wiring
+
+from sim.streams import Packer
+from sim.units import UNITS
+
+__all__ = ["StreamPort", "PlainPort", "Ports", "ports", "silenced", "Case", "UnitDesign",
+           "DESIGNS", "SystemDesign", "SYSTEM_DESIGNS", "all_designs", "design", "elaborate",
+           "registered"]
+
+
+@dataclass(frozen=True)
+class StreamPort:
+    """A stream port of a component: ``name`` is its Verilog prefix (``i``, ``left``, ``o``)."""
+    name: str
+    direction: str          # "in" (sink: the testbench drives valid/payload) or "out"
+    layout: object          # payload shape: a data.Layout or an int/Shape
+    width: int
+
+    @property
+    def packer(self):
+        return Packer(self.layout) if isinstance(self.layout, data.Layout) else None
+
+    @property
+    def eof_bit(self):
+        """Bit position of the ``eof`` flag in the payload, or None without one."""
+        if isinstance(self.layout, data.StructLayout) and "eof" in dict(self.layout.members):
+            return self.layout["eof"].offset
+        return None
+
+    @property
+    def valid(self):
+        return f"{self.name}__valid"
+
+    @property
+    def ready(self):
+        return f"{self.name}__ready"
+
+    @property
+    def payload(self):
+        return f"{self.name}__payload"
+
+
+@dataclass(frozen=True)
+class PlainPort:
+    name: str               # Verilog name (member path joined with "__")
+    direction: str          # "in" (run-time parameter) or "out" (status)
+    width: int
+
+
+@dataclass(frozen=True)
+class Ports:
+    streams: tuple
+    plain: tuple
+
+    @property
+    def inputs(self):
+        return [p for p in self.streams if p.direction == "in"]
+
+    @property
+    def outputs(self):
+        return [p for p in self.streams if p.direction == "out"]
+
+    @property
+    def params(self):
+        return [p for p in self.plain if p.direction == "in"]
+
+    @property
+    def status(self):
+        return [p for p in self.plain if p.direction == "out"]
+
+    def stream(self, name):
+        for p in self.streams:
+            if p.name == name:
+                return p
+        raise KeyError(f"no stream port {name!r} (ports: {[p.name for p in self.streams]})")
+
+    def describe(self):
+        lines = []
+        for p in self.streams:
+            fields = ""
+            if isinstance(p.layout, data.StructLayout):
+                fields = ", ".join(f"{n}[{f.offset + Shape.cast(f.shape).width - 1}:{f.offset}]"
+                                   for n, f in p.layout)
+            lines.append(f"stream {p.direction:3} {p.name}: {p.valid}, {p.ready}, "
+                         f"{p.payload}[{p.width - 1}:0] = {{{fields}}}")
+        for p in self.plain:
+            kind = "param " if p.direction == "in" else "status"
+            lines.append(f"{kind} {p.direction:3} {p.name}[{p.width - 1}:0]")
+        return lines
+
+
+def silenced(component):
+    """Mark a component built only for its signature, so Amaranth does not warn that it was
+    never elaborated."""
+    component._MustUse__silence = True
+    return component
+
+
+def ports(component):
+    """The stream and plain ports of a component, in signature order."""
+    streams, plain = [], []
+
+    def walk(members, prefix):
+        # the members of a flipped signature already carry their effective flow
+        for name, member in members.items():
+            path = prefix + (name,)
+            direction = "in" if member.flow == wiring.In else "out"
+            if member.is_signature:
+                sig = member.signature
+                unflipped = sig.flip() if isinstance(sig, wiring.FlippedSignature) else sig
+                if isinstance(unflipped, stream.Signature):
+                    layout = unflipped.members["payload"].shape
+                    width = Shape.cast(layout).width
+                    streams.append(StreamPort("__".join(path), direction, layout, width))
+                else:
+                    walk(member.signature.members, path)
+            else:
+                plain.append(PlainPort("__".join(path), direction, Shape.cast(member.shape).width))
+
+    walk(component.signature.members, ())
+    return Ports(tuple(streams), tuple(plain))
+
+
+@dataclass
+class Case:
+    """One verification run: what to drive and how to judge the result. ``check(outputs)``
+    takes ``{output port: [word, ...]}`` and returns ``(mismatches, first difference or None)``."""
+    inputs: dict            # input port -> words
+    runtime: dict           # parameter port -> value (set before reset is released)
+    out_frames: dict        # output port -> eof-marked frames to wait for
+    out_words: dict         # output port -> words to wait for (ports without eof)
+    check: Callable
+
+
+@dataclass
+class UnitDesign:
+    """A unit of :data:`sim.units.UNITS` (the command line's registry) as a design: random RGB
+    frames make a job, the unit's own words, outputs and mismatch count do the rest."""
+    unit: str
+    params: dict = field(default_factory=lambda: dict(max_width=1024, max_height=1024))
+
+    def _unit(self):
+        return UNITS[self.unit]
+
+    def _job(self, left, right, width, height, **params):
+        from golden.pipeline import default_params
+        from sim.units import Job
+        return Job(left=left, right=right, params=default_params(width, height), **params)
+
+    def build(self, **overrides):
+        return self._unit().make(self._job([], [], 64, 64, **{**self.params, **overrides}))
+
+    def ports(self, **overrides):
+        return ports(silenced(self.build(**overrides)))
+
+    def default_runtime(self, component, width=752, height=480):
+        from golden.pipeline import default_params
+        from sim.config import config_values
+        return config_values(component, default_params(width, height))
+
+    def case(self, component, rng, width, height, frames):
+        from sim.config import config_values
+        unit = self._unit()
+        left = random_rgb_frames(rng, width, height, frames)
+        right = random_rgb_frames(rng, width, height, frames) if unit.stereo else []
+        job = self._job(left, right, width, height, **self.params)
+        outputs = unit.outputs(job)
+        p = ports(component)
+
+        def check(got):
+            bad = unit.mismatches(job, got, component)
+            return bad, (f"{bad} mismatches (sim.units.{type(unit).__name__}.mismatches)"
+                         if bad else None)
+
+        return Case(unit.words(job), config_values(component, job.params),
+                    {k: v for k, v in outputs.items() if p.stream(k).eof_bit is not None},
+                    {k: v for k, v in outputs.items() if p.stream(k).eof_bit is None}, check)
+
+
+# --- per-unit stimulus and golden adapters ------------------------------------------------
+
+def random_rgb_frames(rng, width, height, frames):
+    """Random RGB frames, with a few achromatic and saturated pixels mixed in."""
+    out = []
+    for _ in range(frames):
+        rgb = rng.integers(0, 256, size=(height, width, 3), dtype=np.uint8)
+        grey = rng.random((height, width)) < 0.1
+        rgb[grey] = rgb[grey][:, :1]
+        out.append(rgb)
+    return out
+
+
+#: Every design exported, converted, simulated and synthesised: one per unit of
+#: :data:`sim.units.UNITS`. Name -> :class:`UnitDesign`.
+DESIGNS = {name: UnitDesign(name) for name in UNITS}
+
+
+@dataclass
+class SystemDesign:
+    """A design that is not a single stream unit (several clock domains, a CPU bus): exported,
+    converted and synthesised like the others, verified by its own tests (``tests/test_soc.py``,
+    ``python -m sim system``) instead of the per-unit backends. ``make(**params)`` builds it."""
+    make: Callable
+    params: dict = field(default_factory=dict)
+    doc: str = ""
+    #: Clock domains beside ``clk``: clock input -> ``(reset input or None, port names in
+    #: that domain)``; a clock or reset that is not a port of the signature (a domain Amaranth
+    #: adds, e.g. ``cam_clk``) is still an input of the exported module (``sim/flows/timing.py``).
+    clocks: dict = field(default_factory=dict)
+
+    def build(self, **overrides):
+        return self.make(**{**self.params, **overrides})
+
+
+
+
+def _camera(**params):
+    from hdl.camera_port import CameraPort
+    return CameraPort(**params)
+
+
+def _pairing(**params):
+    from hdl.pairing import FramePairing
+    return FramePairing(**params)
+
+
+def _uart(**params):
+    from hdl.uart import UART
+    return UART(**params)
+
+
+def _bridge(**params):
+    from hdl.bridge import UartBridge
+    return UartBridge(**params)
+
+
+def _soc(**params):
+    from hdl.soc import SystemSoC
+    return SystemSoC(**params)
+
+
+#: Name -> :class:`SystemDesign`.
+SYSTEM_DESIGNS = {
+    "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=16),
+                           "one BT.656 camera port: decoder, AsyncFIFO of 4:2:2 words as in the SoC (hdl/camera_port.py)",
+                           clocks={"cam_clk": ("cam_rst", ("i",))}),
+    "pairing": SystemDesign(_pairing, dict(skew=896, max_width=1024, max_height=1024),
+                            "stereo frame pairing (hdl/pairing.py)"),
+    "uart": SystemDesign(_uart, dict(divisor=434), "radio UART on the I/O bus (hdl/uart.py)"),
+    "bridge": SystemDesign(_bridge, dict(divisor=434),
+                           "UART register bridge, the CPU's stand-in on boards (hdl/bridge.py)"),
+    "soc": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240),
+                        "the SoC: two BT.656 camera ports, pairing, pipeline, registers and "
+                        "result FIFO, IIC master, radio UART on the I/O bus (hdl/soc.py)",
+                        clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
+}
+
+
+def all_designs():
+    """Every design to export and synthesise: :data:`DESIGNS` and the system designs."""
+    return {**DESIGNS, **SYSTEM_DESIGNS}
+
+
+def design(name):
+    try:
+        return all_designs()[name]
+    except KeyError:
+        raise ValueError(f"unknown design {name!r}; known: {', '.join(all_designs())}") from None
+
+
+def elaborate(name, **overrides):
+    """The component of design ``name`` with its registered parameters (``overrides`` win)."""
+    return design(name).build(**overrides)
+
+
+_registered = {}    # (name, params) -> component of a registered design
+
+
+def registered(name, params=None):
+    """``(component, params)`` of registered design ``name`` with ``params`` overriding its
+    defaults; the same component for the same parameters (so it is converted once)."""
+    d = design(name)
+    params = {**d.params, **(params or {})}
+    key = (name, repr(sorted(params.items())))
+    if key not in _registered:
+        _registered[key] = silenced(d.build(**params))
+    return _registered[key], params

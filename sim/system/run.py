@@ -1,0 +1,456 @@
+"""System simulation: the whole SoC (hdl/soc.py SystemSoC) under Verilator, fed by two BT.656
+cameras, configured and read by the firmware's host build through the CPU bus.
+
+    python -m sim system [--left L --right R | --scene S] [--frames N] [--fault F]
+                         [--width W --height H] [--timing ntsc|short] [--seed S]
+
+Cameras: each image pair is one NTSC field (default 720 x 240: the image is resized to 720 x 480
+and its even rows taken, as an interlaced camera's field), converted to YCbCr 4:2:2
+(``golden.bt656.rgb_to_ycbcr``) and encoded by the golden BT.656 encoder with NTSC 525/60
+timing (``golden.bt656.ntsc_stream``: 1716 bytes a line, 262/263 lines a field) or, with
+``--timing short`` (tests), the same line blanking and 4 blanking lines a field. The two cameras
+run at independent phases: the right camera's clock is 40 ppm fast, starts a fraction of a
+cycle later and its stream starts :data:`RIGHT_LEAD_BYTES` bytes later.
+
+CPU: ``build/firmware/libfirmware.so`` with its HAL bus hook pointed at the Verilated bus
+(``sim/system/harness/system.cpp``): ``app_init_pipeline`` (ID check, defaults), ``pipeline_configure``
+with the parameters of the frame size, ``app_start_video`` (enable, wait for stream lock), then
+``pipeline_read_results`` (RESULT, then RESULT_EXT, for each record) and ``app_read_health``
+every :data:`POLL_US` microseconds of simulated time. The result FIFO's end-of-frame markers
+split the records into frames; an abort marker (video restart) discards the cut frame's records.
+
+Golden: ``golden.pipeline.pipeline_frames`` on the decoded pairs (Ln, Rn) (chroma replicated,
+``golden.bt656.ycbcr_to_rgb``) with the same parameters; a record compares its x, y, d and, when
+the parameters have ``matcher.subpixel``, its d16 and conf (:func:`record_fields`).
+``bit_exact``: without a fault every frame equals golden; with a fault at field :data:`FAULT_FIELD`, the frames before it and every
+frame from the second pair after it ((L3, R3) onwards for field 1) equal golden, and the fault is
+counted (in mispaired, drops, camera errors or by the restart). Prints one JSON line; exit 0 only
+when bit-exact, 1 otherwise, 2 on a usage error.
+
+Faults (applied to the byte streams; ``reset-mid-frame`` through the bus):
+
+``missing-sof-left`` / ``missing-sof-right``
+    field 1 of that camera has no field start: its blanking lines lose V and it keeps the
+    previous field's F bit, so the decoder sees 480 lines of one field;
+``extra-sof-right``
+    a vertical-blanking line in the middle of the right camera's field 1;
+``long-line-left``
+    line 2 of the left camera's field 1 is 4 pixels (8 bytes) too long;
+``noise-left``
+    600 random bytes (0x00 and 0xFF included) in place of the middle of the left field 1;
+``reset-mid-frame``
+    the firmware restarts the video path (CTRL.restart_video) in the middle of field 1; the
+    check is stricter: no record of the cut frame, and every other frame exact, the first after
+    the restart against golden started afresh (the restart resets the learned ground band).
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes as C
+import fcntl
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from golden.bt656 import encode_bt656, ntsc_stream, rgb_to_ycbcr, timing_code, ycbcr_to_rgb
+from golden.pipeline import default_params, pipeline_frames
+from hdl import regmap
+
+__all__ = ["FAULTS", "build", "camera_streams", "inject", "record_fields", "run_system", "main"]
+
+ROOT = Path(__file__).resolve().parents[2]
+HARNESS = Path(__file__).resolve().parent / "harness" / "system.cpp"
+FAULTS = ("missing-sof-left", "missing-sof-right", "extra-sof-right", "long-line-left",
+          "noise-left", "reset-mid-frame")
+FAULT_FIELD = 1
+CORE_PS = 20_000                    #: 50 MHz
+CAM_PS = 37_037                     #: 27 MHz
+CAM1_PS = 37_035                    #: 27 MHz + 40 ppm
+RIGHT_LEAD_BYTES = 301              #: the right camera starts later by this many bytes
+POLL_US = 200                       #: firmware poll period (simulated time)
+SHORT_BLANK_LINES = 4
+
+
+class SystemError_(Exception):
+    """A user error: one line on stderr, exit 2."""
+
+
+# --- camera streams ------------------------------------------------------------------------
+
+def camera_fields(rgb):
+    """(y, cb, cr) of an RGB field and the RGB the decoder makes of it (chroma replicated)."""
+    y, cb, cr = rgb_to_ycbcr(rgb)
+    out = np.empty(rgb.shape, np.uint8)
+    out[:, 0::2] = ycbcr_to_rgb(y[:, 0::2], cb, cr)
+    out[:, 1::2] = ycbcr_to_rgb(y[:, 1::2], cb, cr)
+    return (y, cb, cr), out
+
+
+def camera_streams(left, right, frames, timing="ntsc"):
+    """BT.656 streams of ``frames`` fields of each image, and the decoded RGB of each."""
+    lf, lrgb = camera_fields(left)
+    rf, rrgb = camera_fields(right)
+    if timing == "ntsc":
+        ldata, rdata = ntsc_stream([lf] * frames), ntsc_stream([rf] * frames)
+    else:
+        hblank = (1716 - 8 - 2 * 720) // 2
+        ldata = encode_bt656([lf] * frames, blank_lines=SHORT_BLANK_LINES, hblank=hblank)
+        rdata = encode_bt656([rf] * frames, blank_lines=SHORT_BLANK_LINES, hblank=hblank)
+    return ldata, rdata, lrgb, rrgb
+
+
+def _codes(data):
+    """Positions of the timing codes (index of the XY byte)."""
+    arr = np.frombuffer(data, np.uint8)
+    idx = np.nonzero((arr[:-3] == 0xFF) & (arr[1:-2] == 0) & (arr[2:-1] == 0))[0] + 3
+    return idx
+
+
+def _field_spans(data):
+    """(first code, [SAV positions of active lines]) of every field, in order."""
+    fields = []
+    prev_v = 0
+    for i in _codes(data):
+        xy = data[i]
+        v, h = xy >> 5 & 1, xy >> 4 & 1
+        if v and not prev_v:
+            fields.append({"codes": [], "sav": []})
+        if fields:
+            fields[-1]["codes"].append(i)
+            if not v and not h:
+                fields[-1]["sav"].append(i)
+        prev_v = v
+    return fields
+
+
+def inject(data, fault, field=FAULT_FIELD, seed=1):
+    """The stream with ``fault`` (one of :data:`FAULTS` but reset-mid-frame, which is not in the
+    stream) applied to field ``field``."""
+    out = bytearray(data)
+    spans = _field_spans(data)
+    f = spans[field]
+    if fault.startswith("missing-sof"):
+        prev_f = data[spans[field - 1]["codes"][-1]] >> 6 & 1
+        for i in f["codes"]:
+            out[i] = timing_code(prev_f, 0, data[i] >> 4 & 1)     # V = 0, the previous F
+        return bytes(out)
+    sav = f["sav"]
+    mid = sav[len(sav) // 2]
+    if fault == "extra-sof-right":
+        # a vertical-blanking line (EAV and SAV with V = 1) before the EAV of the middle line
+        fbit = data[mid] >> 6 & 1
+        eav = max(i for i in f["codes"] if i < mid) - 3
+        blank = (bytes([0xFF, 0, 0, timing_code(fbit, 1, 1), 0x80, 0x10]) +
+                 bytes([0xFF, 0, 0, timing_code(fbit, 1, 0), 0x80, 0x10]))
+        return bytes(out[:eav] + blank + out[eav:])
+    if fault == "long-line-left":
+        line = sav[2] + 1
+        extra = bytes([0x80, 0x60, 0x80, 0x60] * 2)
+        return bytes(out[:line] + extra + out[line:])
+    if fault == "noise-left":
+        rng = np.random.default_rng(seed)
+        out[mid + 40:mid + 640] = rng.integers(0, 256, 600, dtype=np.uint8).tobytes()
+        return bytes(out)
+    raise ValueError(f"fault {fault!r} is not a stream fault")
+
+
+# --- build ---------------------------------------------------------------------------------
+
+_libs = {}      # repr(params) -> (path, seconds): one conversion and build per process
+
+
+def build(params):
+    """``build/system/<hash>/libsystem.so`` for SystemSoC(**params), built once."""
+    key = repr(sorted(params.items()))
+    if key not in _libs:
+        _libs[key] = _build(params)
+        return _libs[key]
+    return _libs[key][0], 0.0
+
+
+def _build(params):
+    from hdl.soc import SystemSoC
+    from sim.designs import silenced
+    from sim.flows.verilog import SIMULATION_PASSES, text_hash, verilog_source
+    from sim.backends.verilator import VERILATOR_FLAGS, verilator_env
+    soc = silenced(SystemSoC(**params))
+    verilog = verilog_source("soc", soc, params, passes=SIMULATION_PASSES)
+    harness = HARNESS.read_text()
+    key = text_hash(verilog, harness, " ".join(VERILATOR_FLAGS))
+    base = ROOT / "build" / "system"
+    out = base / key
+    lib = out / "libsystem.so"
+    base.mkdir(parents=True, exist_ok=True)
+    with open(base / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if lib.exists():
+            return lib, 0.0
+        t0 = time.monotonic()
+        tmp = base / f"{key}.tmp{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir()
+        (tmp / "soc.v").write_text(verilog)
+        (tmp / "system.cpp").write_text(harness)
+        env = verilator_env()
+        cmds = [
+            ["verilator", "--cc", "--exe", *VERILATOR_FLAGS, "--top-module", "soc", "-Mdir",
+             "obj", "-o", "../libsystem.so", "-CFLAGS", "-std=c++17 -fPIC", "-LDFLAGS",
+             "-shared", "soc.v", "system.cpp"],
+            ["make", "-C", "obj", "-f", "Vsoc.mk", "-j", "2", "CFG_CXXFLAGS_PCH_I=-include",
+             "OPT_FAST=-O2", "OPT_SLOW=-O0", "OPT_GLOBAL=-O1"],
+        ]
+        for cmd in cmds:
+            r = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+            (tmp / "build.log").open("a").write("$ " + " ".join(cmd) + "\n" + r.stdout + r.stderr)
+            if r.returncode != 0:
+                tail = "\n".join((r.stdout + r.stderr).splitlines()[-20:])
+                raise RuntimeError(f"Verilator build of the SoC failed ({tmp / 'build.log'}):\n{tail}")
+        shutil.rmtree(tmp / "obj", ignore_errors=True)
+        shutil.rmtree(out, ignore_errors=True)
+        os.replace(tmp, out)
+        return lib, time.monotonic() - t0
+
+
+# --- run -----------------------------------------------------------------------------------
+
+def _config(lib_fw, params):
+    """The firmware's pipeline_config_t for golden ``params`` (field names = register fields)."""
+    from sim.system.cosim import fwlib
+    values = regmap.encode_params(params.frontend.ground, params.frontend.sobel, params.matcher,
+                                  right_threshold=params.right_threshold)
+    cfg = fwlib.PipelineConfigC()
+    names = {n for n, _ in fwlib.PipelineConfigC._fields_}
+    for reg, f in regmap.parameter_fields():
+        if f.name in names:
+            setattr(cfg, f.name, (values[reg.name] >> f.lsb) & ((1 << f.width) - 1))
+    return cfg
+
+
+def record_fields(params):
+    """The record fields the run compares with golden: x, y, d, and the subpixel disparity
+    ``d16`` and confidence ``conf`` (RESULT_EXT) when the golden matcher computes them
+    (``params.matcher.subpixel``)."""
+    return ("x", "y", "d", "d16", "conf") if params.matcher.subpixel else ("x", "y", "d")
+
+
+def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None, seed=1):
+    """Simulate; returns the result dict (the JSON line's fields)."""
+    from sim.system.cosim import fwlib
+    h, w = left.shape[:2]
+    params = params or default_params(w, h)
+    ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
+    restart_at = None
+    if fault in ("missing-sof-left", "long-line-left", "noise-left"):
+        ldata = inject(ldata, fault, seed=seed)
+    elif fault in ("missing-sof-right", "extra-sof-right"):
+        rdata = inject(rdata, fault, seed=seed)
+    elif fault == "reset-mid-frame":
+        sav = _field_spans(ldata)[FAULT_FIELD]["sav"]
+        restart_at = sav[len(sav) // 2] * CAM_PS          # ps
+    elif fault is not None:
+        raise SystemError_(f"unknown fault {fault!r}: choose from {', '.join(FAULTS)}")
+    rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
+
+    soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
+                      cost=params.matcher.cost)
+    libpath, build_s = build(soc_params)
+    sysl = C.CDLL(str(libpath))
+    sysl.sys_init.argtypes = [C.c_char_p, C.c_uint64, C.c_char_p, C.c_uint64] + [C.c_int64] * 5
+    sysl.sys_core_cycles.restype = C.c_uint64
+    sysl.sys_time_ps.restype = C.c_int64
+    sysl.sys_camera_pos.restype = C.c_uint64
+    sysl.sys_camera_pos.argtypes = [C.c_int]
+    fw = fwlib.load()
+    fwlib.check_layout(fw)
+    fw.pipeline_configure.restype = C.c_int32
+    fw.pipeline_configure.argtypes = [C.c_uint32, C.POINTER(fwlib.PipelineConfigC)]
+    fw.app_restart_video.argtypes = [C.POINTER(fwlib.AppC)]
+    fw.app_start_video.restype = C.c_int32
+    fw.app_start_video.argtypes = [C.POINTER(fwlib.AppC), C.c_uint32]
+    fw.app_read_health.restype = C.c_int32
+    fw.app_read_health.argtypes = [C.POINTER(fwlib.AppC), C.POINTER(fwlib.RadioHealthC)]
+
+    golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
+    fields = record_fields(params)
+    want = [[tuple(int(r[k]) for k in fields) for r in g.records] for g in golden]
+
+    t0 = time.monotonic()
+    sysl.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345)
+    rd = fwlib.READ32(C.cast(sysl.sys_read32, C.c_void_p).value)
+    wr = fwlib.WRITE32(C.cast(sysl.sys_write32, C.c_void_p).value)
+    dl = fwlib.DELAY(C.cast(sysl.sys_delay_us, C.c_void_p).value)
+    fw.hal_set_bus_hook(rd, wr, dl, fwlib.UART(), None)
+    app = fwlib.AppC()
+    health = {k: 0 for k in ("frames", "pairs_ok", "mispaired", "drops", "matcher_errors",
+                             "fifo_overflow")}
+    health["cam_errors"] = [0, 0]
+    out_frames, current, aborted = [], [], 0
+    status = {}
+    try:
+        status["init"] = fwlib.STATUS_NAMES.get(st := fw.app_init_pipeline(C.byref(app),
+                                                regmap.REGS_BASEADDR), st)
+        status["configure"] = fw.pipeline_configure(regmap.REGS_BASEADDR,
+                                                    C.byref(_config(fw, params)))
+        status["video"] = fwlib.STATUS_NAMES.get(st := fw.app_start_video(C.byref(app), 2000), st)
+        chunk = (fwlib.PipelineMatchC * 64)()
+        end_ps = max(len(ldata), len(rdata)) * CAM_PS + 2_000_000_000   # + 2 ms
+        hb = fwlib.RadioHealthC()
+
+        def read_health():
+            if fw.app_read_health(C.byref(app), C.byref(hb)) == 0:
+                for k in health:
+                    if k == "cam_errors":
+                        health[k] = [a + b for a, b in zip(health[k], hb.cam_errors)]
+                    else:
+                        health[k] += getattr(hb, k)
+                status["flags"] = hb.flags
+
+        while sysl.sys_time_ps() < end_ps and len(out_frames) < frames:
+            if restart_at is not None and sysl.sys_time_ps() >= restart_at:
+                read_health()                   # the restart clears the video path's counters
+                fw.app_restart_video(C.byref(app))
+                restart_at = None
+            n = fw.pipeline_read_results(regmap.REGS_BASEADDR, chunk, 64)
+            for k in range(n):
+                r = chunk[k]
+                if r.mark & 2:
+                    current, aborted = [], aborted + 1
+                elif r.mark & 1:
+                    out_frames.append(current)
+                    current = []
+                else:
+                    current.append(tuple(getattr(r, k) for k in fields))
+            if n < 64:
+                wait = POLL_US
+                if restart_at is not None:      # wake up for the restart on time
+                    wait = max(1, min(wait, (restart_at - sysl.sys_time_ps()) // 1_000_000))
+                fw.hal_delay_us(int(wait))
+            read_health()
+        cycles = sysl.sys_core_cycles()
+    finally:
+        fw.hal_set_bus_hook(fwlib.READ32(), fwlib.WRITE32(), fwlib.DELAY(), fwlib.UART(), None)
+        sysl.sys_final()
+    seconds = time.monotonic() - t0
+
+    if fault is None:
+        exact = out_frames == want
+        counted = True
+    else:
+        tail = frames - FAULT_FIELD - 2
+        status["restart_pending"] = restart_at is not None
+        exact = (len(out_frames) >= FAULT_FIELD + tail and out_frames[:FAULT_FIELD] == want[:FAULT_FIELD]
+                 and out_frames[len(out_frames) - tail:] == want[FAULT_FIELD + 2:])
+        if fault == "reset-mid-frame":
+            # the cut frame never completes and none of its records shows up (no phantom
+            # records): every other frame is exact, the first after the restart included,
+            # against golden started afresh there (the restart resets the per-frame state,
+            # e.g. the learned ground band)
+            counted = health["frames"] == len(out_frames) == frames - 1
+            n = frames - FAULT_FIELD - 1
+            fresh = pipeline_frames([lrgb] * n, [rrgb] * n, params)
+            fresh = [[tuple(int(r[k]) for k in fields) for r in g.records] for g in fresh]
+            exact = exact and out_frames == want[:FAULT_FIELD] + fresh
+        else:
+            counted = health["mispaired"] + health["drops"] + sum(health["cam_errors"]) > 0
+    return {
+        "bit_exact": bool(exact and counted), "fault": fault, "fault_counted": bool(counted),
+        "width": w, "height": h, "timing": timing, "frames": health["frames"],
+        "frames_out": len(out_frames), "pairs_ok": health["pairs_ok"],
+        "mispaired": health["mispaired"], "drops": health["drops"],
+        "errors": {"camera_left": health["cam_errors"][0], "camera_right": health["cam_errors"][1],
+                   "matcher": health["matcher_errors"]},
+        "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
+        "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
+        "record_fields": list(fields),
+        "firmware": status, "core_cycles": cycles, "sim_seconds": round(seconds, 1),
+        "build_seconds": round(build_s, 1),
+    }
+
+
+# --- command line --------------------------------------------------------------------------
+
+def field_of(image, width=720, height=240):
+    """An RGB image as a ``width`` x ``height`` field: resized to width x 2*height, even rows."""
+    import cv2
+    if image.ndim == 2:
+        image = np.stack([image] * 3, axis=-1)
+    frame = cv2.resize(image, (width, 2 * height), interpolation=cv2.INTER_AREA)
+    return np.ascontiguousarray(frame[0::2])
+
+
+def _load(path):
+    from PIL import Image
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"), dtype=np.uint8)
+    except (OSError, ValueError) as e:
+        raise SystemError_(f"cannot read image {path!r}: {e}") from None
+
+
+def scene_pair(scene, width, height):
+    if scene == "motorcycle":
+        from sim.scenes.data import motorcycle
+        left, right, _ = motorcycle()
+    else:
+        from sim.scenes.rendered import make_scene, scene_names
+        if scene not in scene_names():
+            raise SystemError_(f"unknown scene {scene!r}: choose from motorcycle, "
+                               f"{', '.join(scene_names())}")
+        f = make_scene(scene, width, 2 * height)
+        left, right = f.left, f.right
+    return field_of(left, width, height), field_of(right, width, height)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise SystemError_(message)
+
+
+def main(argv=None):
+    ap = _Parser(prog="python -m sim system",
+                 description=" ".join(__doc__.split("\n\n")[0].split()),
+                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument("--left", help="left image (PNG/JPEG, colour); with --right, instead of --scene")
+    ap.add_argument("--right", help="right image")
+    ap.add_argument("--scene", default="mixed",
+                    help="embedded pair when no images are given: a synthetic scene of "
+                         "sim/scenes/rendered.py or 'motorcycle'")
+    ap.add_argument("--frames", type=int, default=5,
+                    help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
+    ap.add_argument("--fault", choices=FAULTS,
+                    help=f"fault injected in field {FAULT_FIELD} (see the module documentation)")
+    ap.add_argument("--width", type=int, default=720, help="field width, even, 16..720")
+    ap.add_argument("--height", type=int, default=240, help="field height, 8..240")
+    ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc",
+                    help="camera timing: NTSC 525/60, or short vertical blanking (tests)")
+    ap.add_argument("--seed", type=int, default=1, help="seed of the noise-left fault's bytes")
+    try:
+        args = ap.parse_args(argv)
+        if (args.left is None) != (args.right is None):
+            raise SystemError_("give both --left and --right, or neither")
+        if args.width % 2 or not 16 <= args.width <= 720 or not 8 <= args.height <= 240:
+            raise SystemError_("--width must be even, 16..720; --height 8..240")
+        if args.frames < (FAULT_FIELD + 4 if args.fault else 1):
+            raise SystemError_(f"--frames must be at least {FAULT_FIELD + 4 if args.fault else 1}")
+        if args.left:
+            left = field_of(_load(args.left), args.width, args.height)
+            right = field_of(_load(args.right), args.width, args.height)
+        else:
+            left, right = scene_pair(args.scene, args.width, args.height)
+        res = run_system(left, right, frames=args.frames, fault=args.fault, timing=args.timing,
+                         seed=args.seed)
+    except SystemError_ as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(json.dumps(res))
+    return 0 if res["bit_exact"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
