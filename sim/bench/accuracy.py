@@ -1,4 +1,4 @@
-"""``make bench``, matcher v2 section (issue 13): accuracy of matcher versions 1 and 2 on the
+"""``make bench``, matcher v2 section: accuracy of matcher versions 1 and 2 on the
 motorcycle pair, its hard cases and the synthetic scenes, against OpenCV StereoBM and StereoSGBM
 at the same pixels and at equal numbers of points, and the golden model's speed beside
 StereoBM's in the same run.
@@ -383,7 +383,7 @@ def _acc(r):
 
 def markdown(rep):
     """The section as Markdown lines."""
-    L = ["## Matcher v2 (issue 13)", "",
+    L = ["## Matcher v2", "",
          f"Motorcycle pair {rep['size'][0]}x{rep['size'][1]}, ground model off, left edges "
          "with ground truth; v2 `d` subpixel. `golden.pipeline.default_params(..., version=2)` "
          "turns v2 on; the RTL runs `golden.matcher.RTL` (v2 without its consistency step), "

@@ -6,7 +6,7 @@ near-field scene of :data:`sim.scenes.rendered.NEAR_SCENES` with its own window
 (:data:`sim.scenes.rendered.NEAR_WINDOW`), 752x480, default rig (:func:`sim.scenes.camera.scene_camera`),
 golden pipeline, 2 frames (the last one scored, its ground band learned from the first).
 Figures: matches, the median relative error of ``z_m`` against the nearer surface at each edge
-(:func:`sim.scenes.camera.depth_error`, issue 15's "Depth is right": <= 5 % on every scene), against
+(:func:`sim.scenes.camera.depth_error`; must be <= 5 % on every scene), against
 the pixel's own surface, and the matches more than 10 % off (in a near window: far texture
 whose true disparity is below ``d_min`` matched at a wrong one). For a near scene also the
 matches on its near obstacle (label ``LABEL_OBSTACLE0``) and their median depth, and what a
@@ -22,7 +22,7 @@ import numpy as np
 __all__ = ["MAX_MEDIAN_DEPTH_ERROR", "depth_table", "far_veto", "markdown", "bench_section",
            "main"]
 
-#: Issue 15, "Depth is right": median relative error of z_m at the matched points.
+#: The limit on the median relative error of z_m at the matched points, on every scene.
 MAX_MEDIAN_DEPTH_ERROR = 0.05
 SIZE = (752, 480)
 
@@ -74,7 +74,7 @@ def depth_table():
 
 
 def markdown(rows):
-    L = ["## Depth against the synthetic scenes' truth (issue 15)", "",
+    L = ["## Depth against the synthetic scenes' truth", "",
          "Golden pipeline, 752x480, default rig (f = 600 px, B = 0.12 m), 2 frames. Median "
          "relative error of z_m against the nearer surface at each edge (limit "
          f"{100 * MAX_MEDIAN_DEPTH_ERROR:.0f} %) and against the pixel's own surface; matches "

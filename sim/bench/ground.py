@@ -19,7 +19,7 @@ the ground model off, on obstacle pixels) that the mask removes. ``python -m sim
 prints the table and exits 1 (``error:`` line on stderr) when a requirement is missed; in
 ``make bench`` a miss fails the acceptance check.
 
-Requirements (issue 12), checked on v2: colour floors recall >= 0.95 and obstacle-as-ground
+Requirements, checked on v2: colour floors recall >= 0.95 and obstacle-as-ground
 <= 5 % on every scene; motorcycle hue mode recall >= 0.75, obstacle-as-ground <= 10 %, edges
 removed <= 5 %; luma mode recall >= 0.6, obstacle-as-ground <= 10 %.
 """
@@ -158,7 +158,7 @@ def markdown(rep):
 
     lines = ["### Ground masks (v2 = histogram model, the RTL, golden/ground.py GroundModel)", "",
              "Floor recall (floor pixels marked ground), obstacle pixels marked ground, obstacle "
-             "edges removed by the mask; last of three frames. Must hold: issue 12.", "",
+             "edges removed by the mask; last of three frames. Must hold: the limits in the last columns.", "",
              "| scene | mode | floor recall | obstacle as ground | obstacle edges removed | "
              "must hold | verdict |", "|---|---|---|---|---|---|---|"]
     for scene, mode, r, limits in _rows(rep):

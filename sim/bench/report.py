@@ -339,8 +339,8 @@ def write_sweep_plot(path, rows, bm, dense):
 # ------------------------------------------------------------------------------------------
 
 def _newest_source_mtime():
-    paths = list((ROOT / "hdl").glob("*.py")) + [ROOT / "sim" / "export.py",
-                                                  ROOT / "sim" / "synth.py"]
+    paths = list((ROOT / "hdl").glob("*.py")) + [ROOT / "sim" / "flows" / "verilog.py",
+                                                  ROOT / "sim" / "flows" / "synth.py"]
     return max(p.stat().st_mtime for p in paths if p.exists())
 
 
@@ -516,7 +516,7 @@ def sim_speed(bench, quick, left, full_frame):
 # Software speed
 # ------------------------------------------------------------------------------------------
 
-#: Issue 11's software-speed targets for the golden pipeline at 752x480.
+#: Software-speed targets for the golden pipeline at 752x480.
 SOFTWARE_RATIO_TARGET = 4
 SOFTWARE_SECONDS_TARGET = 0.040
 

@@ -1,13 +1,14 @@
-"""Simulation and ``sim run`` speed for ``make bench`` (issue 11, items 3 and 4).
+"""Simulation and ``sim run`` speed for ``make bench``.
 
 :func:`harness_speed` runs the whole pipeline on the motorcycle pair (2 frames, inputs always
 valid, no backpressure) on the Verilator harness with two settings, alternating, in one run:
 
-- ``before``: the harness as it was when issue 11 was filed (Amaranth's plain conversion,
+- ``baseline``: the plain form of the harness (Amaranth's conversion without further passes,
   run-time parameters behind registers, the design evaluated twice per cycle:
-  ``register_inputs=False, passes=()``);
-- ``after``: the default (the Yosys passes of :data:`sim.flows.verilog.SIMULATION_PASSES`, every
-  input behind a register, one evaluation per cycle).
+  ``register_inputs=False, passes=()``), the reference the default is measured against;
+- ``default``: what every run uses (the Yosys passes of
+  :data:`sim.flows.verilog.SIMULATION_PASSES`, every input behind a register, one evaluation
+  per cycle).
 
 Both must move the same words in the same cycles. It reports cycles per second (the harness's
 own clock: simulation only; and the wall time of :func:`sim.backends.verilator.run_verilator`: process
@@ -28,10 +29,10 @@ import time
 
 __all__ = ["harness_speed", "TARGET_CYCLES_PER_SECOND", "TARGET_SIM_RUN_SECONDS"]
 
-#: Issue 11's targets: the whole pipeline under Verilator, and a warm ``sim run`` on the pair.
+#: Targets: the whole pipeline under Verilator, and a warm ``sim run`` on the pair.
 TARGET_CYCLES_PER_SECOND = 1_200_000
 TARGET_SIM_RUN_SECONDS = 2.0
-SETTINGS = {"before": dict(register_inputs=False, passes=()), "after": {}}
+SETTINGS = {"baseline": dict(register_inputs=False, passes=()), "default": {}}
 
 
 def _pipeline_case(left, right, frames):
@@ -101,17 +102,17 @@ def harness_speed(bench, quick, pair, rounds=3):
         sim_args = ["--scene", "motorcycle"]
     name = case[0]
     h, w = left.shape[:2]
-    print(f"      {name} {w}x{h} x{frames}: Verilator harness before/after, {rounds} rounds "
+    print(f"      {name} {w}x{h} x{frames}: Verilator harness baseline/default, {rounds} rounds "
           "alternating (a missing build takes a minute or two)", file=sys.stderr, flush=True)
     runs = _rounds(case, rounds)
-    ref = runs["before"][0][0]
+    ref = runs["baseline"][0][0]
     same = all(r.outputs == ref.outputs and (r.cycles, r.total_cycles) == (ref.cycles, ref.total_cycles)
                and r.status == ref.status for rs in runs.values() for r, _ in rs)
     out = {"design": name, "size": [w, h], "frames": frames, "rounds": rounds,
            "simulated_cycles": ref.total_cycles, "same_words_and_cycles": same,
-           "settings": {"before": "plain conversion, parameters behind registers, two "
+           "settings": {"baseline": "plain conversion, parameters behind registers, two "
                                   "evaluations per cycle",
-                        "after": "Yosys proc; opt, every input behind a register, one "
+                        "default": "Yosys proc; opt, every input behind a register, one "
                                  "evaluation per cycle"},
            "target_cycles_per_second": TARGET_CYCLES_PER_SECOND}
     for key, rs in runs.items():
@@ -120,14 +121,14 @@ def harness_speed(bench, quick, pair, rounds=3):
         out[key] = {"sim_seconds": round(sim_s, 4), "wall_seconds": round(wall, 3),
                     "cycles_per_second_sim": round(ref.total_cycles / sim_s),
                     "cycles_per_second_wall": round(ref.total_cycles / wall)}
-    out["ratio_sim"] = round(out["before"]["sim_seconds"] / out["after"]["sim_seconds"], 2)
-    out["ratio_wall"] = round(out["before"]["wall_seconds"] / out["after"]["wall_seconds"], 2)
+    out["ratio_sim"] = round(out["baseline"]["sim_seconds"] / out["default"]["sim_seconds"], 2)
+    out["ratio_wall"] = round(out["baseline"]["wall_seconds"] / out["default"]["wall_seconds"], 2)
     # the target is the whole pipeline's; --quick measures another design
     out["meets_target"] = None if quick else \
-        out["after"]["cycles_per_second_sim"] >= TARGET_CYCLES_PER_SECOND
-    bench.source("harness_speed.before/after",
+        out["default"]["cycles_per_second_sim"] >= TARGET_CYCLES_PER_SECOND
+    bench.source("harness_speed.baseline/default",
                  f"sim.bench.sim_speed.harness_speed: run_verilator({name}, {frames} x {w}x{h}, idle=0, "
-                 f"stall=0) with the settings before/after alternating, {rounds} rounds, medians "
+                 f"stall=0) with the settings baseline/default alternating, {rounds} rounds, medians "
                  "of the harness's seconds and of run_verilator's wall time")
     print(f"      warm sim run {' '.join(sim_args)}", file=sys.stderr, flush=True)
     out["sim_run"] = _sim_run_seconds(sim_args, repeats=3)
@@ -140,11 +141,11 @@ def harness_speed(bench, quick, pair, rounds=3):
 def markdown(section):
     """Report lines for :func:`harness_speed`'s section."""
     s = section
-    b, a = s["before"], s["after"]
+    b, a = s["baseline"], s["default"]
     lines = [f"Verilator harness, {s['design']} {s['size'][0]}x{s['size'][1]} x{s['frames']} "
              f"frames ({s['simulated_cycles']} cycles), medians of {s['rounds']} alternating "
-             f"rounds: before ({s['settings']['before']}) {b['cycles_per_second_sim']} cycles/s, "
-             f"after ({s['settings']['after']}) {a['cycles_per_second_sim']} cycles/s: "
+             f"rounds: baseline ({s['settings']['baseline']}) {b['cycles_per_second_sim']} cycles/s, "
+             f"default ({s['settings']['default']}) {a['cycles_per_second_sim']} cycles/s: "
              f"**{s['ratio_sim']}x** "
              f"(with process start-up and data transfer: {b['cycles_per_second_wall']} -> "
              f"{a['cycles_per_second_wall']} cycles/s, {s['ratio_wall']}x); same words and cycles: "
