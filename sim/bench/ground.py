@@ -158,7 +158,8 @@ def markdown(rep):
 
     lines = ["### Ground masks (v2 = histogram model, the RTL, golden/ground.py GroundModel)", "",
              "Floor recall (floor pixels marked ground), obstacle pixels marked ground, obstacle "
-             "edges removed by the mask; last of three frames. Must hold: the limits in the last columns.", "",
+             "edges removed by the mask; last of three frames. Must hold: the limits in the "
+             "last columns.", "",
              "| scene | mode | floor recall | obstacle as ground | obstacle edges removed | "
              "must hold | verdict |", "|---|---|---|---|---|---|---|"]
     for scene, mode, r, limits in _rows(rep):

@@ -127,9 +127,9 @@ def harness_speed(bench, quick, pair, rounds=3):
     out["meets_target"] = None if quick else \
         out["default"]["cycles_per_second_sim"] >= TARGET_CYCLES_PER_SECOND
     bench.source("harness_speed.baseline/default",
-                 f"sim.bench.sim_speed.harness_speed: run_verilator({name}, {frames} x {w}x{h}, idle=0, "
-                 f"stall=0) with the settings baseline/default alternating, {rounds} rounds, medians "
-                 "of the harness's seconds and of run_verilator's wall time")
+                 f"sim.bench.sim_speed.harness_speed: run_verilator({name}, {frames} x {w}x{h}, "
+                 f"idle=0, stall=0) with the settings baseline/default alternating, {rounds} "
+                 "rounds, medians of the harness's seconds and of run_verilator's wall time")
     print(f"      warm sim run {' '.join(sim_args)}", file=sys.stderr, flush=True)
     out["sim_run"] = _sim_run_seconds(sim_args, repeats=3)
     out["sim_run"]["target_seconds"] = TARGET_SIM_RUN_SECONDS
