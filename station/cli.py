@@ -50,11 +50,10 @@ def _pair(text, name):
 
 def make_station(goal, extent, width=160, height=120):
     """A base station with the closed loop's camera and grid defaults."""
+    from golden.camera import reference_camera
     from station.base import BaseStation
-    from station.camera import CameraModel
     from station.grid import OccupancyGrid
-    cam = CameraModel(width=width, height=height, focal_px=600.0 * width / 752)
-    return BaseStation(OccupancyGrid(*extent), cam, goal)
+    return BaseStation(OccupancyGrid(*extent), reference_camera(width, height, valid=None), goal)
 
 
 class _Listener:

@@ -14,6 +14,7 @@ from sim.scenes.camera import (MOTORCYCLE, contour_depth, depth_error, load_came
                                match_table, scene_camera)
 from sim.errors import CliError
 from sim.scenes.rendered import Rig, backproject, make_scene, scene_names
+from station.camera import observe_bands
 
 #: Issue 15, "Depth is right": median relative error of z_m at the matched points.
 MAX_MEDIAN_DEPTH_ERROR = 0.05
@@ -184,6 +185,40 @@ def test_the_station_default_is_the_modules_field():
     small = FIELD.scaled(160, 120)
     assert (small.fx, small.cx) == (600.0 * 160 / 752, 79.5)
     assert small.fx == reference_camera(160, 120).fx
+
+
+D = np.array([1.0, 4.0, 8.0, 20.0, 63.0])
+BANDS = (0, 0, 9, 0, 0, 7, 5, 0) + (0,) * 24
+
+
+def test_station_metres_are_those_of_the_former_station_model():
+    # numbers of the station's former default camera (160x120, f = 600 * 160 / 752)
+    for cam in (FIELD.scaled(160, 120), reference_camera(160, 120), Rig.scaled(160, 120).camera()):
+        assert cam.depth(D).tolist() == [15.319148936170214, 3.8297872340425534,
+                                         1.9148936170212767, 0.7659574468085106,
+                                         0.24316109422492402]
+        assert cam.column_bearing(np.array([-0.5, 0, 40, 79.5, 159.5])).tolist() == \
+            [0.5499035359620813, 0.5471140320970438, 0.293890946731535, 0.0, -0.5499035359620813]
+        fwd, left = cam.column_to_point(np.array([10.0, 80.0, 150.0]), np.array([1.0, 2.5, 0.7]))
+        assert fwd.tolist() == [1.0223405948650293, 2.555851487162573, 0.7156384164055204]
+        assert left.tolist() == [0.5444166666666667, -0.009791666666666666, -0.38657499999999995]
+    for cam in (FIELD, reference_camera(160, 120)):
+        obs = observe_bands(cam, BANDS, 160)
+        assert obs.forward_m.tolist()[:8] == [math.inf, math.inf, 1.7401542040255817,
+                                              2.2373411194614623, 2.2373411194614623,
+                                              2.2373411194614623, 3.132277567246047, math.inf]
+        assert obs.bearing_hi.tolist()[:3] == [0.5499035359620813, 0.5215800128195813,
+                                               0.4923037253365721]
+        assert obs.bearing_lo.tolist()[:3] == [0.5215800128195813, 0.4923037253365721,
+                                               0.46207850290354713]
+        assert obs.origin == (0.0, 0.06)
+    # a 720-wide packet (the module's field): the same metres as the former model rescaled
+    obs = observe_bands(FIELD, BANDS, 720)
+    assert obs.forward_m[2:7].tolist() == [7.830693918115118, 10.068035037576578,
+                                           10.068035037576578, 10.068035037576578,
+                                           14.09524905260721]
+    assert obs.bearing_lo[:3].tolist() == [0.5222197771322087, 0.49230372533657213,
+                                           0.46276041910544163]
 
 
 def test_simulator_metres_are_those_of_the_former_camera_model():
