@@ -8,7 +8,8 @@ The rig is :class:`golden.camera.Camera` (keys ``fx``, ``cx``, ``baseline_m``, `
 "calibration" the module needs), mounted ``height_m`` above the floor and tilted down by
 ``tilt_deg``. Disparities are measured in the left image, so ranges are from the left camera,
 which sits at ``Camera.origin`` in the robot frame (half a baseline left of the rig's centre).
-A packet of another width than the camera's rescales it (``Camera.scaled``).
+The station's default is :data:`golden.camera.FIELD`, the module's 720 x 240 field; a packet
+of another width rescales it (``Camera.scaled``).
 
 For a band with disparity d > 0:
 
@@ -45,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from golden.camera import Camera
+from golden.camera import FIELD, Camera
 
 __all__ = ["BandObservation", "observe_bands", "fill_band_gaps"]
 

@@ -236,3 +236,23 @@ def test_simulator_metres_are_those_of_the_former_camera_model():
     assert MOTORCYCLE.lateral(x, z).tolist() == [-1.7073897698830574, 0.16503827600560683,
                                                  0.9591242335199618]
     assert cam.disparity(cam.depth(d)) == pytest.approx(d)
+
+
+def test_station_camera_option(tmp_path, capsys):
+    from station.cli import camera_option, main, make_station
+    assert make_station((1.0, 0.0), (-1.0, -1.0, 2.0, 1.0)).cam == FIELD
+    cam = camera_option([_write(tmp_path, GOOD)])
+    assert cam == Camera.from_dict(GOOD)
+    # the former W H form: the reference rig at that size, with a deprecation warning
+    old = camera_option(["160", "120"])
+    assert "deprecated" in capsys.readouterr().err
+    assert (old.width, old.height, old.fx, old.cx, old.tilt_deg, old.origin) == \
+        (160, 120, 600.0 * 160 / 752, 79.5, 12.0, (0.0, 0.06))
+    for bad, message in ((["a", "b"], "two whole numbers"), (["0", "5"], "positive size"),
+                         (["1", "2", "3"], "rig file")):
+        with pytest.raises(ValueError, match=message):
+            camera_option(bad)
+    bad = _write(tmp_path, {**GOOD, "pitch_deg": 12})
+    assert main(["listen", "--port", str(tmp_path / "no-such-port"), "--camera", bad]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: camera file") and "tilt_deg" in err[0]
