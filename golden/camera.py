@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -314,7 +314,8 @@ class Camera:
         near, far = self.depth_range(d_min, d_max)
         return {"source": self.source, "fx": self.fx, "fy": self.fy, "cx": self.cx,
                 "cy": self.cy, "baseline_m": self.baseline_m, "height_m": self.height_m,
-                "tilt_deg": self.tilt_deg, "valid": None if self.valid is None else list(self.valid),
+                "tilt_deg": self.tilt_deg,
+                "valid": None if self.valid is None else list(self.valid),
                 "doffs_px": self.doffs_px, "depth_range_m": [round(near, 3), round(far, 3)],
                 "disparity_range_px": [d_min, d_max], "far_disparity_px": self.far_disparity(d_min),
                 "depth_step_at_far_m": round(far * far / (self.fx * self.baseline_m), 3)}

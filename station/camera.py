@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from golden.camera import FIELD, Camera
+from golden.camera import Camera
 
 __all__ = ["BandObservation", "observe_bands", "fill_band_gaps"]
 
