@@ -34,8 +34,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from golden.camera import Camera
 from golden.matcher import MatcherParams
-from station.camera import CameraModel, observe_bands
+from station.camera import observe_bands
 from station.grid import OccupancyGrid, disc as _disc
 from station.planner import PlanResult, SacoParams, astar, sacodm
 from station.radio import FrameDecoder, RadioPacket
@@ -72,7 +73,7 @@ class PlanEvent:
 @dataclass
 class BaseStation:
     grid: OccupancyGrid
-    cam: CameraModel
+    cam: Camera                                # the rig (golden.camera.FIELD: the module's)
     goal: tuple                                # (x, y) metres
     planner: str = "sacodm"                    # or "astar"
     saco: SacoParams = SacoParams()

@@ -2,32 +2,35 @@
 
 Camera model
 ------------
-Two parallel pinhole cameras with rectified rows (the only "calibration" the module needs),
-focal length ``focal_px`` (pixels), baseline ``baseline_m``, principal point ``(cx, cy)``,
-mounted ``cam_height_m`` above the floor and pitched down by ``pitch_deg``; disparities are
-measured in the left image, so ranges are from the left camera, which sits ``cam_forward_m``
-ahead of and ``cam_left_m`` to the left of the robot's reference point.
+The rig is :class:`golden.camera.Camera` (keys ``fx``, ``cx``, ``baseline_m``, ``height_m``,
+``tilt_deg``, ``mount_forward_m``, ``mount_left_m``, ...; ``--camera FILE.json`` of
+``python -m station listen``): two parallel pinhole cameras with rectified rows (the only
+"calibration" the module needs), mounted ``height_m`` above the floor and tilted down by
+``tilt_deg``. Disparities are measured in the left image, so ranges are from the left camera,
+which sits at ``Camera.origin`` in the robot frame (half a baseline left of the rig's centre).
+The station's default is :data:`golden.camera.FIELD`, the module's 720 x 240 field; a packet
+of another width rescales it (``Camera.scaled``).
 
 For a band with disparity d > 0:
 
-    Z = focal_px * baseline_m / d                          depth along the optical axis
+    Z = fx * baseline_m / d                                depth along the optical axis
 
 The radio packet carries only the band's disparity, not the image row of the pixels, so the
 station assumes the nearest point sits on the optical axis' row (at camera height). Undoing
-the pitch, a point at camera height with depth Z and image column u is at
+the tilt, a point at camera height with depth Z and image column u is at
 
-    forward = Z / cos(pitch),   left = Z * (cx - u) / focal_px
+    forward = Z / cos(tilt),   left = Z * (cx - u) / fx
 
 from the left camera, i.e. at horizontal range sqrt(forward^2 + left^2) and bearing
 atan2(left, forward). For a point at height h above the camera the true forward distance is
-(Z + h sin(pitch)) / cos(pitch): with the default 12 deg pitch the assumption errs by
+(Z + h sin(tilt)) / cos(tilt): with the default 12 deg tilt the assumption errs by
 0.21 * h, nearer than true for points above the camera (safe) and up to 7 cm farther for
 points on the floor 0.35 m below it. The inflation margin in ``station.grid`` covers that.
 
 Without calibration
 -------------------
 Only the rows need rectifying. The focal length then comes from the lens' nominal horizontal
-field of view, ``focal_px = (width / 2) / tan(hfov / 2)`` (``CameraModel.nominal``), and the
+field of view, ``fx = (width / 2) / tan(hfov / 2)`` (``Camera.nominal``), and the
 baseline from the mechanical drawing. A relative focal-length (or baseline) error e scales
 every range by (1 + e); a lens sold as 60 deg that is really 62 deg makes ranges ~3.5 % long.
 Disparity quantisation adds dZ = Z^2 / (f B) * dd: the range error grows with 1/d^2
@@ -39,79 +42,13 @@ pixel of disparity is 6 cm at 1 m, 26 cm at 2 m and 59 cm at 3 m, which is why
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CameraModel", "BandObservation", "observe_bands", "fill_band_gaps"]
+from golden.camera import Camera
 
-
-@dataclass(frozen=True)
-class CameraModel:
-    width: int = 160
-    height: int = 120
-    focal_px: float = 600.0 * 160 / 752
-    baseline_m: float = 0.12
-    cx: float | None = None
-    cy: float | None = None
-    cam_height_m: float = 0.35
-    pitch_deg: float = 12.0
-    cam_forward_m: float = 0.0
-    cam_left_m: float = 0.06
-
-    @property
-    def cx_(self) -> float:
-        return (self.width - 1) / 2.0 if self.cx is None else self.cx
-
-    @property
-    def fb(self) -> float:
-        """focal * baseline in pixel metres: Z = fb / d."""
-        return self.focal_px * self.baseline_m
-
-    @classmethod
-    def nominal(cls, width, height, hfov_deg, baseline_m, **kw):
-        """Uncalibrated model: focal length from the lens' nominal horizontal field of view."""
-        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-        return cls(width=width, height=height, focal_px=f, baseline_m=baseline_m, **kw)
-
-    @classmethod
-    def from_rig(cls, rig):
-        """The camera model of a ``sim.scenes.rendered.Rig`` (left camera at robot-frame (0, +B/2))."""
-        return cls(width=rig.width, height=rig.height, focal_px=float(rig.focal_px),
-                   baseline_m=float(rig.baseline_m), cx=rig.cx, cy=rig.cy,
-                   cam_height_m=float(rig.cam_height_m), pitch_deg=float(rig.pitch_deg),
-                   cam_forward_m=0.0, cam_left_m=float(rig.baseline_m) / 2.0)
-
-    def scaled(self, width, height):
-        """The same camera resampled to another resolution (focal scales with width)."""
-        s = width / self.width
-        return replace(self, width=width, height=height, focal_px=self.focal_px * s,
-                       cx=None if self.cx is None else self.cx * s,
-                       cy=None if self.cy is None else self.cy * s)
-
-    def depth_m(self, d):
-        """Depth along the optical axis for disparity d (pixels); inf where d <= 0."""
-        d = np.asarray(d, dtype=float)
-        with np.errstate(divide="ignore"):
-            return np.where(d > 0, self.fb / np.maximum(d, 1e-12), np.inf)
-
-    def depth_error_m(self, d, dd=1.0):
-        """Range change for a disparity error dd at disparity d: Z^2/(fB) dd = fB dd / d^2."""
-        d = np.asarray(d, dtype=float)
-        return self.fb * dd / np.maximum(d, 1e-12) ** 2
-
-    def column_to_point(self, u, depth):
-        """(forward, left) in metres, relative to the left camera, of a point at camera height
-        seen in column u with optical-axis depth ``depth``."""
-        cp = math.cos(math.radians(self.pitch_deg))
-        forward = np.asarray(depth, float) / cp
-        left = np.asarray(depth, float) * (self.cx_ - np.asarray(u, float)) / self.focal_px
-        return forward, left
-
-    def column_bearing(self, u):
-        """Horizontal bearing (rad, counter-clockwise, 0 = straight ahead) of column u."""
-        cp = math.cos(math.radians(self.pitch_deg))
-        return np.arctan2((self.cx_ - np.asarray(u, float)) * cp, self.focal_px)
+__all__ = ["BandObservation", "observe_bands", "fill_band_gaps"]
 
 
 @dataclass(frozen=True)
@@ -157,23 +94,28 @@ def fill_band_gaps(bands, max_gap: int = 3, max_gap_same: int = 8, same_ratio: f
     return tuple(b)
 
 
-def observe_bands(cam: CameraModel, bands, width=None, max_gap: int = 3) -> BandObservation:
+def observe_bands(cam: Camera, bands, width=None, max_gap: int = 3) -> BandObservation:
     """Turn a packet's band disparities into bearings and ranges (robot frame).
 
     Band i covers columns [i*W//n, (i+1)*W//n) of an image ``width`` wide (the packet's
-    width; the camera model is rescaled to it if it differs)."""
-    width = cam.width if width is None else int(width)
-    if width != cam.width:
-        cam = cam.scaled(width, round(cam.height * width / cam.width))
+    width; the camera is rescaled to it if it states another width). ValueError when neither
+    the camera nor the call gives a width."""
+    if width is None:
+        if cam.width is None:
+            raise ValueError("observe_bands needs the image width: the camera states none")
+        width = cam.width
+    width = int(width)
+    if cam.width is not None and width != cam.width:
+        cam = cam.scaled(width, max(1, round(cam.height * width / cam.width)))
     bands = fill_band_gaps(bands, max_gap) if max_gap else tuple(bands)
     n = len(bands)
     i = np.arange(n)
     u_lo = (i * width) // n
     u_hi = ((i + 1) * width) // n - 1
     d = np.asarray(bands, dtype=float)
-    depth = cam.depth_m(d)
-    fwd = np.where(np.isfinite(depth), depth / math.cos(math.radians(cam.pitch_deg)), np.inf)
+    depth = cam.depth(d)
+    fwd = np.where(np.isfinite(depth), depth / math.cos(math.radians(cam.tilt_deg)), np.inf)
     # the left column has the larger bearing; half a pixel widens each band to its border
     b_hi = cam.column_bearing(u_lo - 0.5)
     b_lo = cam.column_bearing(u_hi + 0.5)
-    return BandObservation(b_lo, b_hi, fwd, d, (cam.cam_forward_m, cam.cam_left_m))
+    return BandObservation(b_lo, b_hi, fwd, d, cam.origin)

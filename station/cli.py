@@ -10,7 +10,10 @@ without a byte, ``--duration``, or Ctrl-C), writes to ``--out``: ``map.npy`` (lo
 ``map.png``, ``path.json`` (the current path in metres) and ``link.json`` (link statistics,
 accepted sequence numbers, replans); they are also rewritten every ``--write-every`` seconds
 while it runs. The station's clock is the packets' pose timestamp
-(``pose_ms``), so a recording replays to the same map.
+(``pose_ms``), so a recording replays to the same map. ``--camera FILE.json`` gives the rig
+(``golden.camera.Camera``, the same file ``python -m sim run --camera`` reads); without it the
+station assumes the module's 720 x 240 NTSC field (``golden.camera.FIELD``) and rescales it
+to each packet's width.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["main", "decode_bytes", "make_station"]
+__all__ = ["main", "decode_bytes", "make_station", "camera_option"]
 
 
 def decode_bytes(data: bytes) -> dict:
@@ -48,13 +51,35 @@ def _pair(text, name):
     return vals
 
 
-def make_station(goal, extent, width=160, height=120):
-    """A base station with the closed loop's camera and grid defaults."""
+def make_station(goal, extent, camera=None):
+    """A base station with the grid's defaults and ``camera`` (a ``golden.camera.Camera``;
+    None: ``golden.camera.FIELD``, the module's 720 x 240 field)."""
+    from golden.camera import FIELD
     from station.base import BaseStation
-    from station.camera import CameraModel
     from station.grid import OccupancyGrid
-    cam = CameraModel(width=width, height=height, focal_px=600.0 * width / 752)
-    return BaseStation(OccupancyGrid(*extent), cam, goal)
+    return BaseStation(OccupancyGrid(*extent), FIELD if camera is None else camera, goal)
+
+
+def camera_option(values):
+    """The camera ``--camera`` names: a rig file (``FILE.json``, keys of
+    ``golden.camera.KEYS``) or, deprecated, a size ``W H`` (the reference rig at W x H with
+    square pixels, warned about on stderr). ValueError on anything else."""
+    from golden.camera import Camera, reference_camera
+    if len(values) == 1:
+        return Camera.from_json(values[0])
+    if len(values) == 2:
+        try:
+            w, h = (int(v) for v in values)
+        except ValueError:
+            raise ValueError(f"--camera W H needs two whole numbers, not {' '.join(values)}") \
+                from None
+        if w <= 0 or h <= 0:
+            raise ValueError(f"--camera W H needs a positive size, not {w} {h}")
+        print(f"warning: --camera W H is deprecated: give a rig file (--camera FILE.json, "
+              f"keys fx, fy, cx, cy, baseline_m, ... width, height); using the reference rig "
+              f"at {w}x{h}", file=sys.stderr)
+        return reference_camera(w, h, valid=None)
+    raise ValueError("--camera takes a rig file FILE.json (or, deprecated, W H)")
 
 
 class _Listener:
@@ -90,11 +115,12 @@ def _listen(args) -> int:
     extent = tuple(float(v) for v in args.extent.split(","))
     if len(extent) != 4:
         raise ValueError("--extent must be XMIN,YMIN,XMAX,YMAX")
+    camera = camera_option(args.camera) if args.camera else None
     try:
         port = serial.Serial(args.port, args.baud, timeout=0.05)
     except (serial.SerialException, ValueError, OSError) as e:
         raise ValueError(f"cannot open {args.port}: {e}") from None
-    lis = _Listener(make_station(goal, extent, *args.camera))
+    lis = _Listener(make_station(goal, extent, camera))
     print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
     t0 = last = last_write = time.monotonic()
     got_any = False
@@ -138,7 +164,12 @@ def main(argv=None) -> int:
     li.add_argument("--out", default="build/station")
     li.add_argument("--goal", default="6,0", help="goal X,Y in metres (default 6,0)")
     li.add_argument("--extent", default="-1,-2.5,7.5,2.5", help="map XMIN,YMIN,XMAX,YMAX")
-    li.add_argument("--camera", type=int, nargs=2, default=(160, 120), metavar=("W", "H"))
+    li.add_argument("--camera", nargs="+", metavar="FILE.json",
+                    help="rig file (keys fx, fy, cx, cy, baseline_m, height_m, tilt_deg, "
+                         "valid, doffs_px, width, height, mount_forward_m, mount_left_m; see "
+                         "golden/camera.py); default: the module's 720x240 NTSC field. The "
+                         "older form W H (the reference rig at that size) still works but is "
+                         "deprecated")
     li.add_argument("--duration", type=float, default=0.0, help="stop after S seconds")
     li.add_argument("--idle-exit", type=float, default=0.0,
                     help="stop S seconds after the last byte")

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from station.base import BaseStation, pose_from_packet, pose_to_wire
-from station.camera import CameraModel
+from golden.camera import FIELD
 from sim.closedloop.loop import (WORLDS, Channel, LoopConfig, clearance, collides,
                                 run_world)
 from station.grid import OccupancyGrid
 from station.planner import SacoParams
 from station.radio import RadioPacket, encode_api_frame, encode_payload
 
-CAM = CameraModel()
+CAM = FIELD          # the station's default; the packets here are 160 wide
 
 
 def _station(goal=(3.0, 0.0)):

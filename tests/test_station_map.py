@@ -6,19 +6,20 @@ import numpy as np
 import pytest
 
 from sim.scenes.rendered import Box, Rig, World, backproject, render
-from station.camera import CameraModel, fill_band_gaps, observe_bands
+from golden.camera import Camera
+from station.camera import fill_band_gaps, observe_bands
 from sim.closedloop.loop import truth_matches
 from station.grid import GridParams, OccupancyGrid
 from station.radio import summarise_matches
 
 RIG = Rig.scaled(160, 120)
-CAM = CameraModel.from_rig(RIG)
+CAM = RIG.camera()
 
 
 def test_depth_is_fb_over_d_and_zero_means_none():
     d = np.array([0, 1, 5, 20])
-    z = CAM.depth_m(d)
-    assert math.isinf(z[0])
+    z = CAM.depth(d)
+    assert math.isnan(z[0])
     assert z[1:] == pytest.approx(RIG.focal_px * RIG.baseline_m / d[1:])
 
 
@@ -30,20 +31,20 @@ def test_column_to_point_matches_the_renderer_at_camera_height(u, z):
     fwd, left = CAM.column_to_point(u, z)
     assert h == pytest.approx(RIG.cam_height_m)
     assert fwd == pytest.approx(x)
-    assert left + CAM.cam_left_m == pytest.approx(y)
+    assert left + CAM.origin[1] == pytest.approx(y)
     assert CAM.column_bearing(u) == pytest.approx(math.atan2(left, fwd))
 
 
 def test_uncalibrated_model_and_error_growth():
-    nominal = CameraModel.nominal(160, 120, hfov_deg=64.0, baseline_m=0.12)
-    assert nominal.focal_px == pytest.approx(80.0 / math.tan(math.radians(32.0)))
+    nominal = Camera.nominal(160, 120, hfov_deg=64.0, baseline_m=0.12)
+    assert nominal.fx == pytest.approx(80.0 / math.tan(math.radians(32.0)))
     # the range error of one pixel of disparity grows with 1/d^2
-    e = CAM.depth_error_m(np.array([2.0, 4.0, 8.0]))
+    e = CAM.depth_step(np.array([2.0, 4.0, 8.0]))
     assert e[0] / e[1] == pytest.approx(4.0) and e[1] / e[2] == pytest.approx(4.0)
     # a relative focal-length error scales every range by the same factor
-    wrong = CameraModel.nominal(160, 120, hfov_deg=62.0, baseline_m=0.12)
-    ratio = CAM.depth_m(10.0) / wrong.depth_m(10.0)
-    assert ratio == pytest.approx(CAM.focal_px / wrong.focal_px)
+    wrong = Camera.nominal(160, 120, hfov_deg=62.0, baseline_m=0.12)
+    ratio = CAM.depth(10.0) / wrong.depth(10.0)
+    assert ratio == pytest.approx(CAM.fx / wrong.fx)
 
 
 def test_band_gap_filling():
@@ -75,12 +76,12 @@ def _obs(forward):
     """32 bands, all with the same forward distance (inf = nothing)."""
     return observe_bands(CAM, tuple([0] * 32) if math.isinf(forward) else
                          tuple([max(1, round(CAM.fb / (forward * math.cos(
-                             math.radians(CAM.pitch_deg)))))] * 32), 160, 0)
+                             math.radians(CAM.tilt_deg)))))] * 32), 160, 0)
 
 
 def _hit_cell(g, forward):
     """Cell just behind the face that _obs(forward) reports, straight ahead of the camera."""
-    return g.world_to_cell(_obs(forward).forward_m[16] + 0.02, CAM.cam_left_m)
+    return g.world_to_cell(_obs(forward).forward_m[16] + 0.02, CAM.origin[1])
 
 
 def test_grid_marks_hit_and_free_space():
@@ -89,7 +90,7 @@ def test_grid_marks_hit_and_free_space():
     for _ in range(3):
         g.update((0.0, 0.0, 0.0), obs, dt=0.1)
     occ = g.occupied()
-    d = CAM.fb / obs.disparity[16] / math.cos(math.radians(CAM.pitch_deg))
+    d = CAM.fb / obs.disparity[16] / math.cos(math.radians(CAM.tilt_deg))
     r, c = g.world_to_cell(d + 0.02, 0.06)
     assert occ[r, c]
     r, c = g.world_to_cell(1.0, 0.0)

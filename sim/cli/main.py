@@ -180,7 +180,7 @@ def default_pair(scene, crop_spec=None):
                        f"{', '.join(scene_names() + list(NEAR_SCENES))}")
     if box:
         left, right = _crop(left, box), _crop(right, box)
-        camera = camera.cropped(box[2], box[3])
+        camera = camera.cropped(box[2], box[3], box[0], box[1])
         truth = _crop(truth, box)
     return left, right, ground, camera, truth, obstacles
 
@@ -379,9 +379,12 @@ def cmd_run(args, flags):
         camera = load_camera(args.camera)
         if args.crop:
             box = _crop_box(args.crop)
-            camera = camera.cropped(box[2], box[3])
+            camera = camera.cropped(box[2], box[3], box[0], box[1])
     h, w = left.shape[:2]
-    camera.check_image(w, h)
+    try:
+        camera.check_image(w, h)
+    except ValueError as e:
+        raise CliError(str(e)) from None
     check_size(w, h, args)
     params = build_params(args, flags, w, h, grey, ground_default)
     unit = UNITS["pipeline"]
@@ -544,8 +547,9 @@ def _add_pair_options(p, *, run):
         p.add_argument("--out", default="build/sim", help="output folder (default %(default)s)")
         p.add_argument("--camera", metavar="FILE.json",
                        help="camera model: fx, fy, cx, cy, baseline_m, height_m, tilt_deg, valid "
-                            "[x, y, w, h], doffs_px (see sim/scenes/camera.py; default: the scenes' rig, "
-                            "or the motorcycle pair's calibration)")
+                            "[x, y, w, h], doffs_px, width, height, mount_forward_m, mount_left_m "
+                            "(see golden/camera.py; default: the scenes' rig, or the motorcycle "
+                            "pair's calibration)")
     else:
         p.add_argument("--left", required=True, help="left image (PNG or any format Pillow "
                                                      "reads, 8 bits per sample)")

@@ -30,7 +30,6 @@ import numpy as np
 
 from sim.scenes.rendered import Box, Cylinder, Rig, World, render
 from station.base import BaseStation, pose_to_wire
-from station.camera import CameraModel
 from station.grid import GridParams, OccupancyGrid
 from station.planner import SacoParams, astar, sacodm
 from station.radio import (RadioPacket, encode_api_frame, encode_payload,
@@ -329,7 +328,7 @@ def run_world(spec: WorldSpec, perceive=None, cfg: LoopConfig = LoopConfig(),
     use_truth = isinstance(perceive, str) and perceive == "truth"
     t_wall = time.time()
     rig = Rig.scaled(cfg.width, cfg.height)
-    cam = CameraModel.from_rig(rig)
+    cam = rig.camera()        # the station gets the rendered camera, not its 720x240 default
     grid = OccupancyGrid(*spec.extent, params=cfg.grid)
     base = BaseStation(grid, cam, spec.goal, planner=cfg.planner, saco=cfg.saco,
                        inflate_m=cfg.inflate_m, check_reference=True)

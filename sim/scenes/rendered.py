@@ -45,6 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
+from golden.camera import REFERENCE_FOCAL_PX, REFERENCE_WIDTH
+
 __all__ = [
     "Rig", "Box", "Cylinder", "Pole", "World", "StereoFrame",
     "render", "make_scene", "scene_names", "scene_settings", "save_frame", "SCENES", "NEAR_SCENES",
@@ -60,8 +62,6 @@ LABEL_BACK_WALL = 2
 LABEL_SIDE_WALL = 3
 LABEL_OBSTACLE0 = 10          # obstacle i of World.obstacles has label LABEL_OBSTACLE0 + i
 
-REFERENCE_WIDTH = 752
-REFERENCE_FOCAL_PX = 600.0
 
 
 def _check_positive(name: str, value, integer: bool = False) -> None:
@@ -125,6 +125,16 @@ class Rig:
 
     def disparity_at(self, depth_m: float) -> float:
         return self.fb / depth_m
+
+    def camera(self, **kw):
+        """This rig as a :class:`golden.camera.Camera` (whole image valid, rig centre at the
+        robot's reference point); ``kw`` overrides fields."""
+        from golden.camera import Camera
+        values = dict(fx=float(self.focal_px), fy=float(self.focal_px), cx=self.cx, cy=self.cy,
+                      baseline_m=float(self.baseline_m), height_m=float(self.cam_height_m),
+                      tilt_deg=float(self.pitch_deg), valid=(0, 0, int(self.width), int(self.height)),
+                      width=int(self.width), height=int(self.height), source="sim.scenes.rendered.Rig")
+        return Camera(**{**values, **kw})
 
     @classmethod
     def scaled(cls, width: int, height: int, **kw) -> "Rig":
