@@ -1,4 +1,4 @@
-"""Command line: ``python -m sim compare|run ...`` (see shared/DESIGN.md section 5).
+"""Command line: ``python -m sim compare|run ...`` (docs/cli.md).
 
 Exit status (:mod:`sim.errors`): 0 bit-exact, 1 not bit-exact (records, pixels, free space or
 statistics differ, or the RTL hung), 2 user error, 3 internal failure (a simulator missing or
