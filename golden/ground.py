@@ -321,47 +321,44 @@ class GroundModel:
 
     * The fallback luma set spans the floor's whole range of shading, not only its densest
       part: its threshold is the luma threshold >> ``fallback_shift`` (default 4: 3/1024 of the
-      support within +-1 JND, about 33 of the 11,280 luma samples of a 752 x 60 region; a dark
-      speck under 0.3 % of the region is still not learned). The saturation test has removed
-      the coloured obstacles already. A grey floor is lit unevenly: on the motorcycle pair the
-      reference region's luma is 150-195 and the floor's 140-195.
+      support within +-1 JND, a few dozen of the luma samples of a 752 x 60 region; a small dark
+      speck is still not learned). The saturation test has removed the coloured obstacles
+      already. A grey floor is lit unevenly: on the motorcycle pair the floor reaches darker
+      than the reference region.
     * ``luma_row``: a grey pixel is ground only when its left and right neighbours are
       floor-like too. With luminance as the only evidence, the pixels on an obstacle's outline
       are the error that matters: the lens and the sensor blend the two sides of a luminance
       step, so the pixel on the step often has a luminance the floor has, and that pixel is
       where the vertical edge the matcher needs lies. The floor itself is smooth at the pixel
-      scale (the motorcycle pair has 46 Sobel edges on 54,082 floor pixels), and the wide
+      scale (the motorcycle pair has hardly any Sobel edges on its floor), and the wide
       fallback set holds the floor's speckle, so a floor pixel keeps its neighbours.
 
-    On the motorcycle pair hue fallback moves from 0.668 recall / 6.9 % of the obstacle pixels
-    marked ground / 5.3 % of the obstacle edges removed (v2 without these two rules) to
-    0.770 / 8.3 % / 0.3 %; each rule alone does not get there (the wide set alone: 0.786 recall,
-    10.9 % obstacles, 9.3 % edges; ``luma_row`` alone: 0.640 / 4.9 % / 0.0 %). On the synthetic
-    mono scenes (speckled grey floor, grey input, so hue fallback) agreement with the truth
-    goes from 0.94 to 0.969. The neighbour rule is not used where one attribute is reliable
+    Together the two rules raise floor recall in hue fallback and keep the obstacle edges the
+    matcher needs, on the motorcycle pair and on the synthetic mono scenes (speckled grey
+    floor, grey input, so hue fallback); neither rule alone does both: the wide set alone
+    removes obstacle edges, ``luma_row`` alone loses recall (``sim/bench/ground.py``; figures
+    in docs/measurements.md). The neighbour rule is not used where one attribute is reliable
     per pixel: in luminance mode (mono cameras, the strict set) it spreads every floor speckle
-    outside the set three wide (mono scenes: 0.982 to 0.969 agreement), and with a reliable hue
-    it would do the same with every misclassified pixel (the rug scene: 0.969 to 0.914 recall).
+    outside the set three wide, lowering agreement on the mono scenes, and with a reliable hue
+    it would do the same with every misclassified pixel (lower recall on the rug scene).
 
     Why ``min_support`` = 256 by default: the model's hue histogram needs enough reliable samples
     that one bin's smoothed count is a fraction of a few per cent with a standard error of a few
     tenths of it: with n samples spread over ~10 bins, a 5-bin window holds ~n/2 and its
-    relative error is sqrt(2/n): 9 % at n = 256. With fewer (23 saturated pixels on the grey
+    relative error is sqrt(2/n): 9 % at n = 256. With fewer (the few saturated pixels on the grey
     concrete of the motorcycle pair) a handful of coloured specks would define the floor's hue.
 
-    Defaults, measured with ``sim/bench/ground.py`` (floor recall / obstacle pixels marked
+    Defaults, chosen with ``sim/bench/ground.py`` (floor recall / obstacle pixels marked
     ground, last of three frames): ``frac`` = 48 (4.7 % of the support in a +-1 JND window)
-    and ``hue_and_luma`` = 0. With ``hue_and_luma`` = 1 the shadow-band floor drops from 0.984
-    to 0.853 recall (the shadow's luminance is not in the reference area) and nothing else
-    improves (obstacles are at 0.000 either way on the colour floors; the motorcycle pair runs
-    in hue fallback, where it has no effect). Lower ``frac`` raises recall and obstacle-as-ground
-    together: on the motorcycle pair in luminance mode 24 gives 0.724 / 0.115, 48 gives
-    0.675 / 0.095. ``fallback_shift`` 0, 3, 4, 5, 6 give 0.640, 0.745, 0.770, 0.786, 0.811
-    recall in hue fallback with 4.9, 7.4, 8.3, 8.9, 10.3 % of the obstacle pixels marked ground
-    and 0.0, 0.1, 0.3, 0.6, 0.8 % of the obstacle edges removed.
+    and ``hue_and_luma`` = 0. With ``hue_and_luma`` = 1 the shadow-band floor loses recall (the
+    shadow's luminance is not in the reference area) and nothing else improves (no obstacle is
+    marked ground either way on the colour floors; the motorcycle pair runs in hue fallback,
+    where it has no effect). Lower ``frac`` raises recall and obstacle-as-ground together.
+    Each step of ``fallback_shift`` raises recall in hue fallback and also the obstacle pixels
+    marked ground and the obstacle edges removed; 4 is the balance.
 
-    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` (3,301 cycles at the
-    default JNDs), after the last row of the reference region; no frame is lost.
+    Learning costs vertical blanking: :func:`hdl.ground.search_cycles` at the default JNDs,
+    after the last row of the reference region; no frame is lost.
     """
 
     def __init__(self, params):

@@ -65,61 +65,57 @@ choice), either sign and ``widen`` 0..2, and step 6 with the census cost; its de
 128 / 128. golden/matcher_plain.py states every step as loops; the tests check that this
 vectorised form agrees with it on random frames, in both cost forms (dense and sparse).
 
-Hardware cost of version 2, for the RTL (estimates; XC3S1000 budget: the SoC <= 20 RAMB16 and
-12,000 LUT4, <= 2.3 input cycles per pixel on the motorcycle pair at 50 MHz):
+Hardware cost of version 2, for the RTL (the XC3S1000 budget: the SoC <= 20 RAMB16 and 12,000
+LUT sites, <= 2.3 input cycles per pixel at 50 MHz; the figures of each alternative below are
+in docs/measurements.md):
 
 * **Census transform** (per camera): a 3x3 window of luminance. Best taken from the Sobel unit,
-  which already holds it (its two line buffers and 3x3 registers): 8 comparators of 8 bits
-  (~8 x 5 LUT4, 2 carry-chain levels), 8 extra bits per pixel in the front end's output
-  payload, 0 RAMB16, +1 cycle of latency. Standalone in the matcher: 2 line buffers x 8 bits per
-  camera, 1 RAMB16 per camera (1024 x 16), 1 line + 2 pixels of latency. The census word
-  replaces luminance in the line store: same width, so the line store keeps its RAMB16 count.
-* **Census cost**: ``|a - b|`` (8-bit subtract + conditional negate, ~16 LUT4 and a carry chain)
-  becomes XOR + 8-input popcount (8 + ~10 LUT4, 3 levels, no carry) per window pixel; window
-  sums fit 9 bits instead of 14, so the adder tree shrinks by about a third. Cycles per
-  evaluation unchanged (one per candidate per lane).
+  which already holds it (its two line buffers and 3x3 registers): 8 comparators of 8 bits,
+  8 extra bits per pixel in the front end's output payload, 0 RAMB16, +1 cycle of latency.
+  Standalone in the matcher: 2 line buffers x 8 bits per camera, 1 RAMB16 per camera
+  (1024 x 16), 1 line + 2 pixels of latency. The census word replaces luminance in the line
+  store: same width, so the line store keeps its RAMB16 count.
+* **Census cost**: ``|a - b|`` (8-bit subtract + conditional negate and a carry chain) becomes
+  XOR + 8-input popcount (3 levels, no carry) per window pixel; window sums fit 9 bits instead
+  of 14, so the adder tree shrinks by about a third. Cycles per evaluation unchanged (one per
+  candidate per lane).
 * **Candidates** ``widen = 2``, ``sign = "any"``: the right edge map is one bit per pixel instead
   of two (pos/neg), a 5-bit OR over it; the scanner's candidate mask is the right-edge mask
-  shifted and ORed (no comparators). 1.42 % of dense on the motorcycle pair (version 1 with
-  widen: 0.47 %): 0.91 evaluations per input pixel, ~0.45 lane cycles per pixel with two
-  lanes. Measured alternatives (motorcycle, bad-2 / evaluations): ``widen`` 1: 6.2 % / 1.00 %
-  (misses 6 %); 3: 4.9 % / 1.74 %; same-sign, ``widen`` 2: 7.2 % / 0.91 %; right threshold
-  160 instead of 128: 7.6 % / 1.26 %. The true disparity is a candidate for 85.0 % of the left
-  edges with ground truth (88.6 % of those not occluded; v1: 83.8 %): 97 % needs right edges
-  without non-maximum suppression at threshold <= 64 (2.6 % of dense), over the budget.
+  shifted and ORed (no comparators). Of the spreads and signs tried, this one keeps the most
+  true disparities among the candidates for an evaluation count well inside the budget;
+  ``widen`` 1 misses true disparities, 3 costs more evaluations for little gain, same-sign
+  candidates match worse, and a higher right threshold loses candidates. Reaching nearly
+  every true disparity would need right edges without non-maximum suppression, over the
+  budget.
 * **Subpixel** (in the RTL: hdl/matcher_winner.py keeps the neighbours' costs,
   hdl/matcher_post.py fits): the costs at ``d - 1`` and ``d + 1`` are the candidate visited
   just before the best and the one just after it (registers updated with the best). A
   neighbour that was not a candidate leaves the offset at 0 rather than costing an evaluation
-  after the scan (that rule evaluated 524 more windows on the motorcycle pair, 0.2 % of its
-  264,000, and changed bad-1 by less than 0.1 %). The offset is a 4-bit quotient of 9-bit
-  operands: a 4-step restoring divider, one step a pipeline stage; 0 RAMB16.
+  after the scan (such evaluations would be rare and hardly change the result). The offset is
+  a 4-bit quotient of 9-bit operands: a 4-step restoring divider, one step a pipeline stage;
+  0 RAMB16.
 * **Confidence**: ``far_min - 3 c0`` (one adder, one subtractor, a wire shift, the constant
-  and saturation: ~35 LUT4) per record, no extra cycles. Ranking by it, the 4,496 most
-  confident motorcycle points have bad-2 0.4 % (StereoBM 15 at the same count: 3.1 %;
-  sim/bench/accuracy.py). Of the rankings tried (``far_min - k c0`` for k = 1, 2, 3, the ratio
-  ``(far_min - c0) / c0``, the cost alone) k = 3 was best on the motorcycle pair and the
-  synthetic scenes; the half scale and the offset 128 keep its 5-95 % range on the motorcycle
-  (-163..+70) inside 0..255.
-* **unique_right** (chosen; measured on the motorcycle pair, version 2, before -> after):
-  removes 164 matches of which 91 % were bad-2, bad-2 6.7 % -> 5.5 %, no extra evaluation.
+  and saturation) per record, no extra cycles. Ranking by it puts the good points first
+  (compared with StereoBM in sim/bench/accuracy.py). Of the rankings tried (``far_min - k c0``
+  for k = 1, 2, 3, the ratio ``(far_min - c0) / c0``, the cost alone) k = 3 ranks best on the
+  motorcycle pair and the synthetic scenes; the half scale and the offset 128 keep its
+  5-95 % range on the motorcycle pair inside 0..255.
+* **unique_right** (chosen): removes matches that are mostly bad, no extra evaluation.
   Hardware: a table indexed by right x holding the current owner's cost (9 bits) and its slot
   in the row's record buffer (8 bits) plus a row-parity bit: 1024 x 18 = 1 RAMB16; the records
   of a row wait in a buffer of two rows x 256 records x 37 bits (x 10, d16 10, cost 9, conf 8;
-  y from the framing; valid bits in distributed RAM) = 2 RAMB16. The motorcycle pair has at
-  most 53 records (69 left edges) per row. One read-modify-write per record (2 cycles,
-  pipelined), the loser's valid bit cleared; at the end of the row the valid records are
-  emitted. Latency: one row. Alternatives measured: a sparse left-right
-  check (each right pixel's minimum over every evaluated left pixel) removes 322 (77 % bad),
-  bad-2 4.8 %, no extra evaluation, but needs a table read-modify-write per *evaluation* (one
-  table port pair per lane); a full left-right check (the right pixel searches all 64
-  disparities) removes 598 (65 % bad), bad-2 3.8 %, but adds 2.9 % of dense evaluations
-  (4.3 % in all, over the 2 % budget, ~1.9 more cycles per pixel with two lanes).
+  y from the framing; valid bits in distributed RAM) = 2 RAMB16, far more records than a row
+  of the motorcycle pair gives. One read-modify-write per record (2 cycles, pipelined), the
+  loser's valid bit cleared; at the end of the row the valid records are emitted. Latency: one
+  row. Alternatives: a sparse left-right check (each right pixel's minimum over every
+  evaluated left pixel) removes more bad matches, no extra evaluation, but needs a table
+  read-modify-write per *evaluation* (one table port pair per lane); a full left-right check
+  (the right pixel searches all 64 disparities) removes more still, but its extra evaluations
+  go over the budget.
 * **Budget**: version 2 adds about 3 RAMB16 (unique_right) and 0-2 (census in the front end or
-  standalone), a few hundred LUT4 (census comparators, divider, confidence, table control)
-  and removes a third of the adder tree; lane cycles rise with the evaluations (1.42 % of
-  dense against 0.47 % for version 1 with widen on the motorcycle pair, plus 38 % more left
-  edges at threshold 128: 14,976 against 10,832).
+  standalone), the census comparators, divider, confidence and table control, and removes a
+  third of the adder tree; lane cycles rise with the evaluations (its candidates are wider
+  and its threshold gives more left edges than version 1's).
 """
 from dataclasses import dataclass
 
@@ -175,8 +171,8 @@ class MatcherParams:
     d_max: int = DISPARITY_SPAN - 1
     window: int = 7
     #: Uniqueness margin u / 256 (0..255). 48 = 18.75 %: chosen on the motorcycle pair (see
-    #: tests/test_matcher_golden.py): with widen and front-end thresholds 192 (left) / 96
-    #: (right) it gives 88.7 % density at 11.7 % bad-2; 32 misses bad-2, 64 costs 2 % density.
+    #: tests/test_matcher_golden.py) with widen and front-end thresholds 192 (left) / 96
+    #: (right): 32 misses the bad-2 bound, 64 costs density.
     uniqueness: int = 48
     mode: str = "adaptive"
     #: Candidate spread: a right edge within ``widen`` pixels makes a candidate (0..3; False
@@ -229,7 +225,7 @@ class MatcherParams:
         return self
 
 
-#: Version 2 (issue 13): census cost, candidates within 2 px of a right edge of either sign,
+#: Version 2: census cost, candidates within 2 px of a right edge of either sign,
 #: uniqueness 64 / 256, each right pixel matched once, subpixel d and confidence.
 V2 = dict(uniqueness=64, widen=2, cost="census", sign="any", consistency="unique_right",
           subpixel=True)
@@ -351,10 +347,9 @@ def _packed_columns(v, r):
 #: Evaluations gathered per step of the sparse form (small enough to stay in cache).
 _CHUNK = 8192
 #: The dense form is used when the evaluations outnumber this fraction of (distinct d) x pixels.
-#: Measured at 752x480, W = 7 (CPU time): a sparse evaluation costs about as much as 4 pixels
-#: of one dense cost map for ``sad`` (0.055 us against 0.012 us, plus 0.01 us a value read
-#: from the maps) and 3 for ``census`` (packed columns: 0.1 us against 0.03 us); a noise pair
-#: (2.7 % / 8.4 %) is still faster sparse.
+#: A sparse evaluation costs the CPU about as much as a few pixels of one dense cost map (more
+#: for ``sad`` than for ``census``, whose columns are packed), so sparse wins until the
+#: evaluations cover about a quarter (``sad``) or a third (``census``) of the dense work.
 DENSE_ABOVE = {"sad": 0.25, "census": 0.3}
 
 

@@ -29,27 +29,26 @@ __all__ = ["PipelineParams", "PipelineFrame", "PipelineModel", "pipeline_frames"
 
 #: Sobel thresholds of the default pipeline. The left image's edges are the pixels matched, so
 #: they should be strong; the right image's edges only say where candidates are, so a weaker
-#: threshold keeps the true match among them. With one threshold of 128 for both, only 76-79 % of
-#: the motorcycle pair's left edges had a same-sign right edge within 2 px of the true disparity
+#: threshold keeps the true match among them. With one threshold for both, many of the
+#: motorcycle pair's left edges have no same-sign right edge within 2 px of the true disparity
 #: (orientation and non-maximum suppression pass in one view and fail in the other), and a lone
-#: wrong candidate cannot be rejected by the uniqueness test; 192 / 96 with ``widen`` gives bad-2
-#: 11.7 % at 88.7 % density (tests/test_matcher_golden.py).
+#: wrong candidate cannot be rejected by the uniqueness test; tests/test_matcher_golden.py
+#: checks the accuracy of 192 / 96 with ``widen``.
 LEFT_THRESHOLD = 192
 RIGHT_THRESHOLD = 96
 #: Sobel threshold of both cameras with matcher version 2 (``default_params(..., version=2)``):
-#: its census cost, wider candidates and consistency check keep bad-2 below 6 % on the weaker
-#: left edges of 128, which gives more points within 2 px than 192 (sim/bench/accuracy.py).
+#: its census cost, wider candidates and consistency check keep the error rate low on the
+#: weaker left edges of 128, which gives more points within 2 px than 192 (sim/bench/accuracy.py).
 V2_THRESHOLD = 128
 #: Sobel thresholds (left, right) of the RTL's default (``default_params(...)``, matcher
 #: :data:`golden.matcher.RTL`). A weaker right threshold keeps more true matches among the
-#: candidates; the left one trades points against the matcher's time. Measured on the
-#: motorcycle pair, ground off (sim/bench/accuracy.py), left / right: 128 / 96 bad-2 5.7 %,
-#: 8,688 points within 2 px; 144 / 96 5.5 %, 8,008; 160 / 96 5.4 %, 7,421; 176 / 96 5.2 %,
-#: 6,881; 192 / 96 5.2 %, 6,334 (right 64 / 80 / 112 / 128 with left 128: bad-2 5.9 / 5.8 /
-#: 6.0 / 6.7 %). A row with many left edges takes the matcher longer than a line time and the
-#: line store holds one line of slack, so the SoC at NTSC field rate (``python -m sim system
-#: --scene motorcycle``, 720 x 240) keeps up at 128 only with 512 pixels of camera buffer a
-#: camera (hdl/soc.py, two 4:2:2 pixels a word): with 256 it overflowed at 160 and below.
+#: candidates; the left one trades points against the matcher's time: on the motorcycle pair
+#: (ground off, sim/bench/accuracy.py; figures in docs/measurements.md) a lower left threshold
+#: gives more points within 2 px at a slightly higher error rate, and 96 is the right threshold
+#: with the fewest bad matches. A row with many left edges takes the matcher longer than a line
+#: time and the line store holds one line of slack, so the SoC at NTSC field rate (``python -m
+#: sim system --scene motorcycle``, 720 x 240) keeps up at 128 only with 512 pixels of camera
+#: buffer a camera (hdl/soc.py, two 4:2:2 pixels a word); 256 is too few.
 RTL_THRESHOLDS = (128, 96)
 
 

@@ -41,24 +41,15 @@ left one... the one whose right neighbour is smaller, i.e. the rightmost of a pl
 ``edge = candidate (and NMS)``, ``neg = edge and Gx < 0``.
 
 Default threshold (:data:`DEFAULT_THRESHOLD` = 128, with ratio 8 and NMS), chosen by the edge
-density it gives (fraction of all pixels marked, ground = 0 everywhere unless stated):
-
-=====================================  ======  ======  =======  =======
-threshold T                            64      96      128      160
-=====================================  ======  ======  =======  =======
-Middlebury motorcycle, left (741x500)  5.7 %   4.8 %   4.0 %    3.4 %
-Middlebury motorcycle, right           5.7 %   4.8 %   4.1 %    3.6 %
-``sim.scenes.rendered`` "mixed" 752x480 left    3.2 %   2.0 %   1.0 %    0.4 %
-``sim.scenes.rendered`` "empty" (no obstacle)   2.5 %   1.6 %   0.8 %    0.2 %
-=====================================  ======  ======  =======  =======
+density it gives (fraction of all pixels marked; figures for thresholds 64 to 160 on the
+motorcycle pair and the rendered scenes in docs/measurements.md).
 
 T = 128 is a sharp step of 32 grey levels (a step of contrast ``c`` between two columns gives
 ``|Gx| = 4c`` on both sides of it) and about 18 standard deviations of the ``|Gx|`` noise of a
 camera with 2 grey levels of pixel noise (``sqrt(12) * 2``), so sensor noise alone never makes
-an edge. It keeps one edge pixel every 25 pixels of a row on the cluttered real scene (the
-object outlines) and about 1 % on the synthetic scenes (box and pole outlines, the planks of the
-back wall); lower thresholds add mostly floor and surface texture, which costs matcher time and
-gives ambiguous matches.
+an edge. On the cluttered real scene it keeps the object outlines, on the synthetic scenes the
+box and pole outlines and the planks of the back wall; lower thresholds add mostly floor and
+surface texture, which costs matcher time and gives ambiguous matches.
 """
 from dataclasses import dataclass
 

@@ -85,8 +85,8 @@ class YCbCrToRGB(wiring.Component):
         m.d.sync += [py_p.eq(k["y"] * c), pre_p.eq(k["r_cr"] * e), pbd_p.eq(k["b_cb"] * d),
                      ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e)]
         # stage 3: the products registered again: the multipliers' own registers have one
-        # load each and sit by their multiplier (ECP5: the path from a register that feeds
-        # the sums to a multiplier block far away took 8 ns of routing, measured)
+        # load each and sit by their multiplier (on the ECP5 a register that feeds both the
+        # sums and a distant multiplier block puts a long route on the critical path)
         m.d.sync += [py.eq(py_p), pre.eq(pre_p), pbd.eq(pbd_p), ngd.eq(ngd_p), nge.eq(nge_p)]
         # stage 4: each sum split at bit 8 (v = 256 (v >> 8) + v[:8]): the high parts summed,
         # and the low bytes with the rounding constant, whose bits from 8 up are the carry

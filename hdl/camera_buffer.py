@@ -2,9 +2,10 @@
 
 Each camera port crosses into the core domain through a small ``AsyncFIFO`` (distributed RAM);
 the frames wait for their partner and for the pipeline here, in one memory of ``2 x depth``
-words (one RAMB16 for two 256-word queues; the SoC's words are 19-bit 4:2:2 pixels, where two clock-domain FIFOs of the same depth
-took a RAMB16 each: the block RAM's two ports cannot serve four clocked sides, but in one
-domain one port writes and the other reads, alternating between the cameras).
+words (one RAMB16 for two 256-word queues; the SoC's words are 19-bit 4:2:2 pixels, where two
+clock-domain FIFOs of the same depth would take a RAMB16 each: the block RAM's two ports cannot
+serve four clocked sides, but in one domain one port writes and the other reads, alternating
+between the cameras).
 
 A camera delivers at most 13.5 Mpixel/s, a quarter of the 50 MHz core clock, so a write slot
 every other cycle is plenty; the read port alternates the same way when both queues have data

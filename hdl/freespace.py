@@ -183,7 +183,7 @@ class FreeSpaceTable(wiring.Component):
 
     A band's row is below ``max_height`` or ``FREE_NONE``, so it is kept as ``bits_for(max_height
     - 1)`` bits and a "none" bit, in two 8-word distributed RAMs (even and odd bands) read
-    asynchronously, and widened to 16 bits on the way out: 36 LUT RAM sites at 240 lines,
+    asynchronously, and widened to 16 bits on the way out: a few LUT RAM sites per band,
     instead of 256 flip-flops and a 16-way input of the register block's read multiplexer. A
     band not yet written since reset reads ``FREE_NONE`` (one valid flag per band: the RAMs
     cannot be reset).

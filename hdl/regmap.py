@@ -62,7 +62,7 @@ _CB = CONFIDENCE_MAX.bit_length()     #: confidence 0 .. golden.matcher.CONFIDEN
 #: Reset values of the parameters are the golden models' defaults (golden/ground.py,
 #: golden/sobel.py, golden/matcher.py), with the ground reference area at the bottom centre of
 #: the frame the cameras deliver: one NTSC field of the ADV7180 decoders, 720 x 240
-#: (shared/DESIGN.md section 6; firmware/include/app.h APP_FIELD_WIDTH / APP_FIELD_HEIGHT).
+#: (firmware/include/app.h APP_FIELD_WIDTH / APP_FIELD_HEIGHT).
 REF_WIDTH, REF_HEIGHT = 720, 240
 _P = default_params(REF_WIDTH, REF_HEIGHT)      # reset values: the default pipeline
 _G = _P.frontend.ground

@@ -131,8 +131,8 @@ class ResultFIFO(wiring.Component):
 
     A record (:data:`ResultLayout`, 50 bits) is two words of a ``2 depth`` x 30-bit memory:
     its RESULT half at address ``2k``, its RESULT_EXT half at ``2k + 1``. With the default
-    ``depth`` of 256 records that is 512 x 30 bits, one RAMB16 in 512 x 36 mode (the FIFO of
-    512 one-word records before the record had its second half took the same). Why two words
+    ``depth`` of 256 records that is 512 x 30 bits, one RAMB16 in 512 x 36 mode (as many as a
+    FIFO of 512 one-word records would take). Why two words
     a record in 512 x 36 and not three in 1K x 18 (341 records): the memory gives one word a
     cycle and the CPU takes a record in two bus transfers (RESULT, RESULT_EXT), which the MCS
     may issue in consecutive cycles. With two words the FIFO reads the popped record's second

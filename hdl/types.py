@@ -10,7 +10,7 @@ Every unit speaks :mod:`amaranth.lib.stream` (valid/ready/payload). The payload 
 ``eof``
     last pixel of a frame (always together with ``eol``).
 
-``eof`` goes beyond shared/DESIGN.md's ``sof``/``eol`` pair on purpose: a windowed unit must
+``eof`` goes beyond a ``sof``/``eol`` pair on purpose: a windowed unit must
 know that a line was the last one to emit it (with its border rule) and to publish per-frame
 results on time; waiting for the next ``sof`` would hold the bottom rows and the statistics of
 frame n until frame n+1 starts, and forever for the last frame of a sequence. A camera source

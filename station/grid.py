@@ -16,7 +16,8 @@ updates every cell at most once:
 - a band with no match at all changes nothing (``l_miss`` = 0). The pipeline only matches
   obstacle EDGES: a plain face, an obstacle close enough to fill the ground reference area
   (then learnt as ground) and the sky all give empty bands, so an empty band is no evidence
-  of free space. (With -0.1 the robot, approaching a face it no longer saw, erased it.)
+  of free space. (A negative ``l_miss`` would erase a face the robot approaches and no longer
+  sees.)
 - hits win over free space where one update touches a cell both ways.
 
 ``l_hit`` = 0.5 against ``l_occ`` = 0.6 makes a cell occupied only after two hits: the golden

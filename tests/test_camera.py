@@ -16,7 +16,7 @@ from sim.errors import CliError
 from sim.scenes.rendered import Rig, backproject, make_scene, scene_names
 from station.camera import observe_bands
 
-#: Issue 15, "Depth is right": median relative error of z_m at the matched points.
+#: Depth is right: the median relative error of z_m at the matched points stays within this.
 MAX_MEDIAN_DEPTH_ERROR = 0.05
 
 

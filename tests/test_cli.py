@@ -1,4 +1,4 @@
-"""The command line contract of shared/DESIGN.md section 5 and issue 15: JSON out, exit codes
+"""The command line contract (docs/cli.md): JSON out, exit codes
 (0 bit-exact, 1 not, 2 user error, 3 internal failure), one-line errors for bad input found
 before anything is simulated, flags for every run-time register, the files `run` writes."""
 import csv
@@ -21,7 +21,8 @@ from sim.scenes.data import motorcycle, crop
 from sim.errors import InternalError
 from sim.scenes.rendered import make_scene
 
-#: Issue 15: every bad input gives its one error line within this time (nothing is simulated).
+#: Every bad input gives its one error line within this time: it is found before anything is
+#: simulated, so the user learns of a typo at once, not after a run.
 ERROR_SECONDS = 10
 SCENE_CROP = (312, 120, 64, 24)      # x, y, w, h of the 'mixed' scene with 44 matches
 
@@ -226,7 +227,7 @@ def test_no_command_prints_usage_and_one_error_line():
 
 
 @pytest.mark.parametrize("args, message", [
-    # the cases under "Why" in issue 15
+    # limits an elaborated design cannot take, out-of-range parameters, unusable --out, deep images
     (["compare", "--unit", "pipeline", "--left", "{tall}", "--right", "{tall}"], "exceeds the elaborated"),
     (["compare", "--unit", "pipeline", "--left", "{tall}", "--right", "{tall}", "--max-height", "5000"], "--max-height: 5000 is outside 1..1024"),
     (["run", "--max-height", "5000", "--out", "{tmp}"], "--max-height: 5000 is outside"),

@@ -36,14 +36,14 @@ def test_no_dynamic_allocation_or_bare_types():
 
 
 def test_ctypes_mirrors_match_c_field_by_field(monkeypatch):
-    """check_layout compares every field's offset and size with the C compiler's; the old
+    """check_layout compares every field's offset and size with the C compiler's; a stale
     mirror of pipeline_config_t without right_threshold (same total size after padding) is
     caught."""
     import ctypes as C
     lib = fwlib.load()
     fwlib.check_layout(lib)
-    old = [f for f in fwlib.PipelineConfigC._fields_ if f[0] != "right_threshold"]
-    bad = type("PipelineConfigC", (C.Structure,), {"_fields_": old})
+    stale = [f for f in fwlib.PipelineConfigC._fields_ if f[0] != "right_threshold"]
+    bad = type("PipelineConfigC", (C.Structure,), {"_fields_": stale})
     monkeypatch.setattr(fwlib, "PipelineConfigC", bad)
     import pytest
     with pytest.raises(RuntimeError, match="PipelineConfigC.d_min"):

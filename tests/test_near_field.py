@@ -1,4 +1,4 @@
-"""Issue 15, "The near field is seen": an obstacle 0.5 m ahead of the default rig, matched with
+"""The near field is seen: an obstacle 0.5 m ahead of the default rig, matched with
 the near disparity window (sim.scenes.rendered.NEAR_WINDOW, d 117..180 = 0.40..0.62 m) inside the
 matcher's elaborated maximum of 255, appears with z_m ~ 0.5 in matches.csv and in the top view.
 The golden model gives the figures; the command-line run checks the RTL (Verilator, full
@@ -16,7 +16,7 @@ from sim.scenes.camera import contour_depth, depth_error, match_table, scene_cam
 from sim.scenes.rendered import LABEL_OBSTACLE0, NEAR_SCENES, NEAR_WINDOW, make_scene, scene_settings
 from sim.cli.views import topview_points
 
-#: Issue 15, "Depth is right", for the near scene too.
+#: Depth is right on the near scene too: the median relative error of z_m at the matched points.
 MAX_MEDIAN_DEPTH_ERROR = 0.05
 NEAR_M = 0.8                      # nearer than this: the 0.5 m box (the other box is at 2.5 m)
 
@@ -70,10 +70,9 @@ def test_the_far_window_vetoes_most_far_texture_seen_through_the_near_one(near):
     off = np.abs(cam.depth(rec["d"]) - truth) > 0.1 * truth
     keep = far_veto(rec, far.records)
     on_box = frame.labels[rec["y"], rec["x"]] == LABEL_OBSTACLE0
-    # Measured with the census cost (thresholds 192 / 96 near, the defaults far): 52 matches
-    # off by more than 10 %; the veto keeps 119 of the 125 on the box and 155 of the 160 right
-    # ones, and 25 of the 52 off. (Version 1's SAD: 164 off, every right one kept, under 30 %
-    # of the off ones: census matches more of the box's own pixels in the far window too.)
+    # With the census cost (thresholds 192 / 96 near, the defaults far) the veto keeps nearly
+    # every match on the box and every right one, and drops a good part of the off ones (fewer
+    # than with the SAD cost: census matches more of the box's own pixels in the far window too).
     assert off.sum() > 40                                   # the problem is real
     assert (keep & on_box).sum() >= 0.9 * on_box.sum()
     assert (keep & ~off).sum() >= 0.9 * (~off).sum()

@@ -75,10 +75,9 @@ def test_drop_mode_cameras_stay_in_step():
     camera rate: every frame starts on both inputs in the same cycle, however long the ground
     searches between frames (the two units share one engine, one search after the other), so
     the inputs stay in step and a frame after the first keeps as many records as the first.
-    (When the left front end started a frame as soon as its own search was done, the right
-    camera ran the clear after reset, then a search, behind it: here 520 and 997 cycles, 2.5
-    and 4.7 lines; the matcher's line slots have about a line of slack, so most of each frame
-    was dropped: 5 of 111 records kept per frame.)"""
+    (If the left front end started a frame as soon as its own search was done, the right
+    camera would run the clear after reset, then a search, behind it: several lines; the
+    matcher's line slots have about a line of slack, so most of each frame would be dropped.)"""
     from dataclasses import replace
     from hdl.pipeline import StereoPipeline
     from sim.config import apply_config

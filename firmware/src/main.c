@@ -16,8 +16,8 @@
 #include "xbee.h"
 
 #define REPORT_PERIOD_US 100000u
-/** Drain the result FIFO every 1 ms: it holds 256 records; the motorcycle pair gives about
- *  145 a millisecond on average (2,400 a 720 x 240 field, README "System"). */
+/** Drain the result FIFO every 1 ms: it holds 256 records, well above what the motorcycle
+ *  pair gives in a millisecond on average (``python -m sim system --scene motorcycle``). */
 #define COLLECT_PERIOD_US 1000u
 #define LOCK_POLLS 40u           /**< app_start_video: 40 x 50 us, about 2 fields */
 

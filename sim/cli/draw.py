@@ -1,7 +1,7 @@
 """Small raster drawing kit for the run views (:mod:`sim.cli.views`): PIL and NumPy only.
 
-matplotlib took most of a warm ``python -m sim run`` (about 1 s to import and 4-5 s to draw
-and encode 8 figures); these views are images with a few marks, so they are drawn directly:
+matplotlib's import and drawing would take most of a warm ``python -m sim run``; these views
+are images with a few marks, so they are drawn directly:
 an RGB :class:`Canvas`, text in Pillow's built-in FreeType font, colour maps as polynomial
 fits, axes with round ticks, colour bars and legends. PNGs are written with zlib level 1.
 """
@@ -13,8 +13,8 @@ from PIL import Image, ImageDraw, ImageFont
 
 __all__ = ["Canvas", "Axes", "Norm", "turbo", "viridis", "hsv_to_rgb", "nice_ticks", "PNG_LEVEL"]
 
-#: zlib level of the written PNGs: level 1 encodes several times faster than the default 6
-#: for files about 20 % larger.
+#: zlib level of the written PNGs: level 1 encodes much faster than the default 6 for files
+#: a little larger.
 PNG_LEVEL = 1
 #: Pixel sizes of the fonts (matplotlib's 7, 9 and 10 points at 100 dpi).
 SMALL, MEDIUM, LARGE = 10, 12, 13

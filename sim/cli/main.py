@@ -1,4 +1,4 @@
-"""Command line: ``python -m sim compare|run ...`` (see shared/DESIGN.md section 5).
+"""Command line: ``python -m sim compare|run ...`` (docs/cli.md).
 
 Exit status (:mod:`sim.errors`): 0 bit-exact, 1 not bit-exact (records, pixels, free space or
 statistics differ, or the RTL hung), 2 user error, 3 internal failure (a simulator missing or
@@ -39,8 +39,8 @@ TARGET_CLOCK_HZ = 50_000_000
 REFERENCE_SIZE = (752, 480)
 DEFAULT_SCENE = "mixed"
 #: Frames per command: every frame's golden planes and stream words are held in memory (about
-#: 80 MB per 1024x1024 stereo frame), and one frame of the default pair takes about 3 s on
-#: Verilator and minutes on the Python simulator.
+#: 80 MB per 1024x1024 stereo frame), and every frame is simulated cycle by cycle (slow on
+#: the Python simulator).
 MAX_FRAMES = 16
 
 

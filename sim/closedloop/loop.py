@@ -16,8 +16,8 @@ Every control period (0.1 s, the firmware's packet period):
 
 Simplifications, stated: odometry is perfect (the pose sent is the true pose, rounded to the
 wire format); the path reaches the robot instantly and reliably (the downlink is not
-modelled); planning takes no simulated time (SACOdm takes ~0.5 s of host time per plan on
-these maps, less than the seed's 3 s replan period).
+modelled); planning takes no simulated time (SACOdm plans on these maps in less host time
+than the seed's 3 s replan period).
 """
 
 from __future__ import annotations
@@ -46,9 +46,9 @@ PURPLE = (150, 60, 170)
 MAGENTA = (190, 60, 140)
 CYAN = (40, 160, 180)
 #: Obstacle texture: 6 cm stripes at 80 % contrast. With the scene generator's default (4 cm,
-#: 35 %) the golden pipeline at 160x120 matched little more than the obstacles' outlines
-#: (a 1 m face 0.7 m ahead gave one stray match), leaving holes the planner drove into;
-#: with 6 cm / 80 % a face gives matches in most of its bands from 0.7 m to 3 m.
+#: 35 %) the golden pipeline at 160x120 matches little more than the obstacles' outlines
+#: (a face near the robot gives hardly a match), leaving holes the planner drives into; with
+#: 6 cm / 80 % a face gives matches in most of its bands from 0.7 m to 3 m.
 TEX = dict(stripe_m=0.06, contrast=0.8)
 
 

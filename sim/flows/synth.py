@@ -8,7 +8,7 @@ Verilog and counts the mapped cells:
 ``LUTRAM``     distributed-RAM and shift-register cells (RAM16X1D ...);
 ``LUT_sites``  every 4-input-LUT site used: ``LUT4`` plus the LUTs the ``LUTRAM`` cells take
                (RAM16X1S and SRL16 one, RAM16X1D and RAM32X1S two, RAM32X1D and RAM64X1S
-               four: Spartan-3 DS099). The budget (shared/DESIGN.md section 6) is a share of
+               four: Spartan-3 DS099). The SoC's budget (:data:`SOC_BUDGET`) is a share of
                the chip's 15,360 LUT sites, so it is judged on this figure;
 ``FF``         flip-flops (FD* cells);
 ``RAMB16``     18-kbit block RAMs (RAMB16_* cells);
@@ -58,8 +58,8 @@ BUDGET = {"device": "XC3S1000-4FT256", "LUT_sites": 15360, "LUT4": 15360, "FF": 
 MAX_LEVELS = 8
 MAX_CARRY = 16
 LTP_SELECTION = "t:LUT* t:INV t:MUXF* t:MUXCY t:XORCY w:*"
-#: The SoC's share of the chip (shared/DESIGN.md section 6): the rest is the MicroBlaze's (4
-#: RAMB16 of local memory, about 2,000 LUTs).
+#: The SoC's share of the XC3S1000: the rest is the MicroBlaze's (4 RAMB16 of local memory,
+#: about 2,000 LUTs).
 SOC_BUDGET = {"LUT_sites": 12000, "RAMB16": 20}
 #: Parts of each design listed in report.md (report.json has them all).
 BREAKDOWN_SHOWN = 8
@@ -358,7 +358,7 @@ def write_report(results, out_dir):
         verdict = ", ".join(f"{k} {soc[k]} of {v}" + (f" (over by {soc[k] - v})" if soc[k] > v else "")
                             for k, v in SOC_BUDGET.items())
         fits = all(soc[k] <= v for k, v in SOC_BUDGET.items())
-        lines += ["", f"SoC budget (shared/DESIGN.md section 6): {verdict}: "
+        lines += ["", f"SoC budget (the chip less the MicroBlaze's share): {verdict}: "
                       f"{'fits' if fits else 'DOES NOT FIT'}."]
     lines += ["", "LUT sites per part (largest first; a LUT feeding several parts is shared out):", ""]
     for name, r in results.items():

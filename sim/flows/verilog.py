@@ -70,9 +70,9 @@ def elaboration_params(component):
 #: Yosys passes that :func:`verilog_source` adds, for the Verilator simulation model only
 #: (``sim.backends.verilator``, ``sim.system.run``), after Amaranth's own ``proc -nomux -norom;
 #: memory_collect``: the rest of ``proc`` (every process to multiplexers) and ``opt`` (constant
-#: folding, merging of equal cells, multiplexer trees). Verilator then runs the whole pipeline
-#: on the motorcycle pair about 1.26x faster (610k against 485k cycles/s; ``proc`` alone or
-#: ``opt`` without it gains nothing). The exported Verilog, the VHDL, synthesis and the other
+#: folding, merging of equal cells, multiplexer trees), which together make Verilator's model
+#: of the whole pipeline faster (``proc`` alone or ``opt`` without it gains nothing; ``make
+#: bench`` compares the two). The exported Verilog, the VHDL, synthesis and the other
 #: simulators keep Amaranth's plain conversion.
 SIMULATION_PASSES = ("proc", "opt", "opt_clean")
 

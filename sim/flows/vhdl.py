@@ -254,8 +254,8 @@ def fix_sign_extension(vhdl):
 
     iverilog writes a signed Verilog operand widened in a signed expression (``$signed(a) +
     $signed(b)`` with ``a`` narrower) as a zero extension of the ``unsigned`` VHDL signal
-    followed by a cast; Verilog sign-extends it. (Found by the cocotb run of ``color`` on GHDL:
-    hue off by 128 where a negated 7-bit value was added to a 10-bit sum.)"""
+    followed by a cast; Verilog sign-extends it. (Without this, the cocotb run of ``color`` on
+    GHDL gives a hue off by 128 where a negated 7-bit value is added to a 10-bit sum.)"""
     out, pos = [], 0
     key = "signed(Resize("
     while True:

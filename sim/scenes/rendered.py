@@ -772,8 +772,8 @@ NEAR_SCENES: dict[str, World] = {
 NEAR_WINDOW = (117, 180)
 #: The near field's Sobel thresholds (left, right): the near obstacle's outlines are strong,
 #: and a left threshold of 192 keeps most far texture seen through the near window from being
-#: matched at a wrong disparity inside it (at the default 128 the median depth error of the
-#: near scene's matches is 11.6 %, at 192 0.5 %; sim/bench/depth.py).
+#: matched at a wrong disparity inside it (at the default 128 the near scene's median depth
+#: error is over its bound; sim/bench/depth.py).
 NEAR_THRESHOLDS = (192, 96)
 #: ``golden.pipeline.default_params`` keywords of the scenes meant for other settings.
 SCENE_SETTINGS: dict[str, dict] = {"near": dict(d_min=NEAR_WINDOW[0], d_max=NEAR_WINDOW[1],

@@ -149,8 +149,8 @@ def icarus_fixup(verilog):
     Yosys writes ``reg \\$auto$verilog_backend...$1 = 0;`` and puts it in the sensitivity of
     every ``always @*`` block, so that each is evaluated once at time 0. Under cocotb (VPI) on
     Icarus that event can come before the blocks wait for it: a block whose inputs then do not
-    change keeps X outputs (seen on ``frontend``: the Sobel unit's line-buffer address stayed X
-    and the first output pixel was wrong on Icarus only). A ``#0`` toggle of that register
+    change keeps X outputs (on ``frontend``: the Sobel unit's line-buffer address stays X and
+    the first output pixel is wrong on Icarus only). A ``#0`` toggle of that register
     after time-0 start-up re-evaluates every block; the ``if`` it guards is empty, so nothing
     else changes. Only the copy given to Icarus is changed, never the exported Verilog."""
     return _AUTO_REG.sub(lambda m: f"{m.group(0)}\n{m.group(1)}initial #0 {m.group(2)} = 1'b1;",

@@ -40,9 +40,8 @@ HARNESS = Path(__file__).resolve().parent / "harness.cpp"
 VERILATOR_FLAGS = ["-O3", "--x-assign", "fast", "--x-initial", "fast", "-Wno-fatal", "-Wno-lint",
                    "-Wno-style", "--noassert"]
 CFLAGS = "-std=c++17"
-#: Optimisation of the Verilated model's fast path: -O3 runs the whole pipeline about 20 %
-#: faster than -O1 (483k against 397k cycles/s on the motorcycle pair) for about 17 s more build
-#: time per design, once (builds are cached).
+#: Optimisation of the Verilated model's fast path: -O3 runs the whole pipeline faster than -O1
+#: for a longer build per design, paid once (builds are cached).
 OPT = "-O3"
 
 
