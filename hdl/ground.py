@@ -1,20 +1,17 @@
 """Ground model and ground/obstacle classifier (specification: ``golden/ground.py``)."""
 from amaranth.hdl import Module, Signal, Mux, Cat, Const
-from amaranth.lib import wiring, stream, memory, data
+from amaranth.lib import wiring, stream, memory
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS
-from golden.ground import GroundParams, HIST_BITS
+from golden.ground import HIST_BITS
 from .types import YHSPixel, GroundPixel
 from .framing import FramedUnit
-from .ground_search import (GroundSearch, GroundSearchBus, HIST_WORDS, LUMA_BASE, search_cycles,
-                            CLEAR_CYCLES)
+from .ground_search import (GroundConfig, GroundSearch, GroundSearchBus, HIST_WORDS, LUMA_BASE,
+                            search_cycles, CLEAR_CYCLES)
 
 __all__ = ["GroundConfig", "GroundClassifier", "SharedGroundClassifier", "search_cycles",
            "CLEAR_CYCLES"]
-
-#: The run-time parameters, one field per :attr:`GroundParams.FIELDS` entry.
-GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
 
 
 class GroundClassifier(FramedUnit):

@@ -4,14 +4,18 @@ histograms, the supports, the thresholds and the set pass (specification:
 cameras' :class:`hdl.ground.GroundClassifier`) one after the other; each unit keeps its own
 histogram memory, ground sets and model state."""
 from amaranth.hdl import Module, Signal, Mux, Cat, Const
-from amaranth.lib import wiring
+from amaranth.lib import wiring, data
 from amaranth.lib.wiring import In, Out
 
 from golden.color import HUE_STEPS
-from golden.ground import HIST_BITS, FRAC_SHIFT
+from golden.ground import GroundParams, HIST_BITS, FRAC_SHIFT
 
-__all__ = ["GroundSearchBus", "GroundSearch", "HIST_WORDS", "LUMA_BASE", "search_cycles",
-           "CLEAR_CYCLES"]
+__all__ = ["GroundConfig", "GroundSearchBus", "GroundSearch", "HIST_WORDS", "LUMA_BASE",
+           "search_cycles", "CLEAR_CYCLES"]
+
+#: The ground model's run-time parameters as one port: the fields of
+#: :class:`golden.ground.GroundParams`, each at its register width.
+GroundConfig = data.StructLayout({name: bits for name, bits in GroundParams.FIELDS})
 
 HIST_WORDS = 512        # hue bins at 0..191, luma bins at 256..511
 LUMA_BASE = 256
@@ -59,7 +63,7 @@ class GroundSearch(wiring.Component):
 
     Ports
     -----
-    config : In(:data:`hdl.ground.GroundConfig`)
+    config : In(:data:`GroundConfig`)
         The search uses ``mode``, ``jnd_hue``, ``jnd_luma``, ``frac``, ``min_support``,
         ``blend_shift`` and ``fallback_shift``; change them between frames.
     unit0, unit1 : In(:data:`GroundSearchBus`)
@@ -80,7 +84,6 @@ class GroundSearch(wiring.Component):
     """
 
     def __init__(self, *, units=2):
-        from .ground import GroundConfig
         if units not in (1, 2):
             self._MustUse__silence = True          # rejected: no "never elaborated" warning
             raise ValueError(f"units must be 1 or 2, not {units!r}")
