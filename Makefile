@@ -5,9 +5,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 SYSTEM_STAMP := build/.system-packages
-# Debian packages the simulators and the firmware host build need (installed only when a
-# command is missing; needs root or sudo, as on the project's machines).
-DEBIAN_PACKAGES := iverilog ghdl g++ make
+# Debian packages: the simulators, the firmware's host build, the soft CPU's cross compiler and
+# C library, and the headless browser of the station's browser test (installed only when one is
+# missing; needs root or sudo, as on the project's machines).
+DEBIAN_PACKAGES := iverilog ghdl g++ make gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf \
+	chromium chromium-driver
+PICOLIBC_SPECS := /usr/lib/picolibc/riscv64-unknown-elf/picolibc.specs
 
 .PHONY: setup system sim test verilog vhdl synth timing bench firmware cosim demo install-check bitstream clean
 
@@ -19,9 +22,11 @@ $(STAMP): pyproject.toml
 	$(VENV)/bin/pip install -q -e ".[test]"
 	touch $@
 
-$(SYSTEM_STAMP):
+$(SYSTEM_STAMP): Makefile
 	@missing=""; \
-	for cmd in iverilog ghdl g++ make; do command -v $$cmd >/dev/null || missing="$$missing $$cmd"; done; \
+	for cmd in iverilog ghdl g++ make riscv64-unknown-elf-gcc chromium chromedriver; do \
+		command -v $$cmd >/dev/null || missing="$$missing $$cmd"; done; \
+	[ -f $(PICOLIBC_SPECS) ] || missing="$$missing picolibc"; \
 	if [ -n "$$missing" ]; then \
 		echo "installing Debian packages for:$$missing"; \
 		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
