@@ -1,6 +1,6 @@
-"""Golden SAD matcher (golden/matcher.py, versions 1 and 2): hand cases, rules, the cross-check
-against the plain form (golden/matcher_plain.py) in both cost forms, and the accuracy targets of
-issues 4 (version 1) and 13 (version 2) on the Middlebury motorcycle pair."""
+"""Golden matcher (golden/matcher.py, SAD version 1 and census version 2): hand cases, rules, the
+cross-check against the plain form (golden/matcher_plain.py) in both cost forms, and the accuracy
+targets of both versions on the Middlebury motorcycle pair."""
 import time
 
 import numpy as np
@@ -309,7 +309,7 @@ def test_shifted_texture_recovers_disparity():
     assert good.mean() > 0.9
 
 
-# ------------------------------------------------------------------ accuracy (issue 4)
+# ---------------------------------------------------------- accuracy on the motorcycle pair
 
 #: Front-end thresholds for the accuracy figures: the left image keeps only strong edges
 #: (T = 192), the right one offers more candidates (T = 96); both with the default ratio and NMS.
