@@ -84,3 +84,21 @@ def test_sim_has_few_top_level_modules():
     """sim/ is organised by concern in subpackages; only what every concern shares stays at
     its top."""
     assert len(list((ROOT / "sim").glob("*.py"))) <= 8
+
+
+def test_sources_describe_behaviour_not_history():
+    """Code, tests and docs say what the project does: no issue numbers or work periods (the
+    history lives in git), and no citation of files outside the repository."""
+    import re
+    history = re.compile(r"\bissue [0-9]+\b|\bthis session\b|\blast session\b", re.I)
+    outside = re.compile(r"\bshared/(DESIGN|STYLE|TOOLCHAIN)\.md\b")
+    bad = []
+    for path in sorted(ROOT.rglob("*")):
+        rel = path.relative_to(ROOT)
+        if (not path.is_file() or rel.parts[0].startswith(".") or rel.parts[0] == "build"
+                or path.suffix not in {".py", ".md", ".c", ".h", ".cpp", ".toml", ".txt", ""}):
+            continue
+        for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            if history.search(line) or outside.search(line):
+                bad.append(f"{rel}:{n}: {line.strip()[:80]}")
+    assert bad == []
