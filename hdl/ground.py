@@ -10,8 +10,143 @@ from .framing import FramedUnit
 from .ground_search import (GroundConfig, GroundSearch, GroundSearchBus, HIST_WORDS, LUMA_BASE,
                             search_cycles, CLEAR_CYCLES)
 
-__all__ = ["GroundConfig", "GroundClassifier", "SharedGroundClassifier", "search_cycles",
+__all__ = ["GroundConfig", "GroundClassifier", "SharedGroundClassifier", "GroundSets",
+           "GroundHistogram", "search_cycles",
            "CLEAR_CYCLES"]
+
+
+class GroundSets(wiring.Component):
+    """The hue and luma ground sets: 256 x 1 bit each, in two banks, one read by the
+    classification while the search writes the other.
+
+    Distributed RAM (a block RAM each would be a waste of 16 kbit for 512 bits): one 256 x 1
+    memory per set and bank, each with one address (the read address while its bank is read,
+    else the search's), so it is single-port RAM (RAM16X1S: one LUT per 16 bits, where a
+    RAM16X1D with separate read and write addresses takes two).
+
+    Ports
+    -----
+    bank : In(1)
+        The bank read; the other one takes the writes.
+    hue, luma : In(8)
+        Read addresses (a pixel's hue and luminance).
+    hue_set, luma_set : Out(1)
+        The read bank's bits at ``hue`` and ``luma``: combinational (no latency).
+    set_addr, set_data : In(8), In(1)
+        The bin written and its bit.
+    hue_en, luma_en : In(1)
+        Write ``set_data`` at ``set_addr`` into the idle bank's hue or luma set (the write
+        lands at the next clock edge).
+    """
+    bank: In(1)
+    hue: In(8)
+    luma: In(8)
+    hue_set: Out(1)
+    luma_set: Out(1)
+    set_addr: In(8)
+    set_data: In(1)
+    hue_en: In(1)
+    luma_en: In(1)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        def ground_set(name):
+            """The two banks of a set: (address, write port, read port) each."""
+            banks = []
+            for k in range(2):
+                mem = memory.Memory(shape=1, depth=256, init=[],
+                                    attrs={"ram_style": "distributed"})
+                m.submodules[f"{name}{k}"] = mem
+                addr = Signal(8, name=f"{name}{k}_addr")
+                wr, rd = mem.write_port(), mem.read_port(domain="comb")
+                m.d.comb += [wr.addr.eq(addr), rd.addr.eq(addr)]
+                banks.append((addr, wr, rd))
+            return banks
+        hset, lset = ground_set("hset"), ground_set("lset")
+
+        # bank `bank` is read (at hue / luma), the other one written (at set_addr)
+        bank = self.bank
+        for k in range(2):
+            mine = bank if k else ~bank
+            for (addr, wr, _rd), read_addr, en in ((hset[k], self.hue, self.hue_en),
+                                                   (lset[k], self.luma, self.luma_en)):
+                m.d.comb += [addr.eq(Mux(mine, read_addr, self.set_addr)),
+                             wr.data.eq(self.set_data), wr.en.eq(en & ~mine)]
+        m.d.comb += [self.hue_set.eq(Mux(bank, hset[1][2].data, hset[0][2].data)),
+                     self.luma_set.eq(Mux(bank, lset[1][2].data, lset[0][2].data))]
+        return m
+
+
+class GroundHistogram(wiring.Component):
+    """The ground unit's histogram memory: 512 words of {model (16 bits), this frame's count
+    (16 bits)}, hue bins at 0..191 and luma bins at 256..511 (one block RAM), with the count
+    update of the reference region's pixels and the search's access.
+
+    A pixel to count (``add`` with its ``bin``) goes through a read-modify-write pipeline:
+    input register (whose bin addresses the read), read, read-data register, then the
+    saturating increment written back; the count of a bin updated by one of the two
+    updates still in flight is forwarded from it, so back-to-back pixels of one bin count
+    right. A count is in the memory 3 cycles after its ``add``.
+
+    Ports
+    -----
+    add, bin : In(1), In(9)
+        Count one pixel in bin ``bin`` (any cycle; one per cycle).
+    rd_own, rd_addr : In(1), In(9)
+        The search reads at ``rd_addr`` while ``rd_own`` (no pixels are counted meanwhile);
+        ``hist`` (Out) is the word read, one cycle after the address.
+    wr_en, wr_addr, wr_model : In(1), In(9), In(16)
+        The search writes {``wr_model``, count 0} at ``wr_addr``; it has priority over the
+        count update.
+    """
+    add: In(1)
+    bin: In(9)
+    rd_own: In(1)
+    rd_addr: In(9)
+    hist: Out(2 * HIST_BITS)
+    wr_en: In(1)
+    wr_addr: In(9)
+    wr_model: In(HIST_BITS)
+
+    def elaborate(self, platform):
+        m = Module()
+        mem = memory.Memory(shape=2 * HIST_BITS, depth=HIST_WORDS, init=[])
+        m.submodules.hist = mem
+        rd = mem.read_port()
+        wr = mem.write_port()
+        W = 2 * HIST_BITS
+        u0 = Signal(); bin0 = Signal(9)
+        u1 = Signal(); bin1 = Signal(9)
+        u2 = Signal(); bin2 = Signal(9); raw2 = Signal(W)
+        fwd1_2 = Signal(); fwd2_2 = Signal()
+        u3 = Signal(); bin3 = Signal(9); val3 = Signal(W); val4 = Signal(W)
+        upd_data = Signal(W)
+        m.d.sync += [
+            u0.eq(self.add), bin0.eq(self.bin),
+            u1.eq(u0), bin1.eq(bin0),
+            u2.eq(u1), bin2.eq(bin1), raw2.eq(rd.data),
+            fwd1_2.eq(u2 & (bin2 == bin1)), fwd2_2.eq(u3 & (bin3 == bin1)),
+            u3.eq(u2), bin3.eq(bin2), val3.eq(upd_data), val4.eq(val3),
+        ]
+        word = Signal(W)
+        m.d.comb += word.eq(Mux(fwd1_2, val3, Mux(fwd2_2, val4, raw2)))
+        inc = Signal(HIST_BITS + 1)
+        m.d.comb += [inc.eq(word[:HIST_BITS] + 1),
+                     upd_data.eq(Cat(Mux(inc[HIST_BITS], word[:HIST_BITS], inc[:HIST_BITS]),
+                                     word[HIST_BITS:]))]
+
+        with m.If(self.rd_own):
+            m.d.comb += rd.addr.eq(self.rd_addr)
+        with m.Else():
+            m.d.comb += rd.addr.eq(bin0)
+        with m.If(self.wr_en):
+            m.d.comb += [wr.addr.eq(self.wr_addr),
+                         wr.data.eq(Cat(Const(0, HIST_BITS), self.wr_model)), wr.en.eq(1)]
+        with m.Else():
+            m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
+        m.d.comb += self.hist.eq(rd.data)
+        return m
 
 
 class GroundClassifier(FramedUnit):
@@ -111,23 +246,10 @@ class GroundClassifier(FramedUnit):
         ]
 
         # --- ground sets (distributed RAM, two banks) --------------------------------------
-        # distributed RAM (a block RAM each would be a waste of 16 kbit for 512 bits); one
-        # 256 x 1 memory per bank, read by the classification while the search writes the
-        # other: each has one address, so it is single-port RAM (RAM16X1S: one LUT per 16
-        # bits, where a RAM16X1D with separate read and write addresses takes two)
-        def ground_set(name):
-            """The two banks of a set: (address, write port, read port) each."""
-            banks = []
-            for k in range(2):
-                mem = memory.Memory(shape=1, depth=256, init=[],
-                                    attrs={"ram_style": "distributed"})
-                m.submodules[f"{name}{k}"] = mem
-                addr = Signal(8, name=f"{name}{k}_addr")
-                wr, rd = mem.write_port(), mem.read_port(domain="comb")
-                m.d.comb += [wr.addr.eq(addr), rd.addr.eq(addr)]
-                banks.append((addr, wr, rd))
-            return banks
-        hset, lset = ground_set("hset"), ground_set("lset")
+        m.submodules.sets = sets = GroundSets()
+        m.d.comb += [sets.bank.eq(bank), sets.set_addr.eq(search.set_addr),
+                     sets.set_data.eq(search.set_data), sets.hue_en.eq(search.hset_en),
+                     sets.luma_en.eq(search.lset_en)]
 
         # --- classification pipeline -------------------------------------------------------
         def in_range(v):
@@ -142,12 +264,7 @@ class GroundClassifier(FramedUnit):
             m.d.sync += [bank.eq(~bank), learned.eq(1), fallback.eq(fallback_next),
                          sets_pending.eq(0)]
         # bank `bank` is read (at h0 / y0), the other one written (at the search's set_addr)
-        for k in range(2):
-            mine = bank if k else ~bank
-            for (addr, wr, _rd), read_addr, en in ((hset[k], h0, search.hset_en),
-                                                   (lset[k], y0, search.lset_en)):
-                m.d.comb += [addr.eq(Mux(mine, read_addr, search.set_addr)),
-                             wr.data.eq(search.set_data), wr.en.eq(en & ~mine)]
+        m.d.comb += [sets.hue.eq(h0), sets.luma.eq(y0)]
 
         def absdiff(a, b):
             return Mux(a >= b, a - b, b - a)[:8]
@@ -158,8 +275,7 @@ class GroundClassifier(FramedUnit):
         with m.If(advance):
             m.d.sync += [v1.eq(v0), y1.eq(y0), dh1.eq(absdiff(h0, cfg.hue_centre0)),
                          dy1.eq(absdiff(y0, cfg.luma_centre0)), rel1.eq(s_ok0 & rng0),
-                         rng1.eq(rng0), hs1.eq(Mux(bank, hset[1][2].data, hset[0][2].data)),
-                         ls1.eq(Mux(bank, lset[1][2].data, lset[0][2].data)),
+                         rng1.eq(rng0), hs1.eq(sets.hue_set), ls1.eq(sets.luma_set),
                          learned1.eq(learned), fb1.eq(fallback), flags1.eq(flags0)]
         luma_ok = Signal(); hue_ok = Signal(); sat_ok = Signal(); ground = Signal()
         m.d.comb += [
@@ -201,44 +317,18 @@ class GroundClassifier(FramedUnit):
         m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < ref_x_end) &
                                  (track.y >= cfg.ref_y) & (track.y <= last_row))
         luma_px = track.x[0] ^ track.y[0]
-        mem = memory.Memory(shape=2 * HIST_BITS, depth=HIST_WORDS, init=[])
-        m.submodules.hist = mem
-        rd = mem.read_port()
-        wr = mem.write_port()
-        W = 2 * HIST_BITS
-        u0 = Signal(); bin0 = Signal(9)
-        u1 = Signal(); bin1 = Signal(9)
-        u2 = Signal(); bin2 = Signal(9); raw2 = Signal(W)
-        fwd1_2 = Signal(); fwd2_2 = Signal()
-        u3 = Signal(); bin3 = Signal(9); val3 = Signal(W); val4 = Signal(W)
-        upd_data = Signal(W)
-        m.d.sync += [
-            u0.eq(track.accept & in_region & (luma_px | ((p.s >= cfg.s_min) & in_range(p.y)))),
-            bin0.eq(Mux(luma_px, LUMA_BASE + p.y, p.h)),
-            u1.eq(u0), bin1.eq(bin0),
-            u2.eq(u1), bin2.eq(bin1), raw2.eq(rd.data),
-            fwd1_2.eq(u2 & (bin2 == bin1)), fwd2_2.eq(u3 & (bin3 == bin1)),
-            u3.eq(u2), bin3.eq(bin2), val3.eq(upd_data), val4.eq(val3),
+        m.submodules.hist = hist = GroundHistogram()
+        m.d.comb += [
+            hist.add.eq(track.accept & in_region &
+                        (luma_px | ((p.s >= cfg.s_min) & in_range(p.y)))),
+            hist.bin.eq(Mux(luma_px, LUMA_BASE + p.y, p.h)),
+            # the search (hdl.ground_search): this unit's request and its memories
+            hist.rd_own.eq(search.rd_own), hist.rd_addr.eq(search.rd_addr),
+            hist.wr_en.eq(search.wr_en), hist.wr_addr.eq(search.wr_addr),
+            hist.wr_model.eq(search.wr_model),
         ]
-        word = Signal(W)
-        m.d.comb += word.eq(Mux(fwd1_2, val3, Mux(fwd2_2, val4, raw2)))
-        inc = Signal(HIST_BITS + 1)
-        m.d.comb += [inc.eq(word[:HIST_BITS] + 1),
-                     upd_data.eq(Cat(Mux(inc[HIST_BITS], word[:HIST_BITS], inc[:HIST_BITS]),
-                                     word[HIST_BITS:]))]
-
-        # --- search (hdl.ground_search): this unit's request and its memories ---------------
-        with m.If(search.rd_own):
-            m.d.comb += rd.addr.eq(search.rd_addr)
-        with m.Else():
-            m.d.comb += rd.addr.eq(bin0)
-        with m.If(search.wr_en):
-            m.d.comb += [wr.addr.eq(search.wr_addr),
-                         wr.data.eq(Cat(Const(0, HIST_BITS), search.wr_model)), wr.en.eq(1)]
-        with m.Else():
-            m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
         m.d.comb += [search.req.eq(busy), search.commit.eq(commit),
-                     search.model_valid.eq(model_valid), search.hist.eq(rd.data)]
+                     search.model_valid.eq(model_valid), search.hist.eq(hist.hist)]
 
         region_end = Signal()
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &

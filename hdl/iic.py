@@ -49,6 +49,8 @@ Pads are open drain: ``scl_o``/``sda_o`` are always 0, ``*_oe`` = 1 pulls the li
 releases it; ``*_i`` is the line as seen at the pad (synchronised here with two flip-flops).
 """
 
+from types import SimpleNamespace
+
 from amaranth.hdl import Cat, Const, Module, Mux, ResetInserter, Signal
 from amaranth.lib import wiring
 from amaranth.lib.cdc import FFSynchronizer
@@ -58,7 +60,7 @@ from amaranth.lib.wiring import In, Out
 from . import regmap
 from .regs import BusWindow, IOBusSignature, check_window_base
 
-__all__ = ["IICMaster", "XIIC"]
+__all__ = ["IICMaster", "IICBusMonitor", "IICQuarterTimer", "IICBusEngine", "XIIC"]
 
 
 class XIIC:
@@ -91,8 +93,369 @@ class XIIC:
     FIFO_DEPTH = 16
 
 
+class IICBusMonitor(wiring.Component):
+    """The bus lines as the controller sees them, and whether the bus is busy.
+
+    ``scl_i``/``sda_i`` (the pads) pass through a two-flip-flop synchroniser each to ``scl`` and
+    ``sda``. ``busy`` is set by a START (SDA falling while SCL is high, on two successive
+    synchronised samples) and cleared by a STOP (SDA rising while SCL is high), whoever sent
+    them, so another master's transfer is seen too.
+
+    Ports
+    -----
+    scl_i, sda_i : In(1)
+        The lines at the pads (1: released), asynchronous.
+    scl, sda : Out(1)
+        The lines, synchronised: 2 cycles after the pads (1 after reset).
+    busy : Out(1)
+        Registered: one cycle after the synchronised sample that completes the START or STOP.
+    """
+    scl_i: In(1, init=1)
+    sda_i: In(1, init=1)
+    scl: Out(1, init=1)
+    sda: Out(1, init=1)
+    busy: Out(1)
+
+    def elaborate(self, platform):
+        m = Module()
+        scl, sda = self.scl, self.sda
+        m.submodules.scl_sync = FFSynchronizer(self.scl_i, scl, init=1)
+        m.submodules.sda_sync = FFSynchronizer(self.sda_i, sda, init=1)
+        sda_prev = Signal(init=1)
+        scl_prev = Signal(init=1)
+        m.d.sync += [sda_prev.eq(sda), scl_prev.eq(scl)]
+        with m.If(scl & scl_prev & sda_prev & ~sda):
+            m.d.sync += self.busy.eq(1)
+        with m.Elif(scl & scl_prev & ~sda_prev & sda):
+            m.d.sync += self.busy.eq(0)
+        return m
+
+
+class IICQuarterTimer(wiring.Component):
+    """The quarter-period timer of the bus engine: one for every state that times a quarter.
+
+    A state that times a quarter holds ``timed`` high, and ``wait_high`` too if its quarter runs
+    only while SCL reads high (after releasing SCL: clock stretching by a slave waits here, and
+    the quarter starts again from its beginning while ``scl`` is low). ``done`` is high in the
+    last cycle of the quarter, ``clk_div`` cycles after the quarter started (or after SCL was
+    last seen low), and the timer reloads for the next one in that cycle. ``restart`` reloads
+    it: for a state that starts timing in the next cycle after a wait of its own.
+
+    Parameters
+    ----------
+    clk_div : int
+        Cycles per quarter period (>= 4).
+
+    Ports
+    -----
+    timed, wait_high, restart : In(1)
+        Set by the engine's state, combinationally.
+    scl : In(1)
+        The synchronised SCL line (:class:`IICBusMonitor`).
+    done : Out(1)
+        Combinational, from the timer register and the inputs.
+    """
+    timed: In(1)
+    wait_high: In(1)
+    restart: In(1)
+    scl: In(1)
+    done: Out(1)
+
+    def __init__(self, clk_div):
+        self._clk_div = clk_div
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        timer = Signal(range(self._clk_div + 1))
+        running = Signal()
+        m.d.comb += [running.eq(~self.wait_high | self.scl),
+                     self.done.eq(self.timed & running & (timer == 0))]
+        with m.If(self.timed):
+            with m.If(self.done | ~running):        # ~running: stretched, restart the quarter
+                m.d.sync += timer.eq(self._clk_div - 1)
+            with m.Else():
+                m.d.sync += timer.eq(timer - 1)
+        with m.If(self.restart):
+            m.d.sync += timer.eq(self._clk_div - 1)
+        return m
+
+
+class IICBusEngine(wiring.Component):
+    """The bus engine in dynamic mode: takes the TX FIFO's words one at a time and turns them
+    into START, address and data bytes, read counts and STOP on the lines.
+
+    A word (10 bits, the TX_FIFO register's) with bit 8 sends a (repeated) START and then its
+    low byte as the address; without it, the low byte is a data byte, or after an address with
+    the read bit the number of bytes to read (each received byte pushed into the RX FIFO, the
+    last of the count NACKed). Bit 9 sends a STOP after the byte (or after the count's last
+    byte). Each bit takes four quarter periods (:class:`IICQuarterTimer`): SCL low for a hold
+    and a set-up quarter, SDA changed between them; SCL released and two quarters high, SDA
+    sampled between them. A NACK of ours sets ``nack`` and sends STOP; a line read low where it
+    should be high (arbitration) sets ``lost`` and releases both lines. Both also empty the TX
+    FIFO (``flush``).
+
+    Parameters
+    ----------
+    clk_div : int
+        Cycles per quarter period (>= 4).
+
+    Ports
+    -----
+    enabled : In(1)
+        CR bit 0: words are taken only while it is set.
+    tx_ready, tx_word : In(1), In(10)
+        The TX FIFO's read side; ``tx_take`` (Out) pops it, in the cycle the word is taken.
+    rx_room : In(1)
+        The RX FIFO can take a byte; ``rx_push`` and ``rx_byte`` (Out) write it. Without room
+        the engine waits with SCL held low before the acknowledge bit.
+    scl, sda : In(1)
+        The synchronised lines (:class:`IICBusMonitor`).
+    scl_oe, sda_oe : Out(1)
+        Registered line drivers: 1 pulls the line low.
+    lost, nack : Out(1)
+        One-cycle strobes for IISR bits 0 and 1.
+    flush : Out(1)
+        Empty the TX FIFO (after a NACK or a lost arbitration).
+    ours : Out(1)
+        The bus is ours (between our START and STOP) or a word is being handled.
+    reading : Out(1)
+        The master is reading (SR bit 3).
+
+    Latency: a word is taken in the cycle ``tx_ready`` is seen in the idle state; the lines
+    change on quarter boundaries only, through their output registers.
+    """
+    enabled: In(1)
+    tx_ready: In(1)
+    tx_word: In(10)
+    tx_take: Out(1)
+    rx_room: In(1)
+    rx_push: Out(1)
+    rx_byte: Out(8)
+    scl: In(1, init=1)
+    sda: In(1, init=1)
+    scl_oe: Out(1)
+    sda_oe: Out(1)
+    lost: Out(1)
+    nack: Out(1)
+    flush: Out(1)
+    ours: Out(1)
+    reading: Out(1)
+
+    def __init__(self, clk_div):
+        self._clk_div = clk_div
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.timer = timer = IICQuarterTimer(self._clk_div)
+        m.d.comb += timer.scl.eq(self.scl)
+        r = SimpleNamespace(
+            word=Signal(10), shift=Signal(8), bits=Signal(4), count=Signal(8),
+            active=Signal(),       # the bus is ours (between our START and STOP)
+            reading=self.reading, need_count=Signal(), is_addr=Signal(),
+            scl_low=self.scl_oe, sda_low=self.sda_oe)
+
+        def quarter(wait_scl_high=False):
+            """Condition that ends a quarter period (and reloads the timer)."""
+            m.d.comb += timer.timed.eq(1)
+            if wait_scl_high:
+                m.d.comb += timer.wait_high.eq(1)
+            return timer.done
+
+        # the states in the order of the bus: the FSM numbers them in order of appearance
+        with m.FSM(name="engine") as fsm:
+            self._word_states(m, r, timer)
+            self._start_states(m, r, quarter)
+            self._transmit_states(m, r, quarter)
+            self._receive_states(m, r, quarter, timer)
+            self._stop_states(m, r, quarter)
+        m.d.comb += self.ours.eq(r.active | ~fsm.ongoing("IDLE"))
+        return m
+
+    def _word_states(self, m, r, timer):
+        """Take a word from the TX FIFO and decide what it is."""
+        with m.State("IDLE"):
+            with m.If(self.enabled & self.tx_ready):
+                m.d.comb += [self.tx_take.eq(1), timer.restart.eq(1)]
+                m.d.sync += r.word.eq(self.tx_word)
+                m.next = "DISPATCH"
+        with m.State("DISPATCH"):
+            with m.If(r.word[8]):
+                m.next = "START_RELEASE_SDA"
+            with m.Elif(~r.active):
+                m.next = "IDLE"                       # data without START: dropped
+            with m.Elif(r.need_count):
+                m.d.sync += [r.count.eq(r.word[:8]), r.need_count.eq(0)]
+                with m.If(r.word[:8] == 0):
+                    m.next = "AFTER_BYTE"
+                with m.Else():
+                    m.d.sync += r.bits.eq(8)
+                    m.next = "RX_BIT_HOLD"
+            with m.Else():
+                m.d.sync += [r.shift.eq(r.word[:8]), r.bits.eq(8), r.is_addr.eq(0)]
+                m.next = "TX_BIT_HOLD"
+
+    def _start_states(self, m, r, quarter):
+        """(Repeated) START: SDA released with SCL low, SCL up, SDA down, SCL down."""
+        with m.State("START_RELEASE_SDA"):
+            with m.If(quarter()):
+                m.d.sync += r.sda_low.eq(0)
+                m.next = "START_SDA_HIGH"
+        with m.State("START_SDA_HIGH"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(0)
+                m.next = "START_SCL_HIGH"
+        with m.State("START_SCL_HIGH"):
+            with m.If(quarter(wait_scl_high=True)):
+                with m.If(~self.sda):
+                    m.d.comb += self.lost.eq(1)           # somebody holds SDA low
+                    m.next = "LOST"
+                with m.Else():
+                    m.d.sync += r.sda_low.eq(1)
+                    m.next = "START_HOLD"
+        with m.State("START_HOLD"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(1)
+                m.next = "START_DONE"
+        with m.State("START_DONE"):
+            with m.If(quarter()):
+                m.d.sync += [r.active.eq(1), r.reading.eq(0), r.need_count.eq(0),
+                             r.shift.eq(r.word[:8]), r.bits.eq(8), r.is_addr.eq(1)]
+                m.next = "TX_BIT_HOLD"
+
+    def _transmit_states(self, m, r, quarter):
+        """One byte out, MSB first, then the acknowledge bit in."""
+        with m.State("TX_BIT_HOLD"):                  # SCL low: data hold time
+            with m.If(quarter()):
+                m.d.sync += r.sda_low.eq(~r.shift[7])
+                m.next = "TX_BIT_LOW"
+        with m.State("TX_BIT_LOW"):                   # data set-up time
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(0)
+                m.next = "TX_BIT_HIGH"
+        with m.State("TX_BIT_HIGH"):
+            with m.If(quarter(wait_scl_high=True)):
+                with m.If(r.shift[7] & ~self.sda):
+                    m.d.comb += self.lost.eq(1)
+                    m.next = "LOST"
+                with m.Else():
+                    m.next = "TX_BIT_HIGH2"
+        with m.State("TX_BIT_HIGH2"):
+            with m.If(quarter()):
+                m.d.sync += [r.scl_low.eq(1), r.shift.eq(r.shift << 1), r.bits.eq(r.bits - 1)]
+                with m.If(r.bits == 1):
+                    m.next = "ACK_IN_LOW"
+                with m.Else():
+                    m.next = "TX_BIT_HOLD"
+        with m.State("ACK_IN_LOW"):
+            with m.If(quarter()):
+                m.d.sync += r.sda_low.eq(0)
+                m.next = "ACK_IN_LOW2"
+        with m.State("ACK_IN_LOW2"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(0)
+                m.next = "ACK_IN_HIGH"
+        with m.State("ACK_IN_HIGH"):
+            with m.If(quarter(wait_scl_high=True)):
+                with m.If(self.sda):
+                    m.d.comb += self.nack.eq(1)
+                    m.next = "NACK_HIGH2"
+                with m.Else():
+                    m.next = "ACK_IN_HIGH2"
+        with m.State("ACK_IN_HIGH2"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(1)
+                with m.If(r.is_addr & r.word[0]):
+                    m.d.sync += [r.reading.eq(1), r.need_count.eq(1)]
+                m.next = "AFTER_BYTE"
+        with m.State("NACK_HIGH2"):
+            m.d.comb += self.flush.eq(1)
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(1)
+                m.next = "STOP_HOLD"
+
+    def _receive_states(self, m, r, quarter, timer):
+        """One byte in, then our acknowledge (NACK for the last byte of the count)."""
+        with m.State("RX_BIT_HOLD"):
+            with m.If(quarter()):
+                m.d.sync += r.sda_low.eq(0)
+                m.next = "RX_BIT_LOW"
+        with m.State("RX_BIT_LOW"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(0)
+                m.next = "RX_BIT_HIGH"
+        with m.State("RX_BIT_HIGH"):
+            with m.If(quarter(wait_scl_high=True)):
+                m.d.sync += r.shift.eq(Cat(self.sda, r.shift[:7]))
+                m.next = "RX_BIT_HIGH2"
+        with m.State("RX_BIT_HIGH2"):
+            with m.If(quarter()):
+                m.d.sync += [r.scl_low.eq(1), r.bits.eq(r.bits - 1)]
+                with m.If(r.bits == 1):
+                    m.next = "RX_PUSH"
+                with m.Else():
+                    m.next = "RX_BIT_HOLD"
+        with m.State("RX_PUSH"):
+            with m.If(self.rx_room):                  # else wait, SCL held low
+                m.d.comb += [self.rx_push.eq(1), self.rx_byte.eq(r.shift), timer.restart.eq(1)]
+                m.next = "ACK_OUT_HOLD"
+        with m.State("ACK_OUT_HOLD"):
+            with m.If(quarter()):
+                m.d.sync += r.sda_low.eq(r.count != 1)
+                m.next = "ACK_OUT_LOW"
+        with m.State("ACK_OUT_LOW"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(0)
+                m.next = "ACK_OUT_HIGH"
+        with m.State("ACK_OUT_HIGH"):
+            with m.If(quarter(wait_scl_high=True)):
+                m.next = "ACK_OUT_HIGH2"
+        with m.State("ACK_OUT_HIGH2"):
+            with m.If(quarter()):
+                m.d.sync += [r.scl_low.eq(1), r.count.eq(r.count - 1), r.bits.eq(8)]
+                with m.If(r.count == 1):
+                    m.next = "AFTER_BYTE"
+                with m.Else():
+                    m.next = "RX_BIT_HOLD"
+
+    def _stop_states(self, m, r, quarter):
+        """After a byte: STOP (SDA low with SCL low, SCL up, SDA up) or keep the bus; and
+        the release after a lost arbitration."""
+        with m.State("AFTER_BYTE"):
+            with m.If(r.word[9] & ~r.need_count):
+                m.next = "STOP_HOLD"
+            with m.Else():
+                m.d.sync += r.sda_low.eq(0)
+                m.next = "IDLE"                       # bus kept: SCL stays low
+        with m.State("STOP_HOLD"):
+            with m.If(quarter()):
+                m.d.sync += r.sda_low.eq(1)
+                m.next = "STOP_LOW"
+        with m.State("STOP_LOW"):
+            with m.If(quarter()):
+                m.d.sync += r.scl_low.eq(0)
+                m.next = "STOP_SCL_HIGH"
+        with m.State("STOP_SCL_HIGH"):
+            with m.If(quarter(wait_scl_high=True)):
+                m.d.sync += r.sda_low.eq(0)
+                m.next = "STOP_BUS_FREE"
+        with m.State("STOP_BUS_FREE"):
+            with m.If(quarter()):
+                m.d.sync += [r.active.eq(0), r.reading.eq(0), r.need_count.eq(0)]
+                m.next = "STOP_BUS_FREE2"
+        with m.State("STOP_BUS_FREE2"):                # bus free time before a new START
+            with m.If(quarter()):
+                m.next = "IDLE"
+        with m.State("LOST"):
+            m.d.comb += self.flush.eq(1)
+            m.d.sync += [r.scl_low.eq(0), r.sda_low.eq(0), r.active.eq(0), r.reading.eq(0),
+                         r.need_count.eq(0)]
+            m.next = "IDLE"
+
+
 class _Core(wiring.Component):
-    """Everything SOFTR resets: registers, FIFOs, the bus engine."""
+    """Everything SOFTR resets: registers, FIFOs, the bus monitor and engine."""
 
     def __init__(self, clk_div):
         self._clk_div = clk_div
@@ -109,9 +472,10 @@ class _Core(wiring.Component):
         m = Module()
         depth = XIIC.FIFO_DEPTH
         flush_tx = Signal()
-        engine_flush = Signal()
         tx = m.submodules.tx = ResetInserter(flush_tx)(SyncFIFOBuffered(width=10, depth=depth))
         rx = m.submodules.rx = SyncFIFOBuffered(width=8, depth=depth)
+        m.submodules.monitor = monitor = IICBusMonitor()
+        m.submodules.engine = engine = IICBusEngine(self._clk_div)
 
         cr = Signal(7)
         rfd = Signal(4)
@@ -120,247 +484,25 @@ class _Core(wiring.Component):
             m.d.sync += cr.eq(self.wdata[:7])
         with m.If(self.wr_rfd):
             m.d.sync += rfd.eq(self.wdata[:4])
-        enabled = cr[0]
 
-        # TX FIFO: firmware writes
-        m.d.comb += [tx.w_data.eq(self.wdata[:10]), tx.w_en.eq(self.wr_tx)]
-        # RX FIFO: firmware reads
-        m.d.comb += [rx.r_en.eq(self.rd_rx), self.rx_data.eq(Mux(rx.r_rdy, rx.r_data, 0))]
-
-        # bus monitor (START/STOP seen on the lines)
-        scl = Signal(init=1)
-        sda = Signal(init=1)
-        m.submodules.scl_sync = FFSynchronizer(self.scl_i, scl, init=1)
-        m.submodules.sda_sync = FFSynchronizer(self.sda_i, sda, init=1)
-        sda_prev = Signal(init=1)
-        scl_prev = Signal(init=1)
-        busy_seen = Signal()
-        m.d.sync += [sda_prev.eq(sda), scl_prev.eq(scl)]
-        with m.If(scl & scl_prev & sda_prev & ~sda):
-            m.d.sync += busy_seen.eq(1)
-        with m.Elif(scl & scl_prev & ~sda_prev & sda):
-            m.d.sync += busy_seen.eq(0)
-
-        # line drivers, registered
-        scl_low = Signal()
-        sda_low = Signal()
-        m.d.comb += [self.scl_oe.eq(scl_low), self.sda_oe.eq(sda_low)]
-
-        word = Signal(10)
-        shift = Signal(8)
-        bits = Signal(4)
-        count = Signal(8)
-        active = Signal()      # the bus is ours (between our START and STOP)
-        reading = Signal()
-        need_count = Signal()
-        is_addr = Signal()
-        timer = Signal(range(self._clk_div + 1))
-        set_arb = Signal()
-        set_nack = Signal()
-
-        # One quarter-period timer for every state that times a quarter (the state says so
-        # through `timed`, and `wait_high` if the quarter runs only while SCL reads high)
-        timed = Signal()
-        wait_high = Signal()
-        running = Signal()
-        quarter_done = Signal()
-        m.d.comb += [running.eq(~wait_high | scl),
-                     quarter_done.eq(timed & running & (timer == 0))]
-        with m.If(timed):
-            with m.If(quarter_done | ~running):     # ~running: stretched, restart the quarter
-                m.d.sync += timer.eq(self._clk_div - 1)
-            with m.Else():
-                m.d.sync += timer.eq(timer - 1)
-
-        def quarter(wait_scl_high=False):
-            """Condition that ends a quarter period (and reloads the timer)."""
-            m.d.comb += timed.eq(1)
-            if wait_scl_high:
-                m.d.comb += wait_high.eq(1)
-            return quarter_done
-
-        with m.FSM(name="engine") as fsm:
-            with m.State("IDLE"):
-                with m.If(enabled & tx.r_rdy):
-                    m.d.comb += tx.r_en.eq(1)
-                    m.d.sync += [word.eq(tx.r_data), timer.eq(self._clk_div - 1)]
-                    m.next = "DISPATCH"
-            with m.State("DISPATCH"):
-                with m.If(word[8]):
-                    m.next = "START_RELEASE_SDA"
-                with m.Elif(~active):
-                    m.next = "IDLE"                       # data without START: dropped
-                with m.Elif(need_count):
-                    m.d.sync += [count.eq(word[:8]), need_count.eq(0)]
-                    with m.If(word[:8] == 0):
-                        m.next = "AFTER_BYTE"
-                    with m.Else():
-                        m.d.sync += bits.eq(8)
-                        m.next = "RX_BIT_HOLD"
-                with m.Else():
-                    m.d.sync += [shift.eq(word[:8]), bits.eq(8), is_addr.eq(0)]
-                    m.next = "TX_BIT_HOLD"
-
-            # (repeated) START: SDA released with SCL low, SCL up, SDA down, SCL down
-            with m.State("START_RELEASE_SDA"):
-                with m.If(quarter()):
-                    m.d.sync += sda_low.eq(0)
-                    m.next = "START_SDA_HIGH"
-            with m.State("START_SDA_HIGH"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(0)
-                    m.next = "START_SCL_HIGH"
-            with m.State("START_SCL_HIGH"):
-                with m.If(quarter(wait_scl_high=True)):
-                    with m.If(~sda):
-                        m.d.comb += set_arb.eq(1)         # somebody holds SDA low
-                        m.next = "LOST"
-                    with m.Else():
-                        m.d.sync += sda_low.eq(1)
-                        m.next = "START_HOLD"
-            with m.State("START_HOLD"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(1)
-                    m.next = "START_DONE"
-            with m.State("START_DONE"):
-                with m.If(quarter()):
-                    m.d.sync += [active.eq(1), reading.eq(0), need_count.eq(0),
-                                 shift.eq(word[:8]), bits.eq(8), is_addr.eq(1)]
-                    m.next = "TX_BIT_HOLD"
-
-            # one byte out, MSB first, then the acknowledge bit in
-            with m.State("TX_BIT_HOLD"):                  # SCL low: data hold time
-                with m.If(quarter()):
-                    m.d.sync += sda_low.eq(~shift[7])
-                    m.next = "TX_BIT_LOW"
-            with m.State("TX_BIT_LOW"):                   # data set-up time
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(0)
-                    m.next = "TX_BIT_HIGH"
-            with m.State("TX_BIT_HIGH"):
-                with m.If(quarter(wait_scl_high=True)):
-                    with m.If(shift[7] & ~sda):
-                        m.d.comb += set_arb.eq(1)
-                        m.next = "LOST"
-                    with m.Else():
-                        m.next = "TX_BIT_HIGH2"
-            with m.State("TX_BIT_HIGH2"):
-                with m.If(quarter()):
-                    m.d.sync += [scl_low.eq(1), shift.eq(shift << 1), bits.eq(bits - 1)]
-                    with m.If(bits == 1):
-                        m.next = "ACK_IN_LOW"
-                    with m.Else():
-                        m.next = "TX_BIT_HOLD"
-            with m.State("ACK_IN_LOW"):
-                with m.If(quarter()):
-                    m.d.sync += sda_low.eq(0)
-                    m.next = "ACK_IN_LOW2"
-            with m.State("ACK_IN_LOW2"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(0)
-                    m.next = "ACK_IN_HIGH"
-            with m.State("ACK_IN_HIGH"):
-                with m.If(quarter(wait_scl_high=True)):
-                    with m.If(sda):
-                        m.d.comb += set_nack.eq(1)
-                        m.next = "NACK_HIGH2"
-                    with m.Else():
-                        m.next = "ACK_IN_HIGH2"
-            with m.State("ACK_IN_HIGH2"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(1)
-                    with m.If(is_addr & word[0]):
-                        m.d.sync += [reading.eq(1), need_count.eq(1)]
-                    m.next = "AFTER_BYTE"
-            with m.State("NACK_HIGH2"):
-                m.d.comb += engine_flush.eq(1)
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(1)
-                    m.next = "STOP_HOLD"
-
-            # one byte in, then our acknowledge (NACK for the last byte of the count)
-            with m.State("RX_BIT_HOLD"):
-                with m.If(quarter()):
-                    m.d.sync += sda_low.eq(0)
-                    m.next = "RX_BIT_LOW"
-            with m.State("RX_BIT_LOW"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(0)
-                    m.next = "RX_BIT_HIGH"
-            with m.State("RX_BIT_HIGH"):
-                with m.If(quarter(wait_scl_high=True)):
-                    m.d.sync += shift.eq(Cat(sda, shift[:7]))
-                    m.next = "RX_BIT_HIGH2"
-            with m.State("RX_BIT_HIGH2"):
-                with m.If(quarter()):
-                    m.d.sync += [scl_low.eq(1), bits.eq(bits - 1)]
-                    with m.If(bits == 1):
-                        m.next = "RX_PUSH"
-                    with m.Else():
-                        m.next = "RX_BIT_HOLD"
-            with m.State("RX_PUSH"):
-                with m.If(rx.w_rdy):                      # else wait, SCL held low
-                    m.d.comb += [rx.w_en.eq(1), rx.w_data.eq(shift)]
-                    m.d.sync += timer.eq(self._clk_div - 1)
-                    m.next = "ACK_OUT_HOLD"
-            with m.State("ACK_OUT_HOLD"):
-                with m.If(quarter()):
-                    m.d.sync += sda_low.eq(count != 1)
-                    m.next = "ACK_OUT_LOW"
-            with m.State("ACK_OUT_LOW"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(0)
-                    m.next = "ACK_OUT_HIGH"
-            with m.State("ACK_OUT_HIGH"):
-                with m.If(quarter(wait_scl_high=True)):
-                    m.next = "ACK_OUT_HIGH2"
-            with m.State("ACK_OUT_HIGH2"):
-                with m.If(quarter()):
-                    m.d.sync += [scl_low.eq(1), count.eq(count - 1), bits.eq(8)]
-                    with m.If(count == 1):
-                        m.next = "AFTER_BYTE"
-                    with m.Else():
-                        m.next = "RX_BIT_HOLD"
-
-            with m.State("AFTER_BYTE"):
-                with m.If(word[9] & ~need_count):
-                    m.next = "STOP_HOLD"
-                with m.Else():
-                    m.d.sync += sda_low.eq(0)
-                    m.next = "IDLE"                       # bus kept: SCL stays low
-
-            # STOP: SDA low with SCL low, SCL up, SDA up
-            with m.State("STOP_HOLD"):
-                with m.If(quarter()):
-                    m.d.sync += sda_low.eq(1)
-                    m.next = "STOP_LOW"
-            with m.State("STOP_LOW"):
-                with m.If(quarter()):
-                    m.d.sync += scl_low.eq(0)
-                    m.next = "STOP_SCL_HIGH"
-            with m.State("STOP_SCL_HIGH"):
-                with m.If(quarter(wait_scl_high=True)):
-                    m.d.sync += sda_low.eq(0)
-                    m.next = "STOP_BUS_FREE"
-            with m.State("STOP_BUS_FREE"):
-                with m.If(quarter()):
-                    m.d.sync += [active.eq(0), reading.eq(0), need_count.eq(0)]
-                    m.next = "STOP_BUS_FREE2"
-            with m.State("STOP_BUS_FREE2"):                # bus free time before a new START
-                with m.If(quarter()):
-                    m.next = "IDLE"
-
-            with m.State("LOST"):
-                m.d.comb += engine_flush.eq(1)
-                m.d.sync += [scl_low.eq(0), sda_low.eq(0), active.eq(0), reading.eq(0),
-                             need_count.eq(0)]
-                m.next = "IDLE"
-
-        m.d.comb += flush_tx.eq(cr[1] | engine_flush)
+        m.d.comb += [
+            # TX FIFO: firmware writes, the engine reads
+            tx.w_data.eq(self.wdata[:10]), tx.w_en.eq(self.wr_tx),
+            engine.tx_ready.eq(tx.r_rdy), engine.tx_word.eq(tx.r_data), tx.r_en.eq(engine.tx_take),
+            # RX FIFO: the engine writes, firmware reads
+            rx.w_en.eq(engine.rx_push), rx.w_data.eq(engine.rx_byte), engine.rx_room.eq(rx.w_rdy),
+            rx.r_en.eq(self.rd_rx), self.rx_data.eq(Mux(rx.r_rdy, rx.r_data, 0)),
+            # lines
+            monitor.scl_i.eq(self.scl_i), monitor.sda_i.eq(self.sda_i),
+            engine.scl.eq(monitor.scl), engine.sda.eq(monitor.sda),
+            self.scl_oe.eq(engine.scl_oe), self.sda_oe.eq(engine.sda_oe),
+            engine.enabled.eq(cr[0]),
+            flush_tx.eq(cr[1] | engine.flush),
+        ]
 
         bus_busy = Signal()
-        m.d.comb += bus_busy.eq(busy_seen | active | ~fsm.ongoing("IDLE"))
-        isr_set = Cat(set_arb, set_nack, ~tx.r_rdy, rx.level == rfd + 1, ~bus_busy)
+        m.d.comb += bus_busy.eq(monitor.busy | engine.ours)
+        isr_set = Cat(engine.lost, engine.nack, ~tx.r_rdy, rx.level == rfd + 1, ~bus_busy)
         toggle = Mux(self.wr_isr, self.wdata[:5], 0)
         m.d.sync += isr.eq((isr ^ toggle) | isr_set)
 
@@ -368,8 +510,8 @@ class _Core(wiring.Component):
             self.isr.eq(isr),
             self.cr.eq(cr),
             self.rfd.eq(rfd),
-            self.sr.eq(Cat(Const(0, 2), bus_busy, reading, tx.level == depth, rx.level == depth,
-                           ~rx.r_rdy, tx.level == 0)),
+            self.sr.eq(Cat(Const(0, 2), bus_busy, engine.reading, tx.level == depth,
+                           rx.level == depth, ~rx.r_rdy, tx.level == 0)),
             self.tfo.eq(Mux(tx.level != 0, tx.level - 1, 0)),
             self.rfo.eq(Mux(rx.level != 0, rx.level - 1, 0)),
         ]
