@@ -1,19 +1,29 @@
-"""Base-station command line: ``python -m station decode FILE`` and ``python -m station listen``.
+"""Base-station command line: ``python -m station decode | listen | replay``.
 
 ``decode FILE`` reads raw bytes as they came off the serial line (escaped XBee API frames)
 and prints one JSON line: the accepted packets (sequence number, API id, payload in hex) and
 the link statistics, rejected frames counted by reason (``station.radio.FrameDecoder``).
 
-``listen --port DEV --baud B`` opens the serial port (pyserial, 8N1, no flow control), feeds
-every byte to a ``BaseStation`` (decode, map, replan) and, at the end (``--idle-exit`` seconds
-without a byte, ``--duration``, or Ctrl-C), writes to ``--out``: ``map.npy`` (log-odds grid),
-``map.png``, ``path.json`` (the current path in metres) and ``link.json`` (link statistics,
-accepted sequence numbers, replans); they are also rewritten every ``--write-every`` seconds
-while it runs. The station's clock is the packets' pose timestamp
-(``pose_ms``), so a recording replays to the same map. ``--camera FILE.json`` gives the rig
-(``golden.camera.Camera``, the same file ``python -m sim run --camera`` reads); without it the
-station assumes the module's 720 x 240 NTSC field (``golden.camera.FIELD``) and rescales it
-to each packet's width.
+``listen --port DEV --baud B`` opens the serial port (pyserial, 8N1, no flow control, locked
+against a second station), feeds every byte to a ``station.session.StationRun`` (decode,
+map, replan) and, at the end (``--idle-exit`` seconds without a byte, ``--duration``, or
+Ctrl-C), writes to ``--out``: ``map.npy`` (log-odds grid), ``map.png``, ``path.json`` (the
+current path in metres) and ``link.json`` (link statistics, accepted sequence numbers,
+replans); they are also rewritten every ``--write-every`` seconds while it runs.
+
+``replay FILE --speed X`` feeds a recording (``radio.bin``) through the same station, paced
+by the packets' clock (``station.replay``), writes the same outputs and exits at the end of
+the recording.
+
+The station's clock is the packets' pose timestamp (``pose_ms``), so a recording replays to
+the same map, path and link statistics as ``listen`` gave. ``--camera FILE.json`` gives the
+rig (``golden.camera.Camera``, the same file ``python -m sim run --camera`` reads); without
+it the station assumes the module's 720 x 240 NTSC field (``golden.camera.FIELD``) and
+rescales it to each packet's width.
+
+Bad input (a port that does not exist or is in use, a file that is not a recording, a bad
+option value) gives one ``error:`` line on stderr and exit status 2, before any output file
+is written.
 """
 
 from __future__ import annotations
@@ -23,8 +33,6 @@ import json
 import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 __all__ = ["main", "decode_bytes", "make_station", "camera_option"]
 
@@ -82,45 +90,34 @@ def camera_option(values):
     raise ValueError("--camera takes a rig file FILE.json (or, deprecated, W H)")
 
 
-class _Listener:
-    def __init__(self, station):
-        self.station = station
-        self.seqs = []
+def _common(args):
+    """Goal, extent and camera from the shared options (ValueError on bad values)."""
+    goal = _pair(args.goal, "--goal")
+    try:
+        extent = tuple(float(v) for v in args.extent.split(","))
+    except ValueError:
+        extent = ()
+    if len(extent) != 4 or not (extent[0] < extent[2] and extent[1] < extent[3]):
+        raise ValueError(f"--extent must be XMIN,YMIN,XMAX,YMAX in metres with XMIN < XMAX "
+                         f"and YMIN < YMAX, not {args.extent!r}")
+    camera = camera_option(args.camera) if args.camera else None
+    return goal, extent, camera
 
-    def feed(self, data: bytes):
-        st = self.station
-        for pkt in st.decoder.feed(data):
-            self.seqs.append(pkt.seq)
-            st.handle_packet(pkt, pkt.pose_ms / 1000.0)
 
-
-def write_outputs(listener, out: Path):
-    st = listener.station
-    out.mkdir(parents=True, exist_ok=True)
-    np.save(out / "map.npy", st.grid.logodds)
-    from PIL import Image
-    img = (np.clip(0.5 - st.grid.logodds / 8.0, 0.0, 1.0) * 255).astype(np.uint8)
-    Image.fromarray(img[::-1]).save(out / "map.png")
-    (out / "path.json").write_text(json.dumps({"goal": list(st.goal),
-                                               "path": [list(p) for p in st.path_world]}) + "\n")
-    link = {**st.link_stats(), "accepted_seqs": listener.seqs, "replans": st.replans,
-            "plan_status": st.last_result.status if st.last_result else None}
-    (out / "link.json").write_text(json.dumps(link) + "\n")
-    return link
+def _finish_report(link):
+    print(json.dumps({k: link[k] for k in ("accepted", "rejected_total", "lost",
+                                           "duplicates", "replans")}))
 
 
 def _listen(args) -> int:
     import serial
-    goal = _pair(args.goal, "--goal")
-    extent = tuple(float(v) for v in args.extent.split(","))
-    if len(extent) != 4:
-        raise ValueError("--extent must be XMIN,YMIN,XMAX,YMAX")
-    camera = camera_option(args.camera) if args.camera else None
+    from station.session import StationRun, write_outputs
+    goal, extent, camera = _common(args)
     try:
-        port = serial.Serial(args.port, args.baud, timeout=0.05)
+        port = serial.Serial(args.port, args.baud, timeout=0.05, exclusive=True)
     except (serial.SerialException, ValueError, OSError) as e:
         raise ValueError(f"cannot open {args.port}: {e}") from None
-    lis = _Listener(make_station(goal, extent, camera))
+    run = StationRun(make_station(goal, extent, camera))
     print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
     t0 = last = last_write = time.monotonic()
     got_any = False
@@ -130,10 +127,10 @@ def _listen(args) -> int:
                 data = port.read(max(1, port.in_waiting))
                 now = time.monotonic()
                 if data:
-                    lis.feed(data)
+                    run.feed(data)
                     got_any, last = True, now
                 if args.write_every and now - last_write >= args.write_every:
-                    write_outputs(lis, Path(args.out))
+                    write_outputs(run, Path(args.out))
                     last_write = now
                 if args.duration and now - t0 >= args.duration:
                     break
@@ -142,15 +139,64 @@ def _listen(args) -> int:
     except KeyboardInterrupt:
         pass
     except (serial.SerialException, OSError) as e:
-        lis.station.decoder.flush()
-        write_outputs(lis, Path(args.out))
+        run.finish()
+        write_outputs(run, Path(args.out))
         raise ValueError(f"serial port {args.port}: {e} (outputs written to {args.out})") \
             from None
-    lis.station.decoder.flush()
-    link = write_outputs(lis, Path(args.out))
-    print(json.dumps({k: link[k] for k in ("accepted", "rejected_total", "lost",
-                                           "duplicates", "replans")}))
+    run.finish()
+    _finish_report(write_outputs(run, Path(args.out)))
     return 0
+
+
+def _read_recording(path):
+    """The bytes of a recording, checked: ValueError unless it holds at least one packet."""
+    from station.session import recording_packets
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise ValueError(f"cannot read {path}: {e.strerror}") from None
+    pkts, stats = recording_packets(data)
+    if not pkts:
+        raise ValueError(f"{path} is not a recording of the radio line: no valid packet in "
+                         f"{len(data)} bytes ({stats['rejected_total']} frames rejected)")
+    return data, pkts
+
+
+def _replay(args) -> int:
+    from station.replay import replay
+    from station.session import StationRun, write_outputs
+    goal, extent, camera = _common(args)
+    if not args.speed >= 0:
+        raise ValueError(f"--speed must be >= 0 (0: as fast as possible), not {args.speed}")
+    data, pkts = _read_recording(args.file)
+    run = StationRun(make_station(goal, extent, camera))
+    print(f"replaying {args.file}: {len(data)} bytes, {len(pkts)} packets, "
+          f"{(pkts[-1].pose_ms - pkts[0].pose_ms) / 1000.0:.1f} s at speed "
+          f"{args.speed or 'max'}", file=sys.stderr, flush=True)
+    try:
+        stats = replay(run, data, args.speed)
+    except KeyboardInterrupt:
+        run.finish()
+        write_outputs(run, Path(args.out))
+        print("interrupted: outputs of the packets so far written", file=sys.stderr)
+        return 130
+    _finish_report(write_outputs(run, Path(args.out)))
+    print(f"replayed {stats.packets} packets, {stats.station_s:.1f} s of station time in "
+          f"{stats.wall_s:.2f} s (x{stats.speed:.1f})", file=sys.stderr, flush=True)
+    return 0
+
+
+def _station_options(p):
+    p.add_argument("--out", default="build/station",
+                   help="where map.npy, map.png, path.json, link.json go (default build/station)")
+    p.add_argument("--goal", default="6,0", help="goal X,Y in metres (default 6,0)")
+    p.add_argument("--extent", default="-1,-2.5,7.5,2.5", help="map XMIN,YMIN,XMAX,YMAX")
+    p.add_argument("--camera", nargs="+", metavar="FILE.json",
+                   help="rig file (keys fx, fy, cx, cy, baseline_m, height_m, tilt_deg, "
+                        "valid, doffs_px, width, height, mount_forward_m, mount_left_m; see "
+                        "golden/camera.py); default: the module's 720x240 NTSC field. The "
+                        "older form W H (the reference rig at that size) still works but is "
+                        "deprecated")
 
 
 def main(argv=None) -> int:
@@ -161,21 +207,19 @@ def main(argv=None) -> int:
     li = sub.add_parser("listen", help="run the base station on a serial port")
     li.add_argument("--port", required=True)
     li.add_argument("--baud", type=int, default=115200)
-    li.add_argument("--out", default="build/station")
-    li.add_argument("--goal", default="6,0", help="goal X,Y in metres (default 6,0)")
-    li.add_argument("--extent", default="-1,-2.5,7.5,2.5", help="map XMIN,YMIN,XMAX,YMAX")
-    li.add_argument("--camera", nargs="+", metavar="FILE.json",
-                    help="rig file (keys fx, fy, cx, cy, baseline_m, height_m, tilt_deg, "
-                         "valid, doffs_px, width, height, mount_forward_m, mount_left_m; see "
-                         "golden/camera.py); default: the module's 720x240 NTSC field. The "
-                         "older form W H (the reference rig at that size) still works but is "
-                         "deprecated")
+    _station_options(li)
     li.add_argument("--duration", type=float, default=0.0, help="stop after S seconds")
     li.add_argument("--idle-exit", type=float, default=0.0,
                     help="stop S seconds after the last byte")
     li.add_argument("--write-every", type=float, default=2.0,
                     help="also write the outputs every S seconds while running (0: only at "
                          "the end; default 2)")
+    rp = sub.add_parser("replay", help="run the base station on a recording of the serial "
+                                       "line, paced by the packets' clock")
+    rp.add_argument("file")
+    rp.add_argument("--speed", type=float, default=1.0,
+                    help="times real time (default 1; 0: as fast as the station goes)")
+    _station_options(rp)
     args = ap.parse_args(argv)
     try:
         if args.cmd == "decode":
@@ -185,6 +229,8 @@ def main(argv=None) -> int:
                 raise ValueError(f"cannot read {args.file}: {e.strerror}") from None
             print(json.dumps(decode_bytes(data)))
             return 0
+        if args.cmd == "replay":
+            return _replay(args)
         if args.baud <= 0:
             raise ValueError("--baud must be positive")
         return _listen(args)
