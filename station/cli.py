@@ -15,6 +15,9 @@ replans); they are also rewritten every ``--write-every`` seconds while it runs.
 by the packets' clock (``station.replay``), writes the same outputs and exits at the end of
 the recording.
 
+``--mcap FILE`` (both) also logs the run as MCAP with Foxglove's well-known schemas
+(``station.mcaplog``).
+
 The station's clock is the packets' pose timestamp (``pose_ms``), so a recording replays to
 the same map, path and link statistics as ``listen`` gave. ``--camera FILE.json`` gives the
 rig (``golden.camera.Camera``, the same file ``python -m sim run --camera`` reads); without
@@ -117,7 +120,7 @@ def _listen(args) -> int:
         port = serial.Serial(args.port, args.baud, timeout=0.05, exclusive=True)
     except (serial.SerialException, ValueError, OSError) as e:
         raise ValueError(f"cannot open {args.port}: {e}") from None
-    run = StationRun(make_station(goal, extent, camera))
+    run = StationRun(make_station(goal, extent, camera), _sinks(args))
     print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
     t0 = last = last_write = time.monotonic()
     got_any = False
@@ -148,6 +151,15 @@ def _listen(args) -> int:
     return 0
 
 
+def _sinks(args):
+    """The run's sinks, opened (ValueError, before anything is written, if one cannot)."""
+    sinks = []
+    if args.mcap:
+        from station.mcaplog import McapSink
+        sinks.append(McapSink(args.mcap).open())
+    return sinks
+
+
 def _read_recording(path):
     """The bytes of a recording, checked: ValueError unless it holds at least one packet."""
     from station.session import recording_packets
@@ -169,7 +181,7 @@ def _replay(args) -> int:
     if not args.speed >= 0:
         raise ValueError(f"--speed must be >= 0 (0: as fast as possible), not {args.speed}")
     data, pkts = _read_recording(args.file)
-    run = StationRun(make_station(goal, extent, camera))
+    run = StationRun(make_station(goal, extent, camera), _sinks(args))
     print(f"replaying {args.file}: {len(data)} bytes, {len(pkts)} packets, "
           f"{(pkts[-1].pose_ms - pkts[0].pose_ms) / 1000.0:.1f} s at speed "
           f"{args.speed or 'max'}", file=sys.stderr, flush=True)
@@ -197,6 +209,9 @@ def _station_options(p):
                         "golden/camera.py); default: the module's 720x240 NTSC field. The "
                         "older form W H (the reference rig at that size) still works but is "
                         "deprecated")
+    p.add_argument("--mcap", metavar="FILE",
+                   help="also log the run as MCAP with Foxglove's schemas (map, pose, path, "
+                        "obstacle points, raw packets with link status)")
 
 
 def main(argv=None) -> int:

@@ -151,3 +151,47 @@ def test_bad_input_gets_one_error_line_and_writes_nothing(recording, tmp_path, c
         os.close(master)
         os.close(slave)
     assert not out.exists()
+
+
+def test_replay_writes_an_mcap_log_with_foxglove_schemas(recording, tmp_path, capsys):
+    import base64
+    from mcap.reader import make_reader
+    from station.mcaplog import TOPICS
+    log, out = tmp_path / "run.mcap", tmp_path / "out"
+    assert main(["replay", str(recording), "--speed", "0", "--out", str(out), "--mcap",
+                 str(log), *WORLD]) == 0
+    capsys.readouterr()
+    assert log.exists() and not (tmp_path / "run.mcap.part").exists()
+    grid, path_json, link = _outputs(out)
+    msgs = {}
+    with open(log, "rb") as f:
+        reader = make_reader(f)
+        for schema, channel, message in reader.iter_messages():
+            assert schema.encoding == "jsonschema" and channel.message_encoding == "json"
+            assert schema.name == TOPICS[channel.topic]
+            json.loads(schema.data)
+            msgs.setdefault(channel.topic, []).append(json.loads(message.data))
+    assert set(msgs) == set(TOPICS)
+    assert TOPICS["/map"] == "foxglove.Grid" and TOPICS["/path"] == "foxglove.PosesInFrame"
+    last = msgs["/map"][-1]
+    cells = np.frombuffer(base64.b64decode(last["data"]), dtype="<f4")
+    assert last["column_count"] == grid.shape[1] and last["row_stride"] == 4 * grid.shape[1]
+    assert np.array_equal(cells.reshape(grid.shape), grid)
+    accepted = link["accepted"]
+    assert len(msgs["/robot/pose"]) == len(msgs["/tf"]) == accepted
+    assert len(msgs["/radio/packets"]) == len(msgs["/obstacles"]) == accepted
+    assert [m["seq"] for m in msgs["/radio/packets"]] == link["accepted_seqs"]
+    assert msgs["/radio/packets"][-1]["link"]["rejected"] == link["rejected"]
+    pose = msgs["/robot/pose"][-1]["pose"]
+    pkt = msgs["/radio/packets"][-1]
+    assert pose["position"]["x"] == pkt["x_mm"] / 1000 and pose["position"]["y"] == \
+        pkt["y_mm"] / 1000
+    assert [[p["position"]["x"], p["position"]["y"]] for p in msgs["/path"][-1]["poses"]] \
+        == path_json["path"]
+    assert len(msgs["/planner"]) == link["replans"]
+    clouds = [len(base64.b64decode(m["data"])) // 12 for m in msgs["/obstacles"]]
+    assert sum(clouds) > 0
+    assert main(["replay", str(recording), "--mcap", str(tmp_path / "no" / "dir.mcap"),
+                 "--out", str(tmp_path / "out2")]) == 2
+    assert capsys.readouterr().err.startswith("error:")
+    assert not (tmp_path / "out2").exists()
