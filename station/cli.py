@@ -15,6 +15,11 @@ replans); they are also rewritten every ``--write-every`` seconds while it runs.
 by the packets' clock (``station.replay``), writes the same outputs and exits at the end of
 the recording.
 
+``--http HOST:PORT`` (both) serves the live view (``station.web``): the map, pose and
+trail, path and its cost, the last packet's obstacle points and free-space bands, the link
+statistics, the module's health and the planner's time per replan, updated over a websocket.
+``replay`` then keeps serving after the recording ends (``--hold``).
+
 ``--mcap FILE`` (both) also logs the run as MCAP with Foxglove's well-known schemas
 (``station.mcaplog``).
 
@@ -33,6 +38,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import signal
 import sys
 import time
 from pathlib import Path
@@ -114,31 +121,42 @@ def _finish_report(link):
 
 def _listen(args) -> int:
     import serial
-    from station.session import StationRun, write_outputs
     goal, extent, camera = _common(args)
+    station = make_station(goal, extent, camera)
+    view = _start_view(args, station, f"listen {args.port} at {args.baud} baud")
     try:
-        port = serial.Serial(args.port, args.baud, timeout=0.05, exclusive=True)
-    except (serial.SerialException, ValueError, OSError) as e:
-        raise ValueError(f"cannot open {args.port}: {e}") from None
-    run = StationRun(make_station(goal, extent, camera), _sinks(args))
+        try:
+            port = serial.Serial(args.port, args.baud, timeout=0.05, exclusive=True)
+        except (serial.SerialException, ValueError, OSError) as e:
+            raise ValueError(f"cannot open {args.port}: {e}") from None
+        with port:
+            return _listen_loop(args, port, station, view)
+    finally:
+        if view is not None:
+            view.stop()
+
+
+def _listen_loop(args, port, station, view) -> int:
+    import serial
+    from station.session import StationRun, write_outputs
+    run = StationRun(station, _sinks(args, view))
     print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
     t0 = last = last_write = time.monotonic()
     got_any = False
     try:
-        with port:
-            while True:
-                data = port.read(max(1, port.in_waiting))
-                now = time.monotonic()
-                if data:
-                    run.feed(data)
-                    got_any, last = True, now
-                if args.write_every and now - last_write >= args.write_every:
-                    write_outputs(run, Path(args.out))
-                    last_write = now
-                if args.duration and now - t0 >= args.duration:
-                    break
-                if args.idle_exit and got_any and now - last >= args.idle_exit:
-                    break
+        while True:
+            data = port.read(max(1, port.in_waiting))
+            now = time.monotonic()
+            if data:
+                run.feed(data)
+                got_any, last = True, now
+            if args.write_every and now - last_write >= args.write_every:
+                write_outputs(run, Path(args.out))
+                last_write = now
+            if args.duration and now - t0 >= args.duration:
+                break
+            if args.idle_exit and got_any and now - last >= args.idle_exit:
+                break
     except KeyboardInterrupt:
         pass
     except (serial.SerialException, OSError) as e:
@@ -151,9 +169,26 @@ def _listen(args) -> int:
     return 0
 
 
-def _sinks(args):
+def _start_view(args, station, source):
+    """The live view, bound and serving (None without ``--http``); ValueError if the
+    address cannot be bound."""
+    if not args.http:
+        return None
+    from station.web import LiveView, parse_http
+    host, port = parse_http(args.http)
+    g = station.grid
+    view = LiveView(host, port, {
+        "source": source, "goal": list(station.goal),
+        "grid": {"nx": g.nx, "ny": g.ny, "x_min": g.x_min, "y_min": g.y_min, "res": g.res,
+                 "l_occ": g.p.l_occ}})
+    url = view.start()
+    print(f"live view on {url}", file=sys.stderr, flush=True)
+    return view
+
+
+def _sinks(args, view=None):
     """The run's sinks, opened (ValueError, before anything is written, if one cannot)."""
-    sinks = []
+    sinks = [] if view is None else [view]
     if args.mcap:
         from station.mcaplog import McapSink
         sinks.append(McapSink(args.mcap).open())
@@ -175,17 +210,34 @@ def _read_recording(path):
 
 
 def _replay(args) -> int:
-    from station.replay import replay
-    from station.session import StationRun, write_outputs
     goal, extent, camera = _common(args)
     if not args.speed >= 0:
         raise ValueError(f"--speed must be >= 0 (0: as fast as possible), not {args.speed}")
+    if args.hold is not None and args.hold < 0:
+        raise ValueError(f"--hold must be >= 0 seconds, not {args.hold}")
     data, pkts = _read_recording(args.file)
-    run = StationRun(make_station(goal, extent, camera), _sinks(args))
-    print(f"replaying {args.file}: {len(data)} bytes, {len(pkts)} packets, "
-          f"{(pkts[-1].pose_ms - pkts[0].pose_ms) / 1000.0:.1f} s at speed "
-          f"{args.speed or 'max'}", file=sys.stderr, flush=True)
+    station = make_station(goal, extent, camera)
+    view = _start_view(args, station, f"replay {Path(args.file).name} at speed "
+                                      f"{args.speed or 'max'}")
     try:
+        return _replay_run(args, data, pkts, station, view)
+    finally:
+        if view is not None:
+            view.stop()
+
+
+def _replay_run(args, data, pkts, station, view) -> int:
+    from station.replay import replay
+    from station.session import StationRun, write_outputs
+    run = StationRun(station, _sinks(args, view))
+    try:
+        if view is not None and args.wait_clients:
+            print(f"waiting for {args.wait_clients} live-view client(s)", file=sys.stderr,
+                  flush=True)
+            view.wait_clients(args.wait_clients)
+        print(f"replaying {args.file}: {len(data)} bytes, {len(pkts)} packets, "
+              f"{(pkts[-1].pose_ms - pkts[0].pose_ms) / 1000.0:.1f} s at speed "
+              f"{args.speed or 'max'}", file=sys.stderr, flush=True)
         stats = replay(run, data, args.speed)
     except KeyboardInterrupt:
         run.finish()
@@ -195,6 +247,16 @@ def _replay(args) -> int:
     _finish_report(write_outputs(run, Path(args.out)))
     print(f"replayed {stats.packets} packets, {stats.station_s:.1f} s of station time in "
           f"{stats.wall_s:.2f} s (x{stats.speed:.1f})", file=sys.stderr, flush=True)
+    if view is not None and args.hold != 0:
+        print("recording ended; the live view stays up " +
+              ("until Ctrl-C" if args.hold is None else f"for {args.hold} s"),
+              file=sys.stderr, flush=True)
+        try:
+            end = math.inf if args.hold is None else time.monotonic() + args.hold
+            while time.monotonic() < end:
+                time.sleep(min(0.2, max(0.0, end - time.monotonic())))
+        except KeyboardInterrupt:
+            pass
     return 0
 
 
@@ -212,6 +274,13 @@ def _station_options(p):
     p.add_argument("--mcap", metavar="FILE",
                    help="also log the run as MCAP with Foxglove's schemas (map, pose, path, "
                         "obstacle points, raw packets with link status)")
+    p.add_argument("--http", metavar="HOST:PORT",
+                   help="serve the live view there (port 0: any free port; the URL is "
+                        "printed on stderr)")
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt          # a clean stop: outputs written, the log closed
 
 
 def main(argv=None) -> int:
@@ -235,7 +304,14 @@ def main(argv=None) -> int:
     rp.add_argument("--speed", type=float, default=1.0,
                     help="times real time (default 1; 0: as fast as the station goes)")
     _station_options(rp)
+    rp.add_argument("--hold", type=float, default=None, metavar="S",
+                    help="with --http: keep serving S seconds after the recording ends "
+                         "(default: until Ctrl-C)")
+    rp.add_argument("--wait-clients", type=int, default=0, metavar="N",
+                    help="with --http: start replaying once N live-view clients are "
+                         "connected")
     args = ap.parse_args(argv)
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         if args.cmd == "decode":
             try:

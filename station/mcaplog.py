@@ -18,7 +18,8 @@ All positions are metres in the ``map`` frame (the station's world frame: x forw
 start, y left, z up). The grid's single FLOAT32 field ``logodds`` is the station's log-odds
 map, row-major from the corner at (XMIN, YMIN), so the last ``/map`` message equals
 ``map.npy``. Log and publish times are the packets' pose timestamps (the station's clock), so
-a replay writes the same messages as the ``listen`` run it came from.
+a replay writes the same messages as the ``listen`` run it came from, except the planner's
+host times in ``/planner`` (``last_plan_s``, ``plan_s_mean``, ``plan_s_max``).
 
 The file is written under ``FILE.part`` and renamed to ``FILE`` when the run ends (also on
 Ctrl-C), so an interrupted run never leaves a truncated log under the name asked for. Chunks

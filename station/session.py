@@ -44,7 +44,8 @@ class PacketInfo:
     frame from ``origin`` (the left camera) and kind "hit" (free up to an obstacle at
     ``range_m``), "far" (an obstacle beyond the trusted range: free up to the clearing range)
     or "none" (no match: no evidence). ``plan`` is the planner's state after the packet,
-    ``replanned`` whether this packet triggered a replan, ``path_changed`` whether the path
+    ``replanned`` whether this packet triggered a replan (``plan`` also has the mean and
+    largest host time per replan so far), ``path_changed`` whether the path
     differs from the previous packet's."""
     packet: RadioPacket
     t: float
@@ -112,7 +113,8 @@ class StationRun:
         self.seqs: list[int] = []
         self.last: PacketInfo | None = None
         self.trail: list = []                 # (x, y) of every accepted packet's pose
-        self._path_id = None
+        self._plan_sum = 0.0
+        self._plan_max = 0.0
 
     def feed(self, data: bytes) -> list[PacketInfo]:
         st = self.station
@@ -130,8 +132,14 @@ class StationRun:
         pose = pose_from_packet(pkt)
         self.trail.append((pose[0], pose[1]))
         origin, points, free = self._geometry(pkt, pose)
+        for ev in st.events[replans0:]:
+            self._plan_sum += ev.plan_s
+            self._plan_max = max(self._plan_max, ev.plan_s)
+        plan = _plan_state(st)
+        plan["plan_s_mean"] = self._plan_sum / st.replans if st.replans else None
+        plan["plan_s_max"] = self._plan_max if st.replans else None
         info = PacketInfo(pkt, t, pose, st.packets > used0, origin, points, free,
-                          st.link_stats(), _plan_state(st), st.replans > replans0,
+                          st.link_stats(), plan, st.replans > replans0,
                           st.path_world is not path0, len(self.seqs) - 1)
         self.last = info
         for s in self.sinks:

@@ -26,8 +26,8 @@ GOAL, EXTENT = "3,0", "-0.5,-1.5,3.5,1.5"          # the small world's
 WORLD = [f"--goal={GOAL}", f"--extent={EXTENT}"]
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
+def small_recording(tmp_path_factory):
+    """``<tmp>/demo/small/radio.bin``: the closed loop's received bytes on the small world."""
     from sim.closedloop.loop import WORLDS, Channel, LoopConfig, run_world
     cfg = LoopConfig(supersample=False, gif_every=0,
                      channel=Channel(p_corrupt=0.05, p_truncate=0.05, p_garbage=0.03, seed=4))
@@ -36,6 +36,11 @@ def recording(tmp_path_factory):
     path.parent.mkdir()
     path.write_bytes(res.radio_bytes)
     return path
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    return small_recording(tmp_path_factory)
 
 
 def _station(*args, **kw):
