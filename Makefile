@@ -53,7 +53,7 @@ timing: setup
 	$(PY) -m sim.flows.timing --out build/timing
 
 firmware: setup
-	$(MAKE) -C firmware all test
+	$(MAKE) -C firmware all test rv32
 
 cosim: setup firmware
 	$(PY) -m sim.system.cosim.run

@@ -24,6 +24,7 @@ from . import regmap
 from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
+from .cpu import RiscvCPU
 from .pixel_pairs import PixelPairer, PixelUnpairer, pair_layout
 from .freespace import free_space_tables
 from .iic import IICMaster
@@ -33,10 +34,19 @@ from .regs import IOBusSignature, RegisterBlock, check_result_limits, status_por
 from .types import RGBPixel
 from .uart import UART
 
-__all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR"]
+__all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR", "CPUS", "bus_monitor_signature"]
 
 #: Bus address of the radio UART (hdl/uart.py).
 UART_BASEADDR = 0xC002_0000
+#: The CPU choices of :class:`SystemSoC`: None (the bus is a port) or a core inside.
+CPUS = (None, "picorv32")
+
+
+def bus_monitor_signature():
+    """Every member of the I/O bus (:class:`hdl.regs.IOBusSignature`) as an output."""
+    return wiring.Signature({name: Out(member.shape)
+                             for name, member in IOBusSignature().members.items()})
+
 
 class StereoSoC(wiring.Component):
     """Pipeline + registers + IIC master.
@@ -133,6 +143,15 @@ class SystemSoC(wiring.Component):
     uart_tx, uart_rx
         The radio UART.
 
+    With ``cpu = "picorv32"`` the CPU is inside (:class:`hdl.cpu.RiscvCPU`, its block RAM
+    initialised with ``image``, the firmware's words; None: an empty RAM) and drives the I/O
+    bus, and the ``bus`` port is gone; ports ``cpu_idle`` (the CPU sleeps in a timer wait) and
+    ``cpu_trap`` (it stopped on an illegal instruction) come out, and with ``monitor`` a copy of
+    the I/O bus, every member an output (``monitor``: for a simulation or a logic analyser
+    that watches the CPU's transfers). With ``cpu = None`` (the default) the bus is a port, for
+    an external CPU: a MicroBlaze MCS in the vendor flow, or the firmware's host build in
+    simulation.
+
     Elaboration parameters: ``max_width``, ``max_height`` (pipeline; default one NTSC field of
     the ADV7180, 720 x 240: every counter and comparator of the pipeline is sized by them),
     ``lines`` (active lines per field), ``camera_fifo_depth`` (each camera port's clock-domain
@@ -156,8 +175,15 @@ class SystemSoC(wiring.Component):
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=256,
-                 clk_div=125, uart_divisor=434, cost="census"):
+                 clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
+                 monitor=False):
         check_result_limits(self, max_width=max_width, max_height=max_height)
+        if cpu not in CPUS:
+            self._MustUse__silence = True
+            raise ValueError(f"cpu must be one of {CPUS}, not {cpu!r}")
+        self._cpu = cpu
+        self._image = image
+        self._monitor = bool(monitor) and cpu is not None
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
@@ -170,8 +196,12 @@ class SystemSoC(wiring.Component):
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
         self._uart_divisor = uart_divisor
+        members = {"bus": In(IOBusSignature())} if cpu is None else {
+            "cpu_idle": Out(1), "cpu_trap": Out(1)}
+        if self._monitor:
+            members["monitor"] = Out(bus_monitor_signature())
         super().__init__({
-            "bus": In(IOBusSignature()),
+            **members,
             "cam0_clk": In(1), "cam1_clk": In(1),
             "cam0": In(stream.Signature(8)), "cam1": In(stream.Signature(8)),
             "scl_o": Out(1), "scl_oe": Out(1), "scl_i": In(1, init=1),
@@ -181,6 +211,15 @@ class SystemSoC(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        if self._cpu is None:
+            bus = self.bus
+        else:
+            m.submodules.cpu = cpu = RiscvCPU(image=self._image)
+            bus = cpu.bus
+            m.d.comb += [self.cpu_idle.eq(cpu.idle), self.cpu_trap.eq(cpu.trap)]
+            if self._monitor:
+                for name in self.monitor.signature.members:
+                    m.d.comb += getattr(self.monitor, name).eq(getattr(bus, name))
         m.submodules.regs = regs = RegisterBlock(fifo_depth=self._fifo_depth)
         m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
         m.submodules.uart = uart = UART(divisor=self._uart_divisor, base=UART_BASEADDR)
@@ -188,10 +227,10 @@ class SystemSoC(wiring.Component):
         for slave in slaves:
             for name in ("addr_strobe", "address", "read_strobe", "write_strobe", "write_data",
                          "byte_enable"):
-                m.d.comb += getattr(slave.bus, name).eq(getattr(self.bus, name))
+                m.d.comb += getattr(slave.bus, name).eq(getattr(bus, name))
         m.d.comb += [
-            self.bus.read_data.eq(regs.bus.read_data | iic.bus.read_data | uart.bus.read_data),
-            self.bus.ready.eq(regs.bus.ready | iic.bus.ready | uart.bus.ready),
+            bus.read_data.eq(regs.bus.read_data | iic.bus.read_data | uart.bus.read_data),
+            bus.ready.eq(regs.bus.ready | iic.bus.ready | uart.bus.ready),
         ]
         for pin in ("scl_o", "scl_oe", "sda_o", "sda_oe"):
             m.d.comb += getattr(self, pin).eq(getattr(iic, pin))

@@ -44,9 +44,11 @@ fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeou
 /** Check the register block's ID and write the default configuration. */
 fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base);
 
-/** Drain the result FIFO into the running per-band summary (at most 4096 results per call).
- *  Call it often: at 60 frames/s a report period spans 6 frames, more results than the
- *  FIFO holds. Returns the number of results read. */
+/** Drain the result FIFO into the running per-band summary: the records it held when the
+ *  call began (RESULT_LEVEL), at most APP_COLLECT_MAX, one RESULT read each (end-of-frame
+ *  markers are read and skipped). Call it often: at 60 frames/s a report period spans 6
+ *  frames, more results than the FIFO holds. Returns the number of results read. */
+#define APP_COLLECT_MAX 4096u
 uint32_t app_collect(app_t *app);
 
 /** Collect, close the summary of everything collected since the last report, build the API

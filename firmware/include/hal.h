@@ -27,8 +27,15 @@ void hal_set_bus_hook(hal_read32_fn rd, hal_write32_fn wr, hal_delay_us_fn delay
 uint32_t Xil_In32(uint32_t addr);
 void Xil_Out32(uint32_t addr, uint32_t value);
 
-/** Busy-wait at least `us` microseconds (target: calibrated loop at HAL_CPU_HZ). */
+/** Wait `us` microseconds. Target: the SoC timer's WAIT register (HAL_TIMER_BASEADDR), so the
+ *  time does not depend on the CPU's speed and the CPU sleeps meanwhile. Host: the bus hook's
+ *  delay. */
 void hal_delay_us(uint32_t us);
+
+/** Core clock cycles (HAL_CPU_HZ) since start-up, wrapping at 2^32: measure elapsed time as
+ *  the unsigned difference of two readings. Target: the timer's COUNT register. Host: the sum
+ *  of the delays so far (the host's bus is infinitely fast: only delays take time). */
+uint32_t hal_ticks(void);
 
 /** Send bytes to the radio UART (target: the SoC's UART, hdl/uart.py, at HAL_UART_BASEADDR).
  *  Each byte waits at most HAL_UART_TIMEOUT_POLLS status polls for room; returns FW_OK, or
@@ -46,6 +53,15 @@ int32_t hal_uart_write(const uint8_t *data, uint32_t len);
 /** One byte takes 87 us at 115200 baud; a status poll at least 2 bus cycles (40 ns at 50 MHz):
  *  10000 polls (>= 400 us) cover a byte with margin. */
 #define HAL_UART_TIMEOUT_POLLS 10000u
+
+/** The soft CPU's timer (hdl/cpu.py CPUTimer): COUNT reads the core clock cycles since
+ *  reset (32 bits, wrapping); a write of n to WAIT completes n core cycles later, the CPU
+ *  stalled meanwhile. */
+#ifndef HAL_TIMER_BASEADDR
+#define HAL_TIMER_BASEADDR 0xC0030000u
+#endif
+#define HAL_TIMER_COUNT_OFFSET 0x0u
+#define HAL_TIMER_WAIT_OFFSET  0x4u
 
 #ifndef HAL_CPU_HZ
 #define HAL_CPU_HZ 50000000u /**< the CPU and SoC core clock */

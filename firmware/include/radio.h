@@ -76,6 +76,12 @@ uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_
  * that at least min_support matches in the band have a disparity >= d, i.e. the
  * min_support-th largest disparity (0 if fewer matches). Band i covers columns
  * [i*width/n, (i+1)*width/n). Memory: min_support largest disparities per band, kept sorted.
+ *
+ * Adding a match needs no multiply or divide: radio_summary_init divides once per band to
+ * place the band boundaries (start), and radio_summary_add walks them from the band of the
+ * previous match. Matches come in raster order, so the walk moves by at most one band per
+ * match within a row and by n_bands once per row: a slow CPU without a divider (a RISC-V
+ * rv32ic core) drains the result FIFO at a few tens of instructions a match.
  */
 typedef struct {
     uint16_t width;
@@ -83,6 +89,8 @@ typedef struct {
     uint8_t min_support;
     uint8_t count[RADIO_MAX_BANDS];
     uint8_t top[RADIO_MAX_BANDS][RADIO_MAX_MIN_SUPPORT]; /**< descending */
+    uint16_t start[RADIO_MAX_BANDS + 1u]; /**< first column of each band; start[n_bands] = width */
+    uint8_t band;        /**< band of the last match added: where the next search starts */
 } radio_summary_t;
 
 fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_bands,

@@ -76,24 +76,33 @@ static fw_status_t app_open_summary(app_t *app)
 
 uint32_t app_collect(app_t *app)
 {
-    static pipeline_match_t chunk[64];
     uint32_t total = 0u;
-    uint32_t rounds;
+    uint32_t misses = 0u;
+    uint32_t level;
     if (app == NULL || app_open_summary(app) != FW_OK) {
         return 0u;
     }
-    /* bounded: at most 64 chunks (4096 results) per call, the rest waits for the next */
-    for (rounds = 0u; rounds < 64u; rounds++) {
-        uint32_t i;
-        uint32_t n = pipeline_read_results(app->regs_base, chunk, ARRAY_SIZE(chunk));
-        for (i = 0u; i < n; i++) {
-            if (chunk[i].mark == 0u) {
-                radio_summary_add(&app->summary, chunk[i].x, chunk[i].d);
+    /* bounded: what the FIFO held when the call began, at most APP_COLLECT_MAX records; one
+     * RESULT read a record (the summary needs x, d and the marker bits only, so the second
+     * half in RESULT_EXT is skipped) */
+    level = STEREO_GET(RESULT_LEVEL, LEVEL, STEREO_ReadReg(app->regs_base, STEREO_RESULT_LEVEL_OFFSET));
+    if (level > APP_COLLECT_MAX) {
+        level = APP_COLLECT_MAX;
+    }
+    while (total < level) {
+        uint32_t r = STEREO_ReadReg(app->regs_base, STEREO_RESULT_OFFSET);
+        if ((r & STEREO_RESULT_VALID_MASK) == 0u) {
+            /* a read in the cycle right after a RESULT read finds no whole record: once more */
+            if (++misses > 1u) {
+                break;
             }
+            continue;
         }
-        total += n;
-        if (n < ARRAY_SIZE(chunk)) {
-            break;
+        misses = 0u;
+        total++;
+        if ((r & STEREO_RESULT_EOF_MASK) == 0u) {
+            radio_summary_add(&app->summary, (uint16_t)STEREO_GET(RESULT, X, r),
+                              (uint8_t)STEREO_GET(RESULT, D, r));
         }
     }
     app->results_read += total;

@@ -17,13 +17,23 @@ void Xil_Out32(uint32_t addr, uint32_t value)
     *(volatile uint32_t *)(uintptr_t)addr = value;
 }
 
+/* the longest single WAIT, in microseconds: its cycle count fits 32 bits at any HAL_CPU_HZ
+ * up to 4 GHz */
+#define HAL_WAIT_CHUNK_US 1000000u
+
 void hal_delay_us(uint32_t us)
 {
-    /* about 4 cycles per iteration on a MicroBlaze without caches */
-    volatile uint32_t n = us * (HAL_CPU_HZ / 4000000u);
-    while (n != 0u) {
-        n--;
+    while (us > HAL_WAIT_CHUNK_US) {
+        Xil_Out32(HAL_TIMER_BASEADDR + HAL_TIMER_WAIT_OFFSET,
+                  HAL_WAIT_CHUNK_US * (HAL_CPU_HZ / 1000000u));
+        us -= HAL_WAIT_CHUNK_US;
     }
+    Xil_Out32(HAL_TIMER_BASEADDR + HAL_TIMER_WAIT_OFFSET, us * (HAL_CPU_HZ / 1000000u));
+}
+
+uint32_t hal_ticks(void)
+{
+    return Xil_In32(HAL_TIMER_BASEADDR + HAL_TIMER_COUNT_OFFSET);
 }
 
 int32_t hal_uart_write(const uint8_t *data, uint32_t len)
@@ -72,11 +82,19 @@ void Xil_Out32(uint32_t addr, uint32_t value)
     }
 }
 
+static uint32_t host_ticks;
+
 void hal_delay_us(uint32_t us)
 {
+    host_ticks += us * (HAL_CPU_HZ / 1000000u);
     if (hook_delay != NULL) {
         hook_delay(hook_ctx, us);
     }
+}
+
+uint32_t hal_ticks(void)
+{
+    return host_ticks;
 }
 
 int32_t hal_uart_write(const uint8_t *data, uint32_t len)

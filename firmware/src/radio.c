@@ -166,22 +166,34 @@ fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_ban
     s->width = width;
     s->n_bands = n_bands;
     s->min_support = min_support;
+    s->band = 0u;
     for (i = 0u; i < RADIO_MAX_BANDS; i++) {
         s->count[i] = 0u;
+    }
+    /* band i: columns [i*width/n, (i+1)*width/n), as radio_band_of_column */
+    for (i = 0u; i <= n_bands; i++) {
+        s->start[i] = (uint16_t)(i * width / n_bands);
     }
     return FW_OK;
 }
 
 void radio_summary_add(radio_summary_t *s, uint16_t x, uint8_t d)
 {
-    uint8_t b;
+    uint32_t b = s->band;
     uint8_t *top;
     uint32_t n;
     uint32_t j;
     if (x >= s->width || d == 0u) {
         return;
     }
-    b = radio_band_of_column(x, s->width, s->n_bands);
+    /* start[0] = 0 <= x < width = start[n_bands]: both walks stop inside the bands */
+    while (x >= s->start[b + 1u]) {
+        b++;
+    }
+    while (x < s->start[b]) {
+        b--;
+    }
+    s->band = (uint8_t)b;
     top = s->top[b];
     n = s->count[b];
     if (n == s->min_support) {

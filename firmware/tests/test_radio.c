@@ -101,6 +101,31 @@ static void test_band_of_column(void)
     FWT_CHECK(ok);
 }
 
+static void test_summary_band_walk(void)
+{
+    /* the summary's boundary walk puts every column, visited in any order, in the band
+     * radio_band_of_column gives */
+    static radio_summary_t s;
+    static const uint16_t widths[] = { 64, 100, 741, 752, 1024 };
+    static const uint8_t ns[] = { 1, 7, 32, 64 };
+    uint32_t w, n, i, seed = 99u;
+    int ok = 1;
+    for (w = 0; w < 5; w++) {
+        for (n = 0; n < 4; n++) {
+            FWT_CHECK_EQ(radio_summary_init(&s, widths[w], ns[n], 1u), FW_OK);
+            for (i = 0; i < 3u * widths[w]; i++) {
+                uint16_t x = (uint16_t)(i < widths[w] ? i : (seed >> 8) % widths[w]);
+                seed = seed * 1103515245u + 12345u;
+                radio_summary_add(&s, x, 1u);
+                if (s.band != radio_band_of_column(x, widths[w], ns[n])) {
+                    ok = 0;
+                }
+            }
+        }
+    }
+    FWT_CHECK(ok);
+}
+
 /* Brute force: the min_support-th largest disparity of the band. */
 static uint8_t reference_band(const uint16_t *xs, const uint8_t *ds, uint32_t n, uint32_t band,
                               uint16_t width, uint8_t nb, uint8_t k)
@@ -183,6 +208,7 @@ void suite_radio(void)
     FWT_RUN(test_payload_bytes);
     FWT_RUN(test_api_frame);
     FWT_RUN(test_band_of_column);
+    FWT_RUN(test_summary_band_walk);
     FWT_RUN(test_summary_matches_reference);
     FWT_RUN(test_summary_outliers_and_params);
     FWT_RUN(test_link_budget);

@@ -1,0 +1,212 @@
+"""The SoC's soft CPU: a PicoRV32 RISC-V core (Verilog from the ``pythondata-cpu-picorv32``
+package, as an :class:`~amaranth.hdl.Instance`) with its block RAM, a timer, and a bridge from
+the core's memory interface to the SoC's MicroBlaze-style I/O bus (:class:`hdl.regs.IOBusSignature`).
+
+Core: RV32IC (compressed instructions, no multiplier or divider: the firmware is built for
+``rv32ic``, ``firmware/Makefile`` ``rv32``), barrel shifter, 32-bit cycle and instruction
+counters (``rdcycle``, ``rdinstret``), illegal instructions trap (``trap`` port), misaligned
+accesses are not checked. The core starts at address 0 after reset.
+
+Address map (the core's byte addresses; the decode looks at few bits, so the RAM and the
+timer repeat through their halves of the map):
+
+===========================  ======================================================
+0x0000_0000 (bit 31 = 0)     block RAM, ``ram_bytes`` (code, data, bss and stack)
+0xC003_0000 (bits 19:16 = 3) timer: COUNT (0x0, read: core cycles since reset, 32 bits,
+                             wrapping), WAIT (0x4, write n: the write completes n core
+                             cycles later, the core stalled meanwhile)
+other addresses, bit 31 = 1  the I/O bus: the register block, the IIC master, the UART
+                             and whatever else the SoC's user hangs on it (0xC004_0000:
+                             the pose block); an address nobody answers within
+                             ``io_timeout`` cycles reads 0xFFFF_FFFF (writes are lost)
+===========================  ======================================================
+
+Timing of one access: RAM one wait state (2 cycles); timer 2 cycles, WAIT n more; I/O bus the
+strobe in the access's first cycle (combinational from the core's registered address),
+``ready`` from the slave (one cycle later for every slave of this SoC), then the core's
+``mem_ready`` a cycle after that, from a register (the read data go through a register, not
+from the bus's OR into the core's decoder): 3 cycles. The core itself takes 3 to 6 cycles an
+instruction without memory waits.
+
+The RAM is ``ram_bytes`` / 4 words of 32 bits with byte writes, initialised with ``image``
+(the little-endian words of ``build/firmware/firmware.bin``, :func:`sim.system.firmware.image_words`);
+without an image it starts empty (zeros: the core traps at once). On a Spartan-3 each RAMB16
+holds 2 KB (2K x 8, one byte lane of 2K words, or 512 x 32): 8 KB take four.
+
+Ports
+-----
+bus : Out(IOBusSignature)
+    The I/O bus, as its initiator.
+idle : Out(1)
+    The core is stalled in a timer WAIT (the firmware sleeps): busy cycles are the others.
+trap : Out(1)
+    The core stopped on an illegal instruction (stays until reset).
+
+Simulation: :func:`verilog_sources` lists the core's Verilog, which every flow that converts
+a design with this component must read beside Amaranth's output. The core's instruction
+counter is ``count_instr`` inside the ``picorv32`` instance (a simulator may expose it).
+"""
+from pathlib import Path
+
+from amaranth.hdl import Cat, ClockSignal, Const, Instance, Module, Mux, ResetSignal, Signal
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import Out
+
+from .regs import IOBusSignature
+
+__all__ = ["RiscvCPU", "TIMER_BASEADDR", "TIMER_REGS", "verilog_sources", "CORE_PARAMETERS"]
+
+#: Bus address of the timer (firmware/include/hal.h HAL_TIMER_BASEADDR).
+TIMER_BASEADDR = 0xC003_0000
+TIMER_REGS = {"COUNT": 0x0, "WAIT": 0x4}
+
+#: PicoRV32 parameters: RV32IC, barrel shifter, 32-bit counters, no IRQ, PCPI, MUL or DIV.
+CORE_PARAMETERS = {
+    "ENABLE_COUNTERS": 1, "ENABLE_COUNTERS64": 0, "ENABLE_REGS_16_31": 1,
+    "ENABLE_REGS_DUALPORT": 1, "LATCHED_MEM_RDATA": 0, "TWO_STAGE_SHIFT": 1,
+    "BARREL_SHIFTER": 1, "TWO_CYCLE_COMPARE": 0, "TWO_CYCLE_ALU": 0, "COMPRESSED_ISA": 1,
+    "CATCH_MISALIGN": 0, "CATCH_ILLINSN": 1, "ENABLE_PCPI": 0, "ENABLE_MUL": 0,
+    "ENABLE_FAST_MUL": 0, "ENABLE_DIV": 0, "ENABLE_IRQ": 0, "ENABLE_TRACE": 0,
+    "REGS_INIT_ZERO": 0, "PROGADDR_RESET": 0,
+}
+
+
+def verilog_sources():
+    """Paths of the Verilog files the core needs (``picorv32.v``)."""
+    import pythondata_cpu_picorv32
+    return [Path(pythondata_cpu_picorv32.data_location) / "picorv32.v"]
+
+
+def _split_counter(m, name, *, load=None, value=None, down=False):
+    """A 32-bit counter as two 16-bit halves, the high half stepping in the same cycle as the
+    low half wraps (its enable decoded from the registered low half), so no carry chain is
+    longer than 16 bits and a read of both halves is always consistent. ``load``/``value``:
+    load a new count; ``down``: count down and stop at 0. Returns (count, zero)."""
+    lo = Signal(16, name=f"{name}_lo")
+    hi = Signal(16, name=f"{name}_hi")
+    count = Signal(32, name=name)
+    m.d.comb += count.eq(Cat(lo, hi))
+    lo_edge = Signal(name=f"{name}_lo_edge")
+    zero = Signal(name=f"{name}_zero")
+    if down:
+        m.d.comb += [lo_edge.eq(lo == 0), zero.eq(lo_edge & (hi == 0))]
+        with m.If(load):
+            m.d.sync += [lo.eq(value[:16]), hi.eq(value[16:])]
+        with m.Elif(~zero):
+            m.d.sync += lo.eq(lo - 1)
+            with m.If(lo_edge):
+                m.d.sync += hi.eq(hi - 1)
+    else:
+        m.d.comb += lo_edge.eq(lo == 0xFFFF)
+        m.d.sync += lo.eq(lo + 1)
+        with m.If(lo_edge):
+            m.d.sync += hi.eq(hi + 1)
+    return count, zero
+
+
+class RiscvCPU(wiring.Component):
+    """PicoRV32 with its memory, a timer and an I/O bus bridge (module docstring).
+
+    Parameters: ``image`` (a list of 32-bit words, the RAM's initial contents; at most
+    ``ram_bytes`` / 4; None: zeros), ``ram_bytes`` (a power of two, 1 KB..64 KB),
+    ``io_timeout`` (cycles an I/O access waits for ``ready``)."""
+
+    def __init__(self, *, image=None, ram_bytes=8192, io_timeout=64):
+        words = ram_bytes // 4
+        if not isinstance(ram_bytes, int) or ram_bytes < 1024 or ram_bytes > 65536 or \
+                ram_bytes & (ram_bytes - 1):
+            self._MustUse__silence = True
+            raise ValueError(f"ram_bytes must be a power of two, 1024..65536, not {ram_bytes!r}")
+        image = list(image or [])
+        if len(image) > words:
+            self._MustUse__silence = True
+            raise ValueError(f"the image has {len(image)} words; the RAM holds {words}")
+        self._image = image
+        self._ram_bytes = ram_bytes
+        self._io_timeout = io_timeout
+        super().__init__({"bus": Out(IOBusSignature()), "idle": Out(1), "trap": Out(1)})
+
+    def elaborate(self, platform):
+        m = Module()
+        words = self._ram_bytes // 4
+        abits = (words - 1).bit_length()
+
+        valid, instr, ready = Signal(), Signal(), Signal()
+        addr, wdata, rdata = Signal(32), Signal(32), Signal(32)
+        wstrb = Signal(4)
+        m.submodules.core = Instance(
+            "picorv32",
+            **{f"p_{k}": Const(v, 32) if k == "PROGADDR_RESET" else Const(v, 1)
+               for k, v in CORE_PARAMETERS.items()},
+            i_clk=ClockSignal(), i_resetn=~ResetSignal(),
+            o_trap=self.trap,
+            o_mem_valid=valid, o_mem_instr=instr, i_mem_ready=ready,
+            o_mem_addr=addr, o_mem_wdata=wdata, o_mem_wstrb=wstrb, i_mem_rdata=rdata,
+            i_pcpi_wr=0, i_pcpi_rd=Const(0, 32), i_pcpi_wait=0, i_pcpi_ready=0,
+            i_irq=Const(0, 32),
+        )
+
+        # Address decode: the core's address is a register.
+        is_io = Signal()
+        is_timer = Signal()
+        m.d.comb += [is_io.eq(addr[31] & (addr[16:20] != 3)),
+                     is_timer.eq(addr[31] & (addr[16:20] == 3))]
+        write = wstrb.any()
+
+        # RAM: one wait state.
+        m.submodules.ram = ram = Memory(shape=32, depth=words, init=self._image)
+        rp = ram.read_port()
+        wp = ram.write_port(granularity=8)
+        ram_ready = Signal()
+        ram_go = valid & ~addr[31] & ~ram_ready
+        m.d.sync += ram_ready.eq(ram_go)
+        m.d.comb += [rp.addr.eq(addr[2:2 + abits]), wp.addr.eq(addr[2:2 + abits]),
+                     wp.data.eq(wdata), wp.en.eq(Mux(ram_go, wstrb, 0))]
+
+        # Registered answers of the timer and the I/O bus.
+        reg_ready = Signal()
+        reg_data = Signal(32)
+        m.d.sync += reg_ready.eq(0)
+
+        # Timer.
+        count, _ = _split_counter(m, "timer_count")
+        load = Signal()
+        remaining, done = _split_counter(m, "timer_wait", load=load, value=wdata, down=True)
+        waiting = Signal()
+        timer_go = valid & is_timer & ~reg_ready & ~waiting
+        m.d.comb += load.eq(timer_go & write & (addr[2:4] == TIMER_REGS["WAIT"] >> 2))
+        with m.If(waiting):
+            with m.If(done):
+                m.d.sync += [waiting.eq(0), reg_ready.eq(1)]
+        with m.Elif(load):
+            m.d.sync += waiting.eq(1)
+        with m.Elif(timer_go):
+            m.d.sync += [reg_ready.eq(1), reg_data.eq(count)]
+        m.d.comb += self.idle.eq(waiting)
+
+        # I/O bus: strobe in the access's first cycle, then wait for ready (or time out).
+        bus = self.bus
+        io_busy = Signal()
+        io_wait = Signal(range(self._io_timeout + 1))
+        io_go = valid & is_io & ~io_busy & ~reg_ready
+        m.d.comb += [
+            bus.addr_strobe.eq(io_go),
+            bus.read_strobe.eq(io_go & ~write),
+            bus.write_strobe.eq(io_go & write),
+            bus.address.eq(addr),
+            bus.write_data.eq(wdata),
+            bus.byte_enable.eq(Mux(write, wstrb, 0b1111)),
+        ]
+        with m.If(io_go):
+            m.d.sync += [io_busy.eq(1), io_wait.eq(0)]
+        with m.Elif(io_busy):
+            m.d.sync += io_wait.eq(io_wait + 1)
+            with m.If(bus.ready):
+                m.d.sync += [io_busy.eq(0), reg_ready.eq(1), reg_data.eq(bus.read_data)]
+            with m.Elif(io_wait == self._io_timeout):
+                m.d.sync += [io_busy.eq(0), reg_ready.eq(1), reg_data.eq(0xFFFF_FFFF)]
+
+        m.d.comb += [ready.eq(ram_ready | reg_ready),
+                     rdata.eq(Mux(ram_ready, rp.data, reg_data))]
+        return m

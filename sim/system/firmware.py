@@ -1,0 +1,69 @@
+"""The firmware image of the SoC's RISC-V core: build it (``make -C firmware rv32``), read its
+sections and its memory words.
+
+``build_image()`` runs the cross build (cheap when up to date), serialised with the host
+build's lock; ``sections()`` gives the ELF's loaded sections and their sizes (``size -A``);
+``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
+:class:`hdl.cpu.RiscvCPU` starts from.
+"""
+from __future__ import annotations
+
+import fcntl
+import subprocess
+from pathlib import Path
+
+from sim.paths import ROOT
+
+__all__ = ["BUILD", "ELF", "BIN", "HEX", "LOADED", "RAM_BYTES", "STACK_BYTES", "build_image",
+           "sections", "image_bytes", "image_words"]
+
+BUILD = ROOT / "build" / "firmware"
+ELF = BUILD / "firmware.elf"
+BIN = BUILD / "firmware.bin"
+HEX = BUILD / "firmware.hex"
+#: the sections that occupy the core's memory (code, read-only data, data, bss)
+LOADED = (".text", ".rodata", ".data", ".bss")
+RAM_BYTES = 8192                    #: firmware/Makefile FIRMWARE_RAM
+STACK_BYTES = 512                   #: firmware/Makefile FIRMWARE_STACK
+
+
+class FirmwareBuildError(RuntimeError):
+    """The cross build failed (its output is the message)."""
+
+
+def build_image() -> Path:
+    """``make -C firmware rv32``: build/firmware/firmware.{elf,bin,hex,size}; returns the .bin.
+    Raises :class:`FirmwareBuildError` with the build's output when it fails (no cross
+    compiler: ``make setup`` installs it)."""
+    BUILD.mkdir(parents=True, exist_ok=True)
+    with open(BUILD / ".build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        r = subprocess.run(["make", "-s", "-C", str(ROOT / "firmware"), "rv32"],
+                           capture_output=True, text=True)
+    if r.returncode != 0:
+        raise FirmwareBuildError(f"make -C firmware rv32 failed:\n{r.stdout}{r.stderr}")
+    return BIN
+
+
+def sections(elf: Path = ELF) -> dict:
+    """``{section: bytes}`` of the loaded sections (:data:`LOADED`) of the image."""
+    out = subprocess.run(["riscv64-unknown-elf-size", "-A", str(elf)], capture_output=True,
+                         text=True, check=True).stdout
+    sizes = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[0] in LOADED:
+            sizes[parts[0]] = int(parts[1])
+    return {name: sizes.get(name, 0) for name in LOADED}
+
+
+def image_bytes(elf: Path = ELF) -> int:
+    """Code, data and bss: the memory the image occupies below the stack."""
+    return sum(sections(elf).values())
+
+
+def image_words(path: Path = BIN) -> list[int]:
+    """The 32-bit little-endian words of a ``.bin`` image (the last one zero-padded)."""
+    data = Path(path).read_bytes()
+    data += bytes(-len(data) % 4)
+    return [int.from_bytes(data[i:i + 4], "little") for i in range(0, len(data), 4)]
