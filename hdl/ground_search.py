@@ -10,7 +10,8 @@ from amaranth.lib.wiring import In, Out
 from golden.color import HUE_STEPS
 from golden.ground import GroundParams, HIST_BITS, FRAC_SHIFT
 
-__all__ = ["GroundConfig", "GroundSearchBus", "GroundSearch", "HIST_WORDS", "LUMA_BASE",
+__all__ = ["GroundConfig", "GroundSearchBus", "GroundSearch", "GroundBlend", "GroundThresholds",
+           "HIST_WORDS", "LUMA_BASE",
            "search_cycles", "CLEAR_CYCLES"]
 
 #: The ground model's run-time parameters as one port: the fields of
@@ -58,6 +59,191 @@ GroundSearchBus = wiring.Signature({
 })
 
 
+class GroundBlend(wiring.Component):
+    """The blend pass of the search: reads the 512 histogram words of the unit served, writes
+    each back as {model', count 0}, and sums the supports (the new models of the hue bins and
+    of the luma bins).
+
+    model' = count on the first frame (``model_valid`` low), else
+    ((model << shift) - model + count) >> shift, computed as model + ((count - model) >> shift)
+    (equal: model << shift is a multiple of 2^shift) in 16-bit arithmetic, the result lying
+    between model and count. Without ``commit`` (a frame lost before its search) the models
+    stay and only the counts are cleared; the supports are summed only with ``commit``.
+
+    Ports
+    -----
+    start : In(1)
+        Starts the pass at word 0 in the next cycle and clears the supports.
+    commit, model_valid : In(1)
+        Steady during the pass.
+    shift : In(3)
+        ``blend_shift``.
+    run, addr : Out(1), Out(9)
+        The pass reads word ``addr`` while ``run``; ``hist`` (In(32)) is the word read, one
+        cycle later.
+    write, write_addr, model : Out(1), Out(9), Out(16)
+        Write {``model``, 0} at ``write_addr``: 5 cycles after the word's address (a 5-stage
+        pipeline: address, data register, difference, shifted sum, result), so no path has
+        more than one adder or shifter.
+    last : Out(1)
+        With the last word's write.
+    support_hue, support_luma : Out(24)
+        The sums, each a 16-bit low half and an 8-bit count of its carries (no carry chain
+        longer than 16 bits); final from the cycle after ``last``.
+    """
+    start: In(1)
+    commit: In(1)
+    model_valid: In(1)
+    shift: In(3)
+    hist: In(2 * HIST_BITS)
+    run: Out(1)
+    addr: Out(9)
+    write: Out(1)
+    write_addr: Out(9)
+    model: Out(HIST_BITS)
+    last: Out(1)
+    support_hue: Out(24)
+    support_luma: Out(24)
+
+    def elaborate(self, platform):
+        m = Module()
+        W = 2 * HIST_BITS
+        commit, model_valid = self.commit, self.model_valid
+        a_run = self.run; a_idx = Signal(range(HIST_WORDS + 1))
+        a_v1 = Signal(); a_addr1 = Signal(9)                       # read issued
+        a_v2 = Signal(); a_addr2 = Signal(9); a_word2 = Signal(W)  # data registered
+        a_v3 = Signal(); a_addr3 = Signal(9); a_n3 = Signal(HIST_BITS); a_m3 = Signal(HIST_BITS)
+        a_diff3 = Signal(HIST_BITS); a_neg3 = Signal()             # n - m mod 2^16, n < m
+        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(HIST_BITS); a_n4 = Signal(HIST_BITS)
+        a_m4 = Signal(HIST_BITS)
+        a_v5 = self.write; a_addr5 = self.write_addr; a_out5 = self.model
+        sup_h_lo = Signal(16); sup_h_hi = Signal(8); sup_y_lo = Signal(16); sup_y_hi = Signal(8)
+        m.d.comb += [self.addr.eq(a_idx), self.support_hue.eq(Cat(sup_h_lo, sup_h_hi)),
+                     self.support_luma.eq(Cat(sup_y_lo, sup_y_hi)), self.last.eq(a_v5 & ~a_v4)]
+
+        with m.If(self.start):
+            m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h_lo.eq(0), sup_h_hi.eq(0),
+                         sup_y_lo.eq(0), sup_y_hi.eq(0)]
+        with m.If(a_run):
+            m.d.sync += a_idx.eq(a_idx + 1)
+            with m.If(a_idx == HIST_WORDS - 1):
+                m.d.sync += a_run.eq(0)
+        sh = self.shift
+        m.d.sync += [
+            a_v1.eq(a_run), a_addr1.eq(a_idx),
+            a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(self.hist),
+            a_v3.eq(a_v2), a_addr3.eq(a_addr2), a_n3.eq(a_word2[:HIST_BITS]),
+            a_m3.eq(a_word2[HIST_BITS:]),
+            a_diff3.eq(a_word2[:HIST_BITS] - a_word2[HIST_BITS:]),
+            a_neg3.eq(a_word2[:HIST_BITS] < a_word2[HIST_BITS:]),
+            a_v4.eq(a_v3), a_addr4.eq(a_addr3),
+            a_u4.eq(a_m3 + (Cat(a_diff3, a_neg3).as_signed() >> sh)[:HIST_BITS]),
+            a_n4.eq(a_n3), a_m4.eq(a_m3),
+            a_v5.eq(a_v4), a_addr5.eq(a_addr4),
+            a_out5.eq(Mux(commit, Mux(model_valid, a_u4, a_n4), Mux(model_valid, a_m4, 0))),
+        ]
+        with m.If(a_v5 & commit):
+            with m.If(a_addr5 < HUE_STEPS):
+                s_h = sup_h_lo + a_out5
+                m.d.sync += [sup_h_lo.eq(s_h[:16]), sup_h_hi.eq(sup_h_hi + s_h[16])]
+            with m.If(a_addr5[8]):
+                s_y = sup_y_lo + a_out5
+                m.d.sync += [sup_y_lo.eq(s_y[:16]), sup_y_hi.eq(sup_y_hi + s_y[16])]
+        return m
+
+
+class GroundThresholds(wiring.Component):
+    """The set pass's thresholds from the supports: max(1, support x frac >> 10) for hue,
+    then for luma, and the hue-fallback decision with its luma threshold
+    max(1, (luma support x frac >> 10) >> fallback_shift).
+
+    Each product is a shift-and-add over 8 cycles (once per frame: no multiplier), its low
+    16 bits summed with a count of their carries and the high 16 bits apart, joined in one more
+    step, then shifted and clamped: 23 cycles from ``start`` to ``done``. The fallback's
+    threshold is shifted one bit a cycle afterwards (``fallback_shift`` cycles, while the set
+    pass runs its hue bins).
+
+    Ports
+    -----
+    start : In(1)
+        Begins; the supports (:class:`GroundBlend`'s) must be final from the next cycle on.
+    support_hue, support_luma : In(24)
+        16-bit low half and 8-bit carry count each.
+    frac, min_support, fallback_shift : In(8), In(16), In(3)
+        Parameters (:data:`GroundConfig`).
+    done : Out(1)
+        One cycle: ``hue`` and ``luma`` are final.
+    hue, luma : Out(24)
+        The thresholds (registered).
+    fallback : Out(1)
+        Fewer than ``min_support`` reliable hues (registered, from the first step on).
+    use_fallback : In(1)
+        ``luma`` becomes the fallback's threshold at the next clock edge (the set pass asks
+        when its luma bins start, in hue fallback).
+    """
+    start: In(1)
+    support_hue: In(24)
+    support_luma: In(24)
+    frac: In(8)
+    min_support: In(16)
+    fallback_shift: In(3)
+    done: Out(1)
+    hue: Out(24)
+    luma: Out(24)
+    fallback: Out(1)
+    use_fallback: In(1)
+
+    def elaborate(self, platform):
+        m = Module()
+        sup_h, sup_y = self.support_hue, self.support_luma
+        thr_h, thr_y, fallback = self.hue, self.luma, self.fallback
+        t_step = Signal(3)
+        thr_f = Signal(24); f_left = Signal(3)
+        # product support x frac: low 16 bits with a carry count, high 16 bits summed apart
+        # and joined with the carries in one more step
+        prod_lo = Signal(16); prod_hi = Signal(16); prod_c = Signal(4)
+        m_sup = Signal(32); m_frac = Signal(8); m_left = Signal(4); t_luma = Signal()
+        m.d.comb += self.done.eq(t_step == 5)
+        with m.If(self.start):
+            m.d.sync += [t_step.eq(1), t_luma.eq(0), m_left.eq(8),
+                         m_frac.eq(self.frac), prod_lo.eq(0), prod_hi.eq(0), prod_c.eq(0)]
+        with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
+            m.d.sync += t_step.eq(Mux(t_step == 5, 0, t_step + 1))
+        support = Mux(t_luma, sup_y, sup_h)
+        with m.If(t_step == 1):
+            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1), m_sup.eq(m_sup << 1),
+                         fallback.eq((sup_h[16:] == 0) & (sup_h[:16] < self.min_support))]
+            with m.If(m_left == 8):
+                m.d.sync += m_sup.eq(support << 1)
+            with m.If(m_frac[0]):
+                term = Mux(m_left == 8, support, m_sup)
+                s_lo = prod_lo + term[:16]
+                m.d.sync += [prod_lo.eq(s_lo[:16]), prod_c.eq(prod_c + s_lo[16]),
+                             prod_hi.eq(prod_hi + term[16:32])]
+        with m.If(t_step == 2):
+            m.d.sync += prod_hi.eq(prod_hi + prod_c)
+        with m.If(t_step == 3):
+            with m.If(t_luma):
+                m.d.sync += thr_y.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
+            with m.Else():
+                m.d.sync += thr_h.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
+        with m.If((t_step == 4) & ~t_luma):
+            # the hue threshold done: the luma product next
+            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), t_step.eq(1), t_luma.eq(1),
+                         m_left.eq(8), m_frac.eq(self.frac), prod_lo.eq(0), prod_hi.eq(0),
+                         prod_c.eq(0)]
+        with m.Elif(t_step == 4):
+            m.d.sync += [thr_y.eq(Mux(thr_y == 0, 1, thr_y)), thr_f.eq(thr_y),
+                         f_left.eq(self.fallback_shift)]
+        # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
+        # 192 cycles), taken as the luma threshold when the luma bins start
+        with m.Elif(f_left != 0):
+            m.d.sync += [thr_f.eq(thr_f >> 1), f_left.eq(f_left - 1)]
+        with m.If(self.use_fallback):
+            m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
+        return m
+
+
 class GroundSearch(wiring.Component):
     """The search datapath, shared by ``units`` ground units (1 or 2), serving one at a time.
 
@@ -80,7 +266,9 @@ class GroundSearch(wiring.Component):
     stages so no path has more than one adder or shifter) that also sums the supports, then the
     thresholds max(1, support x frac >> 10) (in hue fallback the luma one
     max(1, (support x frac >> 10) >> fallback_shift)) and the set pass: each bin's window sum
-    over +-JND (hue wrapping), one read per window position.
+    over +-JND (hue wrapping), one read per window position. The blend pass is
+    :class:`GroundBlend`, the thresholds :class:`GroundThresholds`; the arbitration and the set
+    pass are here.
     """
 
     def __init__(self, *, units=2):
@@ -119,26 +307,9 @@ class GroundSearch(wiring.Component):
         hist = Signal(W)
         m.d.comb += hist.eq(Mux(sel, units[-1].hist, units[0].hist))
 
-        a_run = Signal(); a_idx = Signal(range(HIST_WORDS + 1))
-        a_v1 = Signal(); a_addr1 = Signal(9)                       # read issued
-        a_v2 = Signal(); a_addr2 = Signal(9); a_word2 = Signal(W)  # data registered
-        # the blend ((m << s) - m + n) >> s as m + ((n - m) >> s) (equal: m << s is a multiple
-        # of 2^s), in 16-bit arithmetic: the result lies between m and n
-        a_v3 = Signal(); a_addr3 = Signal(9); a_n3 = Signal(HIST_BITS); a_m3 = Signal(HIST_BITS)
-        a_diff3 = Signal(HIST_BITS); a_neg3 = Signal()             # n - m mod 2^16, n < m
-        a_v4 = Signal(); a_addr4 = Signal(9); a_u4 = Signal(HIST_BITS); a_n4 = Signal(HIST_BITS)
-        a_m4 = Signal(HIST_BITS)
-        a_v5 = Signal(); a_addr5 = Signal(9); a_out5 = Signal(HIST_BITS)
-        # Wide sums as a 16-bit low half and a count of its carries (sum = low + 2^16 carries):
-        # no carry chain longer than 16 bits. Supports: 8-bit carry counts (<= 256 words).
-        sup_h_lo = Signal(16); sup_h_hi = Signal(8); sup_y_lo = Signal(16); sup_y_hi = Signal(8)
-        sup_h = Cat(sup_h_lo, sup_h_hi); sup_y = Cat(sup_y_lo, sup_y_hi)
-        t_step = Signal(3)                                         # threshold computation
-        thr_h = Signal(24); thr_y = Signal(24); thr_f = Signal(24); f_left = Signal(3)
-        fallback = Signal()
-        # product support x frac: low 16 bits with a carry count, high 16 bits summed apart
-        # and joined with the carries in one more step
-        prod_lo = Signal(16); prod_hi = Signal(16); prod_c = Signal(4)
+        m.submodules.blend = blend = GroundBlend()
+        m.submodules.thresholds = thresholds = GroundThresholds()
+        fallback = thresholds.fallback
         b_run = Signal(); b_luma = Signal()
         b_start = Signal(range(-16, 272)); next_start = Signal(range(-16, 272))
         b_bin = Signal(9); b_d = Signal(5); b_addr = Signal(range(-16, 272))
@@ -155,87 +326,30 @@ class GroundSearch(wiring.Component):
         # --- the served unit's memories --------------------------------------------------------
         for k, u in enumerate(units):
             mine = sel == k
-            m.d.comb += [u.rd_own.eq(mine & (a_run | b_run)), u.wr_en.eq(mine & a_v5),
+            m.d.comb += [u.rd_own.eq(mine & (blend.run | b_run)), u.wr_en.eq(mine & blend.write),
                          u.hset_en.eq(mine & b_v4 & ~b_luma4),
                          u.lset_en.eq(mine & b_v4 & b_luma4),
                          u.done.eq(mine & done), u.pending.eq(taken)]
-            m.d.comb += [u.rd_addr.eq(Mux(a_run, a_idx, Cat(b_addr[:8], b_luma))),
-                         u.wr_addr.eq(a_addr5), u.wr_model.eq(a_out5),
+            m.d.comb += [u.rd_addr.eq(Mux(blend.run, blend.addr, Cat(b_addr[:8], b_luma))),
+                         u.wr_addr.eq(blend.write_addr), u.wr_model.eq(blend.model),
                          u.set_addr.eq(b_bin4), u.set_data.eq(b_set4), u.fallback.eq(fallback)]
 
         with m.If(wait != 0):
             m.d.sync += wait.eq(wait - 1)
-            with m.If(wait == 1):
-                m.d.sync += [a_run.eq(1), a_idx.eq(0), sup_h_lo.eq(0), sup_h_hi.eq(0),
-                             sup_y_lo.eq(0), sup_y_hi.eq(0)]
-        # pass A pipeline
-        with m.If(a_run):
-            m.d.sync += a_idx.eq(a_idx + 1)
-            with m.If(a_idx == HIST_WORDS - 1):
-                m.d.sync += a_run.eq(0)
-        sh = cfg.blend_shift
-        m.d.sync += [
-            a_v1.eq(a_run), a_addr1.eq(a_idx),
-            a_v2.eq(a_v1), a_addr2.eq(a_addr1), a_word2.eq(hist),
-            a_v3.eq(a_v2), a_addr3.eq(a_addr2), a_n3.eq(a_word2[:HIST_BITS]),
-            a_m3.eq(a_word2[HIST_BITS:]),
-            a_diff3.eq(a_word2[:HIST_BITS] - a_word2[HIST_BITS:]),
-            a_neg3.eq(a_word2[:HIST_BITS] < a_word2[HIST_BITS:]),
-            a_v4.eq(a_v3), a_addr4.eq(a_addr3),
-            a_u4.eq(a_m3 + (Cat(a_diff3, a_neg3).as_signed() >> sh)[:HIST_BITS]),
-            a_n4.eq(a_n3), a_m4.eq(a_m3),
-            a_v5.eq(a_v4), a_addr5.eq(a_addr4),
-            a_out5.eq(Mux(commit, Mux(model_valid, a_u4, a_n4), Mux(model_valid, a_m4, 0))),
-        ]
-        with m.If(a_v5 & commit):
-            with m.If(a_addr5 < HUE_STEPS):
-                s_h = sup_h_lo + a_out5
-                m.d.sync += [sup_h_lo.eq(s_h[:16]), sup_h_hi.eq(sup_h_hi + s_h[16])]
-            with m.If(a_addr5[8]):
-                s_y = sup_y_lo + a_out5
-                m.d.sync += [sup_y_lo.eq(s_y[:16]), sup_y_hi.eq(sup_y_hi + s_y[16])]
+        # the blend pass (and the supports), then the thresholds
         a_done = Signal()
-        m.d.comb += a_done.eq(a_v5 & ~a_v4 & active)
-        # thresholds: max(1, support * frac >> 10) for hue, then for luma, by one shift-and-add
-        # product over 8 cycles each (once per frame: no multiplier); the high half joined
-        # with the low half's carries in one more step; then the hue fallback's threshold
-        m_sup = Signal(32); m_frac = Signal(8); m_left = Signal(4); t_luma = Signal()
-        with m.If(a_done & commit):
-            m.d.sync += [t_step.eq(1), t_luma.eq(0), m_left.eq(8),
-                         m_frac.eq(cfg.frac), prod_lo.eq(0), prod_hi.eq(0), prod_c.eq(0)]
-        with m.If((t_step != 0) & ((t_step != 1) | (m_left == 1))):
-            m.d.sync += t_step.eq(Mux(t_step == 5, 0, t_step + 1))
-        support = Mux(t_luma, sup_y, sup_h)
-        with m.If(t_step == 1):
-            m.d.sync += [m_left.eq(m_left - 1), m_frac.eq(m_frac >> 1), m_sup.eq(m_sup << 1),
-                         fallback.eq((sup_h_hi == 0) & (sup_h_lo < cfg.min_support))]
-            with m.If(m_left == 8):
-                m.d.sync += m_sup.eq(support << 1)
-            with m.If(m_frac[0]):
-                term = Mux(m_left == 8, support, m_sup)
-                s_lo = prod_lo + term[:16]
-                m.d.sync += [prod_lo.eq(s_lo[:16]), prod_c.eq(prod_c + s_lo[16]),
-                             prod_hi.eq(prod_hi + term[16:32])]
-        with m.If(t_step == 2):
-            m.d.sync += prod_hi.eq(prod_hi + prod_c)
-        with m.If(t_step == 3):
-            with m.If(t_luma):
-                m.d.sync += thr_y.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
-            with m.Else():
-                m.d.sync += thr_h.eq(Cat(prod_lo, prod_hi) >> FRAC_SHIFT)
-        with m.If((t_step == 4) & ~t_luma):
-            # the hue threshold done: the luma product next
-            m.d.sync += [thr_h.eq(Mux(thr_h == 0, 1, thr_h)), t_step.eq(1), t_luma.eq(1),
-                         m_left.eq(8), m_frac.eq(cfg.frac), prod_lo.eq(0), prod_hi.eq(0),
-                         prod_c.eq(0)]
-        with m.Elif(t_step == 4):
-            m.d.sync += [thr_y.eq(Mux(thr_y == 0, 1, thr_y)), thr_f.eq(thr_y),
-                         f_left.eq(cfg.fallback_shift)]
-        # the hue fallback threshold: shifted one bit a cycle while the hue bins run (at least
-        # 192 cycles), taken as the luma threshold when the luma bins start
-        with m.Elif(f_left != 0):
-            m.d.sync += [thr_f.eq(thr_f >> 1), f_left.eq(f_left - 1)]
-        with m.If(t_step == 5):
+        m.d.comb += [
+            blend.start.eq(wait == 1), blend.commit.eq(commit),
+            blend.model_valid.eq(model_valid), blend.shift.eq(cfg.blend_shift),
+            blend.hist.eq(hist),
+            a_done.eq(blend.last & active),
+            thresholds.start.eq(a_done & commit),
+            thresholds.support_hue.eq(blend.support_hue),
+            thresholds.support_luma.eq(blend.support_luma),
+            thresholds.frac.eq(cfg.frac), thresholds.min_support.eq(cfg.min_support),
+            thresholds.fallback_shift.eq(cfg.fallback_shift),
+        ]
+        with m.If(thresholds.done):
             hue_start = Mux(cfg.jnd_hue == 0, 0, HUE_STEPS - cfg.jnd_hue)
             m.d.sync += [b_run.eq(1), b_luma.eq(0), b_bin.eq(0), b_d.eq(0),
                          b_addr.eq(hue_start), b_start.eq(hue_start)]
@@ -256,8 +370,7 @@ class GroundSearch(wiring.Component):
             with m.Elif(~b_luma):
                 m.d.sync += [b_luma.eq(1), b_bin.eq(0), b_d.eq(0), b_addr.eq(-cfg.jnd_luma),
                              b_start.eq(-cfg.jnd_luma)]
-                with m.If((cfg.mode == 2) & fallback):
-                    m.d.sync += thr_y.eq(Mux(thr_f == 0, 1, thr_f))
+                m.d.comb += thresholds.use_fallback.eq((cfg.mode == 2) & fallback)
             with m.Else():
                 m.d.sync += [b_run.eq(0), drain.eq(6)]
         m.d.sync += [
@@ -272,7 +385,7 @@ class GroundSearch(wiring.Component):
         with m.If(b_v2):
             m.d.sync += [acc_lo.eq(acc_next[:16]), acc_c.eq(acc_next[16:])]
         # sum >= threshold from the two halves' compares (16 and 8 bits, side by side)
-        thr = Mux(b_luma3, thr_y, thr_h)
+        thr = Mux(b_luma3, thresholds.luma, thresholds.hue)
         m.d.sync += [b_v3.eq(b_v2 & b_last2), b_sum3.eq(acc_next), b_bin3.eq(b_bin2),
                      b_luma3.eq(b_luma2),
                      b_v4.eq(b_v3), b_bin4.eq(b_bin3), b_luma4.eq(b_luma3),

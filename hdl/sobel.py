@@ -19,7 +19,7 @@ last one):
    (r-1, c): the output stream is the input stream delayed by one line plus a few pixels.
 2. window: three column registers, the gradients of the centre column are combinational;
 3. gradient register: Gx, Gy, centre Y and ground bit;
-4. magnitude pipeline: ``|Gx|`` and ``|Gy|``; then the ratio product ``ratio x |Gy|`` and the
+4. magnitude pipeline (:class:`SobelMagnitude`): ``|Gx|`` and ``|Gy|``; then the ratio product ``ratio x |Gy|`` and the
    threshold test; then three magnitude registers (for the non-maximum suppression along the
    row): ``|Gx|`` (0 when the pixel is not interior), candidate bit (threshold, ratio, ground),
    sign;
@@ -30,7 +30,7 @@ centre pixel is emitted (it is not for columns of row 0, whose centre would be r
 interior (border rule), and its ``sof``/``eol``/``eof`` flags. So the output framing is exactly
 the input framing, delayed.
 
-Flush: at ``eof`` the bottom row is still in the line buffer and the last column windows in the
+Flush (:class:`SobelFlush`): at ``eof`` the bottom row is still in the line buffer and the last column windows in the
 registers. The unit then stops taking input (``i.ready`` low) and makes up one dummy row (W beats
 that read the line buffer: they emit row H-1, not interior by the border rule) plus the few beats
 that push the last pixel out of the registers, and resumes at the step that loads the output
@@ -61,8 +61,8 @@ the last accepted one) followed by the next good frame. Dropped beats are consum
 of the output like any other (``i.ready`` does not look at the payload). A reset clears
 the registers the same way (not the line buffer, which needs no clearing).
 """
-from amaranth.hdl import Module, Signal, Mux, Cat
-from amaranth.lib import stream, memory, data
+from amaranth.hdl import Module, Signal, Mux, Cat, signed
+from amaranth.lib import stream, memory, data, wiring
 from amaranth.lib.wiring import In, Out
 
 from golden.census import NEIGHBOURS
@@ -70,10 +70,160 @@ from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .types import GroundPixel, EdgePixel
 from .framing import FramedUnit
 
-__all__ = ["SobelEdges"]
+__all__ = ["SobelEdges", "SobelFlush", "SobelMagnitude"]
 
 #: What travels with each window column: the fate of its centre pixel.
 _Tag = data.StructLayout({"emit": 1, "inter": 1, "sof": 1, "eol": 1, "eof": 1})
+
+
+def _advance(m, step, kill, dst, src, fresh=False):
+    """``dst`` (a tag) takes ``src`` on a step; the pixel it describes is dropped on a kill,
+    unless ``src`` is a fresh beat (the sof that abandons the frame)."""
+    with m.If(step):
+        m.d.sync += dst.eq(src)
+        if not fresh:
+            m.d.sync += dst.emit.eq(src.emit & ~kill)
+    with m.Elif(kill):
+        m.d.sync += dst.emit.eq(0)
+
+
+class SobelFlush(wiring.Component):
+    """The flush after a frame's ``eof``: the made-up beats of one dummy row past the last one,
+    then as many as it takes to push the last pixel out of the unit's registers.
+
+    Ports
+    -----
+    start : In(1)
+        The ``eof`` beat is accepted: flushing starts in the next cycle, at column 0.
+    single_row : In(1)
+        With ``start``: the frame has one row (its flush row then carries the ``sof``).
+    last_x : In(range(max_width))
+        The frame's last column (known: the ``eof`` beat has ``eol``).
+    step : In(1)
+        The unit's chain moves: the flush beat is taken and the next one made up.
+    end : In(1)
+        The ``eof`` pixel is loaded into the output register on this step: the flush ends.
+    flushing : Out(1)
+        Registered: from the cycle after ``start`` to the step with ``end``.
+    col, tag : Out(range(max_width)), Out(tag layout)
+        The flush beat: its column (the line buffer's address) and the fate of the pixel it
+        completes (emitted while in the dummy row, never interior, the dummy row's framing).
+    """
+
+    def __init__(self, max_width):
+        super().__init__({
+            "start": In(1), "single_row": In(1), "last_x": In(range(max_width)),
+            "step": In(1), "end": In(1),
+            "flushing": Out(1), "col": Out(range(max_width)), "tag": Out(_Tag),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        flushing, fcol = self.flushing, self.col
+        frow = Signal()                         # flush beats still in the made-up row
+        single_row = Signal()                   # the frame being flushed has one row
+        last_col = Signal()
+        m.d.comb += [
+            last_col.eq(fcol == self.last_x),
+            self.tag.emit.eq(frow),
+            self.tag.sof.eq(frow & single_row & (fcol == 0)),
+            self.tag.eol.eq(frow & last_col),
+            self.tag.eof.eq(frow & last_col),
+        ]
+        with m.If(self.start):
+            m.d.sync += [flushing.eq(1), fcol.eq(0), frow.eq(1), single_row.eq(self.single_row)]
+        with m.Elif(flushing & self.step):
+            m.d.sync += fcol.eq(Mux(last_col, 0, fcol + 1))
+            with m.If(last_col):
+                m.d.sync += frow.eq(0)
+            with m.If(self.end):
+                m.d.sync += flushing.eq(0)
+        return m
+
+
+#: A pixel in the magnitude registers, and what :class:`SobelMagnitude` hands on.
+_Magnitude = data.StructLayout({"mag": 10, "cand": 1, "neg": 1, "y": 8, "tag": _Tag})
+
+
+class SobelMagnitude(wiring.Component):
+    """The magnitude pipeline of the Sobel unit: from the gradients to the edge decision with
+    non-maximum suppression along the row.
+
+    Three stages, each a register that moves on a ``step``: ``|Gx|`` and ``|Gy|``; the ratio
+    product ``ratio x |Gy|`` and the threshold test; then three magnitude registers (left,
+    centre, right pixel) of ``|Gx|`` (0 when the pixel is not interior), the candidate bit
+    (interior, not ground, ``|Gx|`` >= ``threshold``, 4 ``|Gx|`` >= ``ratio x |Gy|``) and the
+    sign. So no path has more than one adder or the multiply.
+
+    Ports
+    -----
+    step, kill : In(1)
+        The chain moves; the pixels of an abandoned frame are dropped (their tags cleared).
+    gx, gy : In(signed 11)
+        The gradients of the pixel entering (the unit's gradient register), with its ``y``
+        (In(8): the value the output carries), ``ground`` bit and ``tag``.
+    threshold, ratio, nms : In(11), In(4), In(1)
+        Run-time parameters (:class:`golden.sobel.SobelParams`).
+    centre : Out(magnitude layout)
+        The centre magnitude register: the pixel that entered 4 steps before.
+    edge : Out(1)
+        Its edge bit: a candidate and (with ``nms``) ``|Gx|`` >= its left neighbour's and >
+        its right neighbour's. Combinational.
+    """
+
+    def __init__(self):
+        super().__init__({
+            "step": In(1), "kill": In(1),
+            "gx": In(signed(11)), "gy": In(signed(11)), "y": In(8), "ground": In(1),
+            "tag": In(_Tag),
+            "threshold": In(THRESHOLD_BITS), "ratio": In(RATIO_BITS), "nms": In(1),
+            "centre": Out(_Magnitude), "edge": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        step = self.step
+
+        def advance(dst, src):
+            _advance(m, step, self.kill, dst, src)
+
+        ax = Signal(10)
+        ay = Signal(10)
+        a_neg = Signal()
+        a_y = Signal(8)
+        a_gnd = Signal()
+        a_tag = Signal(_Tag)
+        g_gx, g_gy = self.gx, self.gy
+        with m.If(step):
+            m.d.sync += [ax.eq(Mux(g_gx < 0, -g_gx, g_gx)), ay.eq(Mux(g_gy < 0, -g_gy, g_gy)),
+                         a_neg.eq(g_gx < 0), a_y.eq(self.y), a_gnd.eq(self.ground)]
+        advance(a_tag, self.tag)
+        bx = Signal(10)
+        b_prod = Signal(RATIO_BITS + 10)
+        b_thr = Signal()
+        b_neg = Signal()
+        b_y = Signal(8)
+        b_gnd = Signal()
+        b_tag = Signal(_Tag)
+        with m.If(step):
+            m.d.sync += [bx.eq(ax), b_prod.eq(self.ratio * ay), b_thr.eq(ax >= self.threshold),
+                         b_neg.eq(a_neg), b_y.eq(a_y), b_gnd.eq(a_gnd)]
+        advance(b_tag, a_tag)
+        cand = Signal()
+        m.d.comb += cand.eq(b_tag.inter & ~b_gnd & b_thr & ((bx << 2) >= b_prod))
+        mg_in = Signal(_Magnitude)
+        m.d.comb += [mg_in.mag.eq(Mux(b_tag.inter, bx, 0)), mg_in.cand.eq(cand),
+                     mg_in.neg.eq(b_neg), mg_in.y.eq(b_y), mg_in.tag.eq(b_tag)]
+        mg0, mg1, mg2 = (Signal(_Magnitude, name=f"mg{k}") for k in range(3))
+        with m.If(step):
+            m.d.sync += [mg2.eq(mg_in), mg1.eq(mg2), mg0.eq(mg1)]
+        advance(mg2.tag, mg_in.tag)
+        advance(mg1.tag, mg2.tag)
+
+        m.d.comb += [self.centre.eq(mg1),
+                     self.edge.eq(mg1.cand & (~self.nms | ((mg1.mag >= mg0.mag) &
+                                                           (mg1.mag > mg2.mag))))]
+        return m
 
 
 class SobelEdges(FramedUnit):
@@ -144,34 +294,20 @@ class SobelEdges(FramedUnit):
         ]
 
         def advance(dst, src, fresh=False):
-            """``dst`` (a tag) takes ``src`` on a step; the pixel it describes is dropped on a
-            kill, unless ``src`` is a fresh beat (the sof that abandons the frame)."""
-            with m.If(step):
-                m.d.sync += dst.eq(src)
-                if not fresh:
-                    m.d.sync += dst.emit.eq(src.emit & ~kill)
-            with m.Elif(kill):
-                m.d.sync += dst.emit.eq(0)
+            _advance(m, step, kill, dst, src, fresh)
 
         # 1. Feed: an input beat or a made-up flush beat, and its tag.
-        fcol = Signal(range(self._max_width))   # column of the flush beat
-        frow = Signal()                         # flush beats still in the made-up row
-        single_row = Signal()                   # the frame being flushed has one row
+        m.submodules.flush = flush = SobelFlush(self._max_width)
         f_addr = Signal(range(self._max_width))
         f_y = Signal(8)
         f_g = Signal()
         f_tag = Signal(_Tag)
-        last_col = Signal()
         # flushing follows an accepted eof, which has eol: the width is known, last_x valid
-        m.d.comb += last_col.eq(fcol == track.last_x)
+        m.d.comb += [flush.start.eq(track.frame_end), flush.single_row.eq(track.y == 0),
+                     flush.last_x.eq(track.last_x), flush.step.eq(step),
+                     flushing.eq(flush.flushing)]
         with m.If(flushing):
-            m.d.comb += [
-                f_addr.eq(fcol),
-                f_tag.emit.eq(frow),
-                f_tag.sof.eq(frow & single_row & (fcol == 0)),
-                f_tag.eol.eq(frow & last_col),
-                f_tag.eof.eq(frow & last_col),
-            ]
+            m.d.comb += [f_addr.eq(flush.col), f_tag.eq(flush.tag)]
         with m.Else():
             m.d.comb += [
                 f_addr.eq(track.x), f_y.eq(p.y), f_g.eq(p.ground),
@@ -234,45 +370,15 @@ class SobelEdges(FramedUnit):
             m.d.sync += [g_gx.eq(gx), g_gy.eq(gy), g_y.eq(value), g_gnd.eq(c1.g)]
         advance(g_tag, c1.tag)
 
-        # 4. Magnitude pipeline: |Gx|, |Gy| registered, then the ratio product and the
-        # threshold test registered, so no path has more than one adder or the multiply.
-        ax = Signal(10)
-        ay = Signal(10)
-        a_neg = Signal()
-        a_y = Signal(8)
-        a_gnd = Signal()
-        a_tag = Signal(_Tag)
-        with m.If(step):
-            m.d.sync += [ax.eq(Mux(g_gx < 0, -g_gx, g_gx)), ay.eq(Mux(g_gy < 0, -g_gy, g_gy)),
-                         a_neg.eq(g_gx < 0), a_y.eq(g_y), a_gnd.eq(g_gnd)]
-        advance(a_tag, g_tag)
-        bx = Signal(10)
-        b_prod = Signal(RATIO_BITS + 10)
-        b_thr = Signal()
-        b_neg = Signal()
-        b_y = Signal(8)
-        b_gnd = Signal()
-        b_tag = Signal(_Tag)
-        with m.If(step):
-            m.d.sync += [bx.eq(ax), b_prod.eq(self.ratio * ay), b_thr.eq(ax >= self.threshold),
-                         b_neg.eq(a_neg), b_y.eq(a_y), b_gnd.eq(a_gnd)]
-        advance(b_tag, a_tag)
-        cand = Signal()
-        m.d.comb += cand.eq(b_tag.inter & ~b_gnd & b_thr & ((bx << 2) >= b_prod))
-        mag_layout = data.StructLayout({"mag": 10, "cand": 1, "neg": 1, "y": 8, "tag": _Tag})
-        mg_in = Signal(mag_layout)
-        m.d.comb += [mg_in.mag.eq(Mux(b_tag.inter, bx, 0)), mg_in.cand.eq(cand),
-                     mg_in.neg.eq(b_neg), mg_in.y.eq(b_y), mg_in.tag.eq(b_tag)]
-        mg0, mg1, mg2 = (Signal(mag_layout, name=f"mg{k}") for k in range(3))
-        with m.If(step):
-            m.d.sync += [mg2.eq(mg_in), mg1.eq(mg2), mg0.eq(mg1)]
-        advance(mg2.tag, mg_in.tag)
-        advance(mg1.tag, mg2.tag)
+        # 4. Magnitude pipeline and non-maximum suppression (SobelMagnitude).
+        m.submodules.magnitude = mag = SobelMagnitude()
+        m.d.comb += [mag.step.eq(step), mag.kill.eq(kill), mag.gx.eq(g_gx), mag.gy.eq(g_gy),
+                     mag.y.eq(g_y), mag.ground.eq(g_gnd), mag.tag.eq(g_tag),
+                     mag.threshold.eq(self.threshold), mag.ratio.eq(self.ratio),
+                     mag.nms.eq(self.nms)]
+        mg1, keep = mag.centre, mag.edge
 
-        # 5. Output register: non-maximum suppression of the centre magnitude.
-        keep = Signal()
-        m.d.comb += keep.eq(mg1.cand & (~self.nms | ((mg1.mag >= mg0.mag) &
-                                                     (mg1.mag > mg2.mag))))
+        # 5. Output register.
         o = self.o.payload
         with m.If(step):
             m.d.sync += [
@@ -283,13 +389,6 @@ class SobelEdges(FramedUnit):
         with m.Elif(self.o.ready):
             m.d.sync += self.o.valid.eq(0)
 
-        # Flush control: from the eof beat to the step that loads the eof pixel.
-        with m.If(track.frame_end):
-            m.d.sync += [flushing.eq(1), fcol.eq(0), frow.eq(1), single_row.eq(track.y == 0)]
-        with m.Elif(flushing & step):
-            m.d.sync += fcol.eq(Mux(last_col, 0, fcol + 1))
-            with m.If(last_col):
-                m.d.sync += frow.eq(0)
-            with m.If(mg1.tag.emit & mg1.tag.eof):
-                m.d.sync += flushing.eq(0)
+        # the flush ends at the step that loads the eof pixel
+        m.d.comb += flush.end.eq(mg1.tag.emit & mg1.tag.eof)
         return m
