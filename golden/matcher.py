@@ -1,4 +1,5 @@
-"""SAD block matcher with adaptive candidates: the bit-exact specification, versions 1 and 2.
+"""Census block matcher with adaptive candidates (the SAD cost as an option): the bit-exact
+specification, versions 1 and 2.
 
 Inputs are the two front ends' outputs, per camera three (H, W) arrays: luminance ``y``
 (0..255), vertical-edge bit ``edge`` and Gx sign ``neg`` (1 = Gx negative). Both cameras must
@@ -27,13 +28,13 @@ For every LEFT edge pixel ``(x, y)`` in raster order (row by row, left to right)
    * ``cost = "census"``: ``sum popcount(CL(x+i, y+j) ^ CR(x-d+i, y+j))`` of the 3x3 census
      words of golden/census.py (at most ``8 * window**2`` = 392 for W = 7: 9 bits).
 
-   Each candidate is one ``sad_evaluations``.
+   Each candidate is one of the ``evaluations``; ``C(d)`` below is the cost of candidate ``d``.
 4. **Winner takes all**: the smallest cost; on ties the smallest ``d``.
 5. **Uniqueness** (``u`` in 1/256 units, 0..255): the match is rejected (``rejected``) if some
-   candidate ``d'`` with ``|d' - d_best| > 1`` has ``SAD(d') * 256 <= SAD(d_best) * (256 + u)``.
+   candidate ``d'`` with ``|d' - d_best| > 1`` has ``C(d') * 256 <= C(d_best) * (256 + u)``.
    ``far_min`` is the smallest such far cost (none: no far candidate).
 6. **Subpixel and confidence** (``subpixel``; records are :data:`RECORD_DTYPE_V2`): with
-   ``c0 = SAD(d)``, ``cm = SAD(d - 1)``, ``cp = SAD(d + 1)``: if either neighbour was not a
+   ``c0 = C(d)``, ``cm = C(d - 1)``, ``cp = C(d + 1)``: if either neighbour was not a
    candidate (step 2), the offset is 0 (nothing more is evaluated: the hardware has the
    neighbours' costs from the candidates it visits in increasing ``d``). Otherwise (:func:`subpixel_offset`, the equiangular fit OpenCV's StereoBM
    uses): ``den = max(cm, cp) - c0``, offset 0 if ``den <= 0``, else
@@ -47,7 +48,7 @@ For every LEFT edge pixel ``(x, y)`` in raster order (row by row, left to right)
    records ``(x, y, d, cost)`` (+ ``d16``, ``conf``) in raster order.
 
 Statistics per frame: ``edge_pixels`` (all left edges) = ``border`` + ``no_candidate`` +
-``rejected`` + ``matches`` + ``drops``; ``sad_evaluations``. ``drops`` (left edges the hardware
+``rejected`` + ``matches`` + ``drops``; ``evaluations``. ``drops`` (left edges the hardware
 skipped in camera mode because its queue was full) is always 0 here.
 
 The uniqueness test over all far candidates is equivalent to the streaming form the hardware
@@ -157,7 +158,7 @@ RECORD_DTYPE = np.dtype([("x", np.int32), ("y", np.int32), ("d", np.int32), ("co
 #: Records with ``subpixel``: also the subpixel disparity ``d16`` (1/16 px) and ``conf``.
 RECORD_DTYPE_V2 = np.dtype(RECORD_DTYPE.descr + [("d16", np.int32), ("conf", np.int32)])
 #: Keys of the per-frame statistics, in the order the hardware reports them.
-STAT_KEYS = ("edge_pixels", "border", "no_candidate", "sad_evaluations", "matches",
+STAT_KEYS = ("edge_pixels", "border", "no_candidate", "evaluations", "matches",
              "rejected", "drops")
 #: Unset entries of the cost matrix (larger than any window cost: 255 * 15 * 15 < 2**16).
 _NONE = np.int32(1 << 30)
@@ -650,7 +651,7 @@ def match(left, right, params=MatcherParams(), form="auto"):
         "edge_pixels": int(n),
         "border": int((~inside).sum()),
         "no_candidate": int((inside & ~has).sum()),
-        "sad_evaluations": evaluations,
+        "evaluations": evaluations,
         "matches": int(keep.sum()),
         "rejected": int((has & ~unique).sum()) + int((~keep).sum()),
         "drops": 0,
@@ -670,7 +671,7 @@ def accuracy(records, stats, left_edge, gt):
     ``density`` (matches with ground truth / left edges with ground truth), ``bad1``/``bad2``
     (fraction of those matches with ``|d - gt|`` > 1 / > 2, ``d`` subpixel when the records
     have it), ``within2`` (their number with ``|d - gt| <= 2``) and ``eval_fraction``
-    (``sad_evaluations`` / (W * H * DISPARITIES), the cost of dense matching)."""
+    (``evaluations`` / (W * H * DISPARITIES), the cost of dense matching)."""
     gt = np.asarray(gt, dtype=np.float64)
     h, w = gt.shape
     known = np.isfinite(gt)
@@ -686,5 +687,5 @@ def accuracy(records, stats, left_edge, gt):
         "bad1": float((err > 1).mean()) if nm else 0.0,
         "bad2": float((err > 2).mean()) if nm else 0.0,
         "within2": int((err <= 2).sum()),
-        "eval_fraction": stats["sad_evaluations"] / (w * h * DISPARITIES),
+        "eval_fraction": stats["evaluations"] / (w * h * DISPARITIES),
     }

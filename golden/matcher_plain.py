@@ -63,7 +63,7 @@ def match_plain(left, right, p):
                     if not any(right_edge(x - d + k, y, left["neg"][y, x]) for k in ks):
                         continue
                 costs[d] = _window_cost(vl, vr, x, y, d, r, p.cost)
-            st["sad_evaluations"] += len(costs)
+            st["evaluations"] += len(costs)
             if not costs:
                 st["no_candidate"] += 1
                 continue

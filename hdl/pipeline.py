@@ -1,4 +1,4 @@
-"""Stereo pipeline top: two per-camera front ends and the SAD matcher
+"""Stereo pipeline top: two per-camera front ends and the census matcher
 (specification: ``golden/pipeline.py``)."""
 from amaranth.hdl import Cat, Module
 from amaranth.lib import wiring, stream

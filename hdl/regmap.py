@@ -179,7 +179,8 @@ REGISTERS: tuple[Register, ...] = (
                                      f"{DISPARITY_SPAN} disparities)",
           param="matcher.d_max", port="d_max"),
         F("uniqueness", 16, 8, _M.uniqueness, "margin u in 1/256 units: reject the best d if a "
-                                               "candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d)",
+                                               "candidate d' (|d'-d| > 1) has window costs "
+                                               "256 C(d') <= (256 + u) C(d)",
           param="matcher.uniqueness", port="uniqueness"),
         F("candidate_mode", 24, 1, 0 if _M.mode == "adaptive" else 1,
           "0 adaptive (only right-image edge columns), 1 full range",
@@ -246,7 +247,7 @@ REGISTERS: tuple[Register, ...] = (
     Register("STAT_EDGES", 0x50, "ro", "Last frame: left vertical-edge pixels.", (
         F("count", 0, 32, 0, "edge pixels"),
     )),
-    Register("STAT_SAD", 0x54, "ro", "Last frame: SAD evaluations.", (
+    Register("STAT_EVALUATIONS", 0x54, "ro", "Last frame: window-cost evaluations.", (
         F("count", 0, 32, 0, "window comparisons"),
     )),
     Register("STAT_MATCHES", 0x58, "ro", "Last frame: matches emitted.", (

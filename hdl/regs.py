@@ -232,7 +232,7 @@ class ResultFIFO(wiring.Component):
 
 
 def status_port_name(reg: regmap.Register, field: regmap.Field) -> str:
-    """Name of the input port of a status field: ``err_left_errors``, ``stat_sad_count``..."""
+    """Name of the input port of a status field: ``err_left_errors``, ``stat_evaluations_count``..."""
     return f"{reg.name.lower()}_{field.name}"
 
 

@@ -369,7 +369,7 @@ def _pipeline_status(m, regs, pipe, *, clear, reset=0):
     status = {
         "frame_count_frames": pipe.frames,
         "stat_edges_count": pipe.frame_edge_pixels,
-        "stat_sad_count": pipe.frame_sad_evaluations,
+        "stat_evaluations_count": pipe.frame_evaluations,
         "stat_matches_count": pipe.frame_matches,
         "stat_rejects_count": pipe.frame_rejected,
         "stat_drops_count": pipe.frame_drops,

@@ -23,7 +23,7 @@ from amaranth.hdl import Shape
 from amaranth.lib import data, stream, wiring
 
 from sim.streams import Packer
-from sim.units import UNITS
+from sim.units import UNITS, unit_name
 
 __all__ = ["StreamPort", "PlainPort", "Ports", "ports", "silenced", "Case", "UnitDesign",
            "DESIGNS", "SystemDesign", "SYSTEM_DESIGNS", "all_designs", "design", "elaborate",
@@ -284,8 +284,10 @@ def all_designs():
 
 
 def design(name):
+    """Registered design ``name`` (a deprecated alias, :data:`sim.units.DEPRECATED_UNITS`,
+    gives its current design with a warning on stderr)."""
     try:
-        return all_designs()[name]
+        return all_designs()[unit_name(name)]
     except KeyError:
         raise ValueError(f"unknown design {name!r}; known: {', '.join(all_designs())}") from None
 
@@ -301,6 +303,7 @@ _registered = {}    # (name, params) -> component of a registered design
 def registered(name, params=None):
     """``(component, params)`` of registered design ``name`` with ``params`` overriding its
     defaults; the same component for the same parameters (so it is converted once)."""
+    name = unit_name(name)
     d = design(name)
     params = {**d.params, **(params or {})}
     key = (name, repr(sorted(params.items())))

@@ -14,7 +14,7 @@ from golden.freespace import free_frame
 from hdl import types
 from sim.streams import Packer, frames_words, words_to_frames
 
-__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "pipeline_for", "pixel_mismatches",
+__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "DEPRECATED_UNITS", "unit_name", "pipeline_for", "pixel_mismatches",
            "records_from_words", "stream_mismatches", "free_streams"]
 
 
@@ -249,12 +249,26 @@ UNITS = {
                      lambda job: [rgb(f) for f in job.left],
                      lambda job: [g.left.output(job.params.matcher) for g in job.golden],
                      "colour -> ground -> Sobel, one camera; free space", free_streams(free="left")),
-    "sad": StereoUnit("sad", _matcher, types.EdgePixel,
-                      lambda job, side: [getattr(g, side).output(job.params.matcher)
-                                         for g in job.golden],
-                      "block matcher on the golden front ends' outputs"),
+    "matcher": StereoUnit("matcher", _matcher, types.EdgePixel,
+                          lambda job, side: [getattr(g, side).output(job.params.matcher)
+                                             for g in job.golden],
+                          "census block matcher on the golden front ends' outputs"),
     "pipeline": StereoUnit("pipeline", pipeline_for, types.RGBPixel,
                            lambda job, side: [rgb(f) for f in getattr(job, side)],
                            "the whole stereo pipeline",
                            streams=free_streams(free_left="left", free_right="right")),
 }
+
+#: Former unit (and design) names still accepted, with a warning: old name -> current name.
+DEPRECATED_UNITS = {"sad": "matcher"}
+
+
+def unit_name(name):
+    """The current name of unit or design ``name``: ``name`` itself, or for a deprecated alias
+    (:data:`DEPRECATED_UNITS`) its current name, with a one-line warning on stderr."""
+    new = DEPRECATED_UNITS.get(name)
+    if new is None:
+        return name
+    import sys
+    print(f"warning: {name!r} is a deprecated name of {new!r}; use {new!r}", file=sys.stderr)
+    return new

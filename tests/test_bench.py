@@ -13,7 +13,7 @@ from sim.bench.report import (BM_BLOCKS, MEASUREMENTS_MARK, OTHER_COMMANDS_MARK,
                               measurements_page, report_lines, score, write_measurements)
 
 ROOT = Path(__file__).resolve().parent.parent
-ACCURACY_KEYS = ("density", "bad1", "bad2", "avgerr", "sad_eval_fraction")
+ACCURACY_KEYS = ("density", "bad1", "bad2", "avgerr", "eval_fraction")
 
 
 @pytest.fixture(scope="module")
@@ -97,7 +97,7 @@ def _check_report(density, bad2, thinned_bad2, bm_density=0.79, bm_bad2=0.15, ma
     """A report with only what :func:`sim.bench.report.acceptance` reads."""
     row = {"n": matched, "StereoBM 7": {"n": matched, "bad1": 0.2, "bad2": thinned_bad2}}
     return {"pipeline_default": {"density": density, "bad2": bad2, "matched": matched,
-                                 "sad_eval_fraction": 0.02},
+                                 "eval_fraction": 0.02},
             "stereobm_7": {"density": bm_density, "bad2": bm_bad2},
             "matcher_v2": {"equal_counts": [row, {"n": matched // 2, "StereoBM 7": None}]},
             "ground_masks": {"failed": []}}
@@ -125,7 +125,7 @@ def test_acceptance_fails_when_sparser_without_an_equal_count_row():
 def _fake_report():
     """A report with two sections (accuracy, skipped resources) and nothing measured."""
     acc = {"density": 0.785, "bad1": 0.067, "bad2": 0.057, "avgerr": 0.94,
-           "sad_eval_fraction": 0.0159, "left_threshold": 128, "right_threshold": 96,
+           "eval_fraction": 0.0159, "left_threshold": 128, "right_threshold": 96,
            "window": 7, "d_max": 63}
     rep = {"meta": {"date": "2026-12-03 12:00 UTC", "machine": "host x86_64, 2 CPUs",
                     "quick": False, "load_average_1min_at_end": 0.5, "seconds": 2040.0,
@@ -152,7 +152,7 @@ def test_measurements_page_structure():
     assert "at commit 22edf1f on 2026-12-03 12:00 UTC" in page
     headings = [k for k, line in enumerate(lines) if line.startswith(("## ", "### "))]
     assert [lines[k] for k in headings][:2] == ["## 1. Accuracy: Middlebury motorcycle",
-                                                "### Sweep: accuracy against SAD evaluations"]
+                                                "### Sweep: accuracy against cost evaluations"]
     for k in headings:
         if lines[k] != "## Provenance":
             assert lines[k + 1] == "" and lines[k + 2].startswith("Command"), lines[k]

@@ -87,7 +87,7 @@ def test_compare_prints_the_contract_json(pair):
 
 
 def test_compare_stereo_unit_verdict_includes_the_statistics(pair):
-    r = sim("compare", "--unit", "sad", "--left", str(pair["sleft"]), "--right",
+    r = sim("compare", "--unit", "matcher", "--left", str(pair["sleft"]), "--right",
             str(pair["sright"]), "--frames", "1", "--threshold", "160", "--right-threshold", "80")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
@@ -231,17 +231,17 @@ def test_no_command_prints_usage_and_one_error_line():
     (["compare", "--unit", "pipeline", "--left", "{tall}", "--right", "{tall}"], "exceeds the elaborated"),
     (["compare", "--unit", "pipeline", "--left", "{tall}", "--right", "{tall}", "--max-height", "5000"], "--max-height: 5000 is outside 1..1024"),
     (["run", "--max-height", "5000", "--out", "{tmp}"], "--max-height: 5000 is outside"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--max-width", "4200"], "--max-width: 4200 is outside 1..1024"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--max-width", "4200"], "--max-width: 4200 is outside 1..1024"),
     (["run", "--max-width", "4200", "--out", "{tmp}"], "--max-width: 4200 is outside"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--max-disparity", "64", "--d-max", "64"], "holds 65 disparities; at most 64"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--max-disparity", "64", "--d-max", "64"], "holds 65 disparities; at most 64"),
     (["run", "--max-disparity", "100", "--d-max", "100", "--out", "{tmp}"], "holds 101 disparities; at most 64"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--max-disparity", "256"], "--max-disparity: 256 is outside 1..255"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--max-disparity", "256"], "--max-disparity: 256 is outside 1..255"),
     (["run", "--d-min", "100", "--d-max", "300", "--out", "{tmp}"], "--d-max: 300 is outside 0..255"),
     (["run", "--out", "{afile}"], "is a file, not a folder"),
     (["run", "--out", "{afile}/sub"], "cannot write to --out"),
     (["run", "--out", "/proc/sim-out"], "cannot write to --out"),
     (["run", "--out", "/proc"], "cannot write to --out"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--window", "999"], "--window: 999 is outside 3..15"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--window", "999"], "--window: 999 is outside 3..15"),
     (["run", "--window", "63", "--out", "{tmp}"], "--window: 63 is outside 3..15"),
     (["run", "--frames", "1000000", "--out", "{tmp}"], "--frames: 1000000 is outside 1..16"),
     (["compare", "--unit", "color", "--left", "{rgb16}"], "more than 8 bits per sample"),
@@ -256,13 +256,13 @@ def test_no_command_prints_usage_and_one_error_line():
     (["compare", "--unit", "color", "--left", "{folder}"], "is a directory"),
     (["compare", "--unit", "color", "--left", "{left}", "--crop", "60x10+10+0"], "falls outside"),
     (["compare", "--unit", "color", "--left", "{left}", "--crop", "10x10"], "WxH+X+Y"),
-    (["compare", "--unit", "sad", "--left", "{left}"], "needs a stereo pair"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{small}"], "must match"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{grey}"], "grayscale and the other colour"),
+    (["compare", "--unit", "matcher", "--left", "{left}"], "needs a stereo pair"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{small}"], "must match"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{grey}"], "grayscale and the other colour"),
     (["compare", "--unit", "color", "--left", "{grey}", "--ground", "hue"], "needs colour images"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--max-disparity", "40", "--d-max", "50"], "beyond the elaborated"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--window", "6"], "window must be an odd"),
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--d-min", "30", "--d-max", "20"], "greater than d_max"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--max-disparity", "40", "--d-max", "50"], "beyond the elaborated"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--window", "6"], "window must be an odd"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--d-min", "30", "--d-max", "20"], "greater than d_max"),
     (["compare", "--unit", "color", "--left", "{left}", "--frames", "0"], "--frames: 0 is outside"),
     (["compare", "--unit", "color", "--left", "{left}", "--max-width", "32"], "exceeds the elaborated"),
     (["compare", "--unit", "color", "--left", "{left}", "--backend", "modelsim"], "invalid choice"),
@@ -279,7 +279,7 @@ def test_no_command_prints_usage_and_one_error_line():
     (["run", "--camera", "{text}", "--out", "{tmp}"], "is not JSON"),
     (["compare", "--unit", "color"], "required: --left"),
     # golden version 2 settings the RTL matcher lacks
-    (["compare", "--unit", "sad", "--left", "{left}", "--right", "{right}", "--consistency", "unique_right"], "not available in RTL: --consistency unique_right"),
+    (["compare", "--unit", "matcher", "--left", "{left}", "--right", "{right}", "--consistency", "unique_right"], "not available in RTL: --consistency unique_right"),
     (["run", "--cost", "sad", "--widen", "3", "--out", "{tmp}"], "not available in RTL: --subpixel on with --cost sad (the RTL's subpixel step needs the census cost), --widen 3 (the RTL widens by 0 to 2)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
@@ -293,6 +293,18 @@ def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
     lines = r.stderr.strip().splitlines()     # no progress line: nothing was simulated
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], r.stderr
     assert "Traceback" not in r.stderr and r.stdout == ""
+
+
+def test_deprecated_unit_name_is_the_matcher_with_one_warning(pair):
+    """``--unit sad``, the matcher's former name, still selects the matcher (a stereo unit:
+    without a right image it asks for one) after one warning line; the help names it."""
+    r = sim("compare", "--unit", "sad", "--left", str(pair["left"]), timeout=ERROR_SECONDS)
+    assert r.returncode == 2 and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert lines[0] == "warning: 'sad' is a deprecated name of 'matcher'; use 'matcher'"
+    assert len(lines) == 2 and "needs a stereo pair" in lines[1], r.stderr
+    r = sim("compare", "--help", timeout=ERROR_SECONDS)
+    assert "sad: deprecated alias of matcher" in " ".join(r.stdout.split())
 
 
 def test_long_runs_show_progress(capsys):

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from sim.designs import DESIGNS, elaborate, ports, registered
+from sim.designs import DESIGNS, design, elaborate, ports, registered
 from sim.paths import ROOT
 from sim.flows.verilog import export_verilog
 
@@ -48,8 +48,18 @@ def test_read_registers_start_at_zero():
 
 
 def test_unknown_design():
-    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, freespace, frontend, sad, pipeline, camera, pairing, uart, bridge, soc$"):
+    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, freespace, frontend, matcher, pipeline, camera, pairing, uart, bridge, soc$"):
         elaborate("nope")
+
+
+def test_deprecated_design_name(capsys):
+    """``sad``, the matcher's former design name, is the design ``matcher`` (one warning)."""
+    from sim.flows.verilog import chosen_designs, design_arguments
+    ap = design_arguments("x", "x", "out")
+    assert chosen_designs(ap, ap.parse_args(["sad", "pipeline"])) == ["matcher", "pipeline"]
+    assert capsys.readouterr().err == ("warning: 'sad' is a deprecated name of 'matcher'; "
+                                       "use 'matcher'\n")
+    assert design("sad") is design("matcher") is DESIGNS["matcher"]
 
 
 @pytest.mark.parametrize("name", sorted(DESIGNS))

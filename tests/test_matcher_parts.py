@@ -1,5 +1,5 @@
 """The matcher's components on their own, against plain Python references: the log-depth bit
-logic of the candidate walk, the SAD lane, the winner/uniqueness stage and the input buffer
+logic of the candidate walk, the cost lane, the winner/uniqueness stage and the input buffer
 (seeded random valid patterns and stalls). The whole matcher: tests/test_matcher.py."""
 import random
 
@@ -11,7 +11,7 @@ from amaranth.utils import bits_for
 
 from golden.census import POPCOUNT8
 from hdl.matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
-from hdl.matcher_sad import SadTree, sad_latency
+from hdl.matcher_cost import CostTree, cost_latency
 from hdl.matcher_winner import Winner
 
 
@@ -53,10 +53,10 @@ def test_bit_logic(n):
 @pytest.mark.parametrize("window,cost,lines", [(3, "sad", 3), (7, "sad", 7), (3, "census", 3),
                                                (7, "census", 7), (3, "sad", 4),
                                                (7, "census", 8), (5, "census", 8)])
-def test_sad_tree(window, cost, lines):
+def test_cost_tree(window, cost, lines):
     # lines > window: every line slot is fed and a mask of `window` bits picks the window's
     # (as the matcher does); lines == window: the mask has every bit set
-    dut = SadTree(window, tag_width=8, cost=cost, lines=lines)
+    dut = CostTree(window, tag_width=8, cost=cost, lines=lines)
     n = window * lines
     rng = np.random.default_rng(window + 10 * lines)
     cycles = 60
@@ -78,9 +78,9 @@ def test_sad_tree(window, cost, lines):
                 ctx.set(dut.tag, t)
             else:
                 ctx.set(dut.valid, 0)
-            _, _, ov, tag, sad = await ctx.tick().sample(dut.o_valid, dut.o_tag, dut.sad)
+            _, _, ov, tag, cost_ = await ctx.tick().sample(dut.o_valid, dut.o_tag, dut.cost)
             if ov:
-                got.append((t - tag, tag, sad))
+                got.append((t - tag, tag, cost_))
     simulate(dut, bench)
     if cost == "sad":
         terms = np.abs(lefts - rights)
@@ -88,11 +88,11 @@ def test_sad_tree(window, cost, lines):
         terms = POPCOUNT8[np.bitwise_xor(lefts, rights)]
     on = np.tile(masks, (1, window))                   # index column * lines + line
     want = [(t, int(terms[t][on[t]].sum())) for t in range(cycles) if valid[t]]
-    assert dut.sad_width == {"sad": bits_for(255 * window * window),
+    assert dut.cost_width == {"sad": bits_for(255 * window * window),
                              "census": bits_for(8 * window * window)}[cost]
-    assert [(tag, sad) for _, tag, sad in got] == want
-    assert {lat for lat, _, _ in got} == {sad_latency(window, lines)} == {dut.latency}
-    assert sad_latency(7) == 7 and sad_latency(3) == 5 and sad_latency(7, 8) == 7
+    assert [(tag, c) for _, tag, c in got] == want
+    assert {lat for lat, _, _ in got} == {cost_latency(window, lines)} == {dut.latency}
+    assert cost_latency(7) == 7 and cost_latency(3) == 5 and cost_latency(7, 8) == 7
 
 
 def reference_winner(cands):

@@ -111,7 +111,7 @@ def test_near_window_bit_exact_on_every_backend_with_stalls(tmp_path, backend):
     for side in ("left", "right"):
         paths[side] = tmp_path / f"{side}.png"
         Image.fromarray(getattr(frame, side)).save(paths[side])
-    r = subprocess.run([sys.executable, "-m", "sim", "compare", "--unit", "sad",
+    r = subprocess.run([sys.executable, "-m", "sim", "compare", "--unit", "matcher",
                         "--left", str(paths["left"]), "--right", str(paths["right"]),
                         "--crop", "332x14+420+200", "--backend", backend, "--stalls", "3",
                         "--d-min", str(NEAR_WINDOW[0]), "--d-max", str(NEAR_WINDOW[1]),

@@ -12,7 +12,7 @@ from sim.units import UNITS, Job, records_from_words
 from sim.streams import Packer, words_to_frames
 from hdl.types import FreeBand
 
-STATS = {"edge_pixels": "frame_edge_pixels", "sad_evaluations": "frame_sad_evaluations",
+STATS = {"edge_pixels": "frame_edge_pixels", "evaluations": "frame_evaluations",
          "matches": "frame_matches", "rejected": "frame_rejected", "drops": "frame_drops",
          "border": "frame_border", "no_candidate": "frame_no_candidate"}
 

@@ -84,7 +84,7 @@ def test_configure_stream_and_read_results_over_the_bus():
             if not word["valid"]:
                 break
             state["results"].append(tuple(word[k] for k in compared))
-        for reg in ("STAT_EDGES", "STAT_SAD", "STAT_MATCHES", "STAT_REJECTS", "STAT_DROPS"):
+        for reg in ("STAT_EDGES", "STAT_EVALUATIONS", "STAT_MATCHES", "STAT_REJECTS", "STAT_DROPS"):
             state["stats"][reg] = await io_read(ctx, soc.bus, addr(reg))
         for reg in ("ERR_LEFT", "ERR_RIGHT", "ERR_MATCH"):
             state["errors"][reg] = await io_read(ctx, soc.bus, addr(reg))
@@ -111,7 +111,7 @@ def test_configure_stream_and_read_results_over_the_bus():
     expected = [tuple(int(r[k]) for k in compared) for g in golden for r in g.records]
     assert state["results"] == expected
     st = golden[-1].stats
-    assert state["stats"] == {"STAT_EDGES": st["edge_pixels"], "STAT_SAD": st["sad_evaluations"],
+    assert state["stats"] == {"STAT_EDGES": st["edge_pixels"], "STAT_EVALUATIONS": st["evaluations"],
                               "STAT_MATCHES": st["matches"], "STAT_REJECTS": st["rejected"],
                               "STAT_DROPS": st["drops"]}
     assert state["errors"] == {"ERR_LEFT": 0, "ERR_RIGHT": 0, "ERR_MATCH": 0}

@@ -37,7 +37,7 @@ typedef struct {
     uint16_t left_errors, left_dropped;
     uint16_t right_errors, right_dropped;
     uint16_t match_errors, match_dropped;
-    uint32_t edges, sad_evals, matches, rejects, drops;
+    uint32_t edges, evaluations, matches, rejects, drops;
     uint16_t fifo_level, fifo_overflow;
     uint8_t left_ground_learned, left_hue_fallback;    /**< GROUND_STATUS */
     uint8_t right_ground_learned, right_hue_fallback;

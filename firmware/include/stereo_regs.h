@@ -121,7 +121,7 @@
 #define STEREO_MATCH_D_MAX_SHIFT                     8u           /**< d_max: largest disparity tried (d_min <= d_max <= d_min + 63: a window of at most 64 disparities) */
 #define STEREO_MATCH_D_MAX_MASK                      0xFF00u      /**< d_max mask (8 bits) */
 #define STEREO_MATCH_D_MAX_RESET                     63u          /**< d_max reset value */
-#define STEREO_MATCH_UNIQUENESS_SHIFT                16u          /**< uniqueness: margin u in 1/256 units: reject the best d if a candidate d' (|d'-d| > 1) has 256 SAD(d') <= (256 + u) SAD(d) */
+#define STEREO_MATCH_UNIQUENESS_SHIFT                16u          /**< uniqueness: margin u in 1/256 units: reject the best d if a candidate d' (|d'-d| > 1) has window costs 256 C(d') <= (256 + u) C(d) */
 #define STEREO_MATCH_UNIQUENESS_MASK                 0x00FF0000u  /**< uniqueness mask (8 bits) */
 #define STEREO_MATCH_UNIQUENESS_RESET                64u          /**< uniqueness reset value */
 #define STEREO_MATCH_CANDIDATE_MODE_SHIFT            24u          /**< candidate_mode: 0 adaptive (only right-image edge columns), 1 full range */
@@ -380,12 +380,12 @@
 #define STEREO_STAT_EDGES_COUNT_MASK                 0xFFFFFFFFu  /**< count mask (32 bits) */
 #define STEREO_STAT_EDGES_COUNT_RESET                0u           /**< count reset value */
 
-/* STAT_SAD (read-only): Last frame: SAD evaluations. */
-#define STEREO_STAT_SAD_OFFSET                       0x54u        /**< Last frame: SAD evaluations. */
-#define STEREO_STAT_SAD_RESET                        0x0u         /**< STAT_SAD value after reset */
-#define STEREO_STAT_SAD_COUNT_SHIFT                  0u           /**< count: window comparisons */
-#define STEREO_STAT_SAD_COUNT_MASK                   0xFFFFFFFFu  /**< count mask (32 bits) */
-#define STEREO_STAT_SAD_COUNT_RESET                  0u           /**< count reset value */
+/* STAT_EVALUATIONS (read-only): Last frame: window-cost evaluations. */
+#define STEREO_STAT_EVALUATIONS_OFFSET               0x54u        /**< Last frame: window-cost evaluations. */
+#define STEREO_STAT_EVALUATIONS_RESET                0x0u         /**< STAT_EVALUATIONS value after reset */
+#define STEREO_STAT_EVALUATIONS_COUNT_SHIFT          0u           /**< count: window comparisons */
+#define STEREO_STAT_EVALUATIONS_COUNT_MASK           0xFFFFFFFFu  /**< count mask (32 bits) */
+#define STEREO_STAT_EVALUATIONS_COUNT_RESET          0u           /**< count reset value */
 
 /* STAT_MATCHES (read-only): Last frame: matches emitted. */
 #define STEREO_STAT_MATCHES_OFFSET                   0x58u        /**< Last frame: matches emitted. */

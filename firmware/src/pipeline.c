@@ -118,7 +118,7 @@ void pipeline_read_status(uint32_t base, pipeline_status_t *s)
     s->match_errors = (uint16_t)STEREO_GET(ERR_MATCH, ERRORS, v);
     s->match_dropped = (uint16_t)STEREO_GET(ERR_MATCH, DROPPED, v);
     s->edges = STEREO_ReadReg(base, STEREO_STAT_EDGES_OFFSET);
-    s->sad_evals = STEREO_ReadReg(base, STEREO_STAT_SAD_OFFSET);
+    s->evaluations = STEREO_ReadReg(base, STEREO_STAT_EVALUATIONS_OFFSET);
     s->matches = STEREO_ReadReg(base, STEREO_STAT_MATCHES_OFFSET);
     s->rejects = STEREO_ReadReg(base, STEREO_STAT_REJECTS_OFFSET);
     s->drops = STEREO_ReadReg(base, STEREO_STAT_DROPS_OFFSET);

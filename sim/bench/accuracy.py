@@ -94,7 +94,7 @@ def _score(recs, scored, gt):
 def _method_row(f, scored, gt):
     h, w = gt.shape
     r = _score(f.records, scored, gt)
-    r["eval_fraction"] = f.stats["sad_evaluations"] / (w * h * DISPARITIES)
+    r["eval_fraction"] = f.stats["evaluations"] / (w * h * DISPARITIES)
     r["stats"] = {k: int(v) for k, v in f.stats.items()}
     return r
 
@@ -318,7 +318,7 @@ def run(bench=None, quick=False):
     rep["consistency"] = {"removed": int(lost.sum()), "removed_scored": err_lost["matched"],
                           "removed_bad2": err_lost["bad2"],
                           "extra_cycles_note": "one table read-modify-write per record, "
-                                               "no extra SAD evaluation (golden/matcher.py)"}
+                                               "no extra cost evaluation (golden/matcher.py)"}
     rep["coverage"] = {"v1": coverage(f1, p1, gt), "v2": coverage(f2, p2, gt)}
     say("matcher_v2.coverage", "golden.matcher.candidates: is round(gt) (or +-1) a candidate")
 
@@ -389,7 +389,7 @@ def markdown(rep):
          "turns v2 on; the RTL runs `golden.matcher.RTL` (v2 without its consistency step), "
          "the default.", "",
          "| method | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err | "
-         "SAD evals % dense |", "|---|---|---|---|---|---|---|---|"]
+         "evals % dense |", "|---|---|---|---|---|---|---|---|"]
     for name, r in rep["methods"].items():
         L.append(f"| {name} | {_acc(r)} | {_pct(r['eval_fraction'], 3)} |")
     for name, r in rep["opencv_same_pixels"].items():
@@ -397,7 +397,7 @@ def markdown(rep):
     L += ["", "From v1 to v2, one rule at a time (v2's edges; the must-hold: "
           "bad-2 <= 6 %, bad-1 <= 9 %, >= 8,000 within 2 px, gain case bad-2 <= 8 %):", "",
           "| step | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err | "
-          "SAD evals % dense | gain 1.2 +10: bad-2 % |", "|---|---|---|---|---|---|---|---|---|"]
+          "evals % dense | gain 1.2 +10: bad-2 % |", "|---|---|---|---|---|---|---|---|---|"]
     for name, r in rep["rtl_ladder"].items():
         L.append(f"| {name} | {_acc(r['plain'])} | {_pct(r['plain']['eval_fraction'], 3)} | "
                  f"{_pct(r['gain']['bad2'])} |")
@@ -434,7 +434,7 @@ def markdown(rep):
     L += ["", f"### Synthetic scenes ({s['size'][0]}x{s['size'][1]}, ground model off, "
           "each version on its own edges)", "",
           "| scene | version | scored | density % | bad-1 % | bad-2 % | within 2 px | avg err | "
-          "SAD evals % dense |", "|---|---|---|---|---|---|---|---|---|"]
+          "evals % dense |", "|---|---|---|---|---|---|---|---|---|"]
     for name in SCENES:
         for v, r in s[name].items():
             L.append(f"| {name} | {v} | {_acc(r)} | {_pct(r['eval_fraction'], 3)} |")

@@ -6,9 +6,9 @@
    included) over the LEFT vertical-edge pixels with finite ground truth: this pipeline's golden
    model (default adaptive + widen, adaptive without widen, ``full``) and OpenCV StereoBM (64
    disparities, blocks 7, 9, 15, 21, on the same BT.601 luma) scored on the same pixels; an
-   error map; a sweep of edge threshold x window x candidate mode (accuracy against SAD
+   error map; a sweep of edge threshold x window x candidate mode (accuracy against cost
    evaluations); the ground-mask agreement on the synthetic scenes.
-2. **Hardware cost**: Yosys resource estimates per unit and for the top (``sim.flows.synth``), SAD
+2. **Hardware cost**: Yosys resource estimates per unit and for the top (``sim.flows.synth``), cost
    evaluations against dense matching, cycles per frame and pixels per clock of the pipeline RTL
    (Verilator harness, inputs always valid, no backpressure), frames per second at 50 MHz.
 3. **Simulation speed**: simulated cycles per second of every backend on the same design and
@@ -26,7 +26,7 @@ goes to stderr as ``[k/n] ...``, and every figure's origin (function and run) is
 scenes, skips synthesis and the cocotb backends; its figures are not the reference figures.
 
 Exit status 1 when the acceptance check fails: the default mode's bad-2 on edge pixels must be
-no worse than StereoBM block 7's, at equal or higher density, with at most 6 % of the dense SAD
+no worse than StereoBM block 7's, at equal or higher density, with at most 6 % of the dense cost
 evaluations. Where the default's density is lower, its bad-2 must also be no worse than that of
 StereoBM 7's most confident points at the default's count (the matcher section's equal counts),
 so that fewer points cannot buy the lower bad-2. The check is about the whole pair: on the
@@ -115,8 +115,8 @@ def pipeline_accuracy(bench, left, right, gt):
                 raise AssertionError(f"{key}: {name} {r[name]} differs from "
                                      f"golden.matcher.accuracy's {ref[name]}")
         m = params.matcher
-        r.update(sad_evaluations=f.stats["sad_evaluations"],
-                 sad_eval_fraction=f.stats["sad_evaluations"] / (w * h * DISPARITIES),
+        r.update(evaluations=f.stats["evaluations"],
+                 eval_fraction=f.stats["evaluations"] / (w * h * DISPARITIES),
                  mode=m.mode, widen=m.widen, window=m.window, d_max=m.d_max,
                  uniqueness=m.uniqueness, left_threshold=params.frontend.sobel.threshold,
                  right_threshold=params.right_threshold, seconds=round(seconds, 3),
@@ -141,18 +141,18 @@ def stereobm_accuracy(bench, left, right, gt, scored):
         valid = raw >= 0                       # 16x fixed point; negative = invalid
         ys, xs = np.nonzero(valid)
         r = score(xs, ys, raw[valid] / 16.0, scored, gt)
-        r.update(sad_evaluations=w * h * DISPARITIES, sad_eval_fraction=1.0, block=b,
+        r.update(evaluations=w * h * DISPARITIES, eval_fraction=1.0, block=b,
                  num_disparities=DISPARITIES)
         out[f"stereobm_{b}"], maps[b] = r, np.where(valid, raw / 16.0, np.nan)
         bench.source(f"accuracy.stereobm_{b}", f"cv2.StereoBM_create(numDisparities={DISPARITIES}, "
                      f"blockSize={b}).compute(golden.color.luma(L), luma(R)) (OpenCV "
                      f"{cv2.__version__}), scored by sim.bench.report.score on the same pixels; "
-                     "sad_eval_fraction 1.0 by definition (dense)")
+                     "eval_fraction 1.0 by definition (dense)")
     return out, maps
 
 
 def sweep(bench, left, right, gt):
-    """Accuracy against SAD evaluations over edge threshold x window x candidate mode."""
+    """Accuracy against cost evaluations over edge threshold x window x candidate mode."""
     from golden.pipeline import default_params
     from golden.frontend import FrontEndModel
     from golden.matcher import match
@@ -170,8 +170,8 @@ def sweep(bench, left, right, gt):
                 recs, stats = match(lf.output(), right_fe, mp)
                 r = score(recs["x"], recs["y"], recs["d"], scored, gt)
                 r.update(threshold=t, window=win, mode=mode,
-                         sad_evaluations=stats["sad_evaluations"],
-                         sad_eval_fraction=stats["sad_evaluations"] / (w * h * DISPARITIES))
+                         evaluations=stats["evaluations"],
+                         eval_fraction=stats["evaluations"] / (w * h * DISPARITIES))
                 rows.append(r)
     bench.source("sweep", "golden.frontend.FrontEndModel (left Sobel threshold swept, right "
                  f"{base.right_threshold}) + golden.matcher.match(MatcherParams(window, mode, "
@@ -267,14 +267,14 @@ def _marker(draw, x, y, window, colour):
 
 
 def write_sweep_plot(path, rows, bm, dense):
-    """Two panels (bad-2 and density against SAD evaluations per frame, log x) of the sweep,
+    """Two panels (bad-2 and density against cost evaluations per frame, log x) of the sweep,
     with StereoBM at the dense cost."""
     from PIL import Image, ImageDraw
     pw, ph, ml, mr, mt, mb = 430, 300, 52, 14, 26, 40
     canvas = Image.new("RGB", (2 * (pw + ml + mr), ph + mt + mb + 54), "white")
     draw = ImageDraw.Draw(canvas)
     font = _font()
-    evals = [r["sad_evaluations"] for r in rows if r["sad_evaluations"] > 0] + [dense]
+    evals = [r["evaluations"] for r in rows if r["evaluations"] > 0] + [dense]
     lx0 = np.floor(np.log10(min(evals))) if evals else 3
     lx1 = np.ceil(np.log10(dense * 1.2))
     for panel, (key, label) in enumerate((("bad2", "bad-2 (%) on scored edges"),
@@ -300,13 +300,13 @@ def write_sweep_plot(path, rows, bm, dense):
             draw.line([ox - 4, y, ox, y], fill="black")
             draw.text((ox - 34, y - 5), f"{v:.0f}", fill="black", font=font)
         draw.text((ox, 6), label, fill="black", font=font)
-        draw.text((ox + pw // 2 - 90, mt + ph + 20), "SAD evaluations per frame (log)",
+        draw.text((ox + pw // 2 - 90, mt + ph + 20), "evaluations per frame (log)",
                   fill="black", font=font)
         for mode in SWEEP_MODES:
             for win in SWEEP_WINDOWS:
                 pts = sorted((r for r in rows if r["mode"] == mode and r["window"] == win),
                              key=lambda r: r["threshold"])
-                xy = [px(r["sad_evaluations"], 100 * r[key]) for r in pts]
+                xy = [px(r["evaluations"], 100 * r[key]) for r in pts]
                 if len(xy) > 1:
                     draw.line(xy, fill=MODE_COLOURS[mode], width=1)
                 for (x, y), r in zip(xy, pts):
@@ -316,7 +316,7 @@ def write_sweep_plot(path, rows, bm, dense):
                                   font=font)
         placed = []
         for r in sorted(bm.values(), key=lambda r: -r[key]):
-            x, y = px(r["sad_evaluations"], 100 * r[key])
+            x, y = px(r["evaluations"], 100 * r[key])
             _marker(draw, x, y, None, MODE_COLOURS["StereoBM"])
             ty = y - 5
             while any(abs(ty - p) < 11 for p in placed):      # keep labels apart
@@ -370,7 +370,7 @@ def resources(bench, out_dir, quick):
     synth_dir = Path(out_dir) / "synth"
     # Yosys runs in a subprocess: two at a time on this 2-core machine, the largest first.
     from concurrent.futures import ThreadPoolExecutor
-    order = sorted(wanted, key=lambda n: (n != "pipeline", n != "sad"))
+    order = sorted(wanted, key=lambda n: (n != "pipeline", n != "matcher"))
     print(f"      synthesising {', '.join(order)} (Yosys, 2 at a time; the pipeline takes "
           "a few minutes) ...", file=sys.stderr, flush=True)
     with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
@@ -438,10 +438,10 @@ def throughput(bench, quick, pair):
                "pixels_per_clock": round(ppc, 4),
                "fps_at_50MHz_this_size": round(TARGET_CLOCK_HZ / cpf, 1),
                "fps_at_50MHz_752x480": round(TARGET_CLOCK_HZ * ppc / ref_pixels, 1),
-               "sad_evaluations_rtl": rstats.get("sad_evaluations"),
-               "sad_evaluations_golden": int(gstats["sad_evaluations"]),
-               "sad_evaluations_dense": w * h * DISPARITIES,
-               "sad_eval_fraction": round(gstats["sad_evaluations"] / (w * h * DISPARITIES), 5),
+               "evaluations_rtl": rstats.get("evaluations"),
+               "evaluations_golden": int(gstats["evaluations"]),
+               "evaluations_dense": w * h * DISPARITIES,
+               "eval_fraction": round(gstats["evaluations"] / (w * h * DISPARITIES), 5),
                "edge_pixels": int(gstats["edge_pixels"]), "matches": int(gstats["matches"]),
                "harness_seconds": run.seconds, "harness_total_cycles": run.total_cycles,
                "wall_seconds": round(wall, 2)}
@@ -554,7 +554,7 @@ def software_speed(bench, quick, left, right):
            "opencv_threads": cv2.getNumThreads(),
            "golden_pipeline_s": statistics.median(times),
            "golden_matcher_only_s": statistics.median(match_times),
-           "golden_sad_evaluations": int(f.stats["sad_evaluations"])}
+           "golden_evaluations": int(f.stats["evaluations"])}
     bench.source("software_speed.golden", f"time.perf_counter around golden.pipeline."
                  f"PipelineModel.step (colour, ground, Sobel both cameras + match) on {what}, "
                  f"median of {repeats}; matcher alone: golden.matcher.match")
@@ -597,7 +597,7 @@ def acceptance(rep):
     thinned = next((row.get("StereoBM 7") for row in rep["matcher_v2"]["equal_counts"]
                     if row["n"] == d["matched"]), None)
     ok_equal = thinned is not None and d["bad2"] <= thinned["bad2"]
-    ok_evals = d["sad_eval_fraction"] <= ACCEPT_EVAL_FRACTION
+    ok_evals = d["eval_fraction"] <= ACCEPT_EVAL_FRACTION
     text = (f"default bad-2 {_pct(d['bad2'], 2)} % vs StereoBM-7 {_pct(bm['bad2'], 2)} % "
             f"({'ok' if ok_bad2 else 'FAIL'}); density {_pct(d['density'], 2)} % vs "
             f"{_pct(bm['density'], 2)} % ")
@@ -608,7 +608,7 @@ def acceptance(rep):
     else:
         text += (f"(lower, so at equal counts: StereoBM-7's {thinned['n']} most confident "
                  f"points bad-2 {_pct(thinned['bad2'], 2)} % ({'ok' if ok_equal else 'FAIL'}))")
-    text += (f"; SAD evaluations {_pct(d['sad_eval_fraction'], 3)} % of dense, limit "
+    text += (f"; evaluations {_pct(d['eval_fraction'], 3)} % of dense, limit "
              f"{_pct(ACCEPT_EVAL_FRACTION, 0)} % ({'ok' if ok_evals else 'FAIL'})")
     ground_failed = rep["ground_masks"]["failed"]         # sim.bench.ground.check
     text += "; ground masks " + ("ok" if not ground_failed else
@@ -627,7 +627,7 @@ MEASUREMENTS_MARK = ("<!-- GENERATED by `make bench` (python -m sim.bench.report
 #: there is one) the section alone.
 SECTION_COMMANDS = {
     "Accuracy: Middlebury motorcycle": ("make bench",),
-    "Sweep: accuracy against SAD evaluations": ("make bench",),
+    "Sweep: accuracy against cost evaluations": ("make bench",),
     "Ground-mask agreement on the synthetic scenes": ("make bench",),
     "Ground masks": ("make bench", "python -m sim.bench.ground"),
     "Hardware cost": ("make bench",),
@@ -675,8 +675,8 @@ def _accuracy_lines(rep):
           f"{rep['pipeline_default']['right_threshold']}, W "
           f"{rep['pipeline_default']['window']}, d_max {rep['pipeline_default']['d_max']}). "
           "density = scored pixels with a match; bad-1/bad-2 = matches with |d - gt| > 1 / > 2; "
-          "SAD evals = SAD evaluations / (W x H x 64).", "",
-          "| method | density % | bad-1 % | bad-2 % | avg err (px) | SAD evals % of dense |",
+          "evals = cost evaluations / (W x H x 64).", "",
+          "| method | density % | bad-1 % | bad-2 % | avg err (px) | evals % of dense |",
           "|---|---|---|---|---|---|"]
     labels = {"pipeline_default": "this pipeline, default (adaptive + widen)",
               "pipeline_adaptive": "this pipeline, adaptive (no widen)",
@@ -685,7 +685,7 @@ def _accuracy_lines(rep):
     for key, label in labels.items():
         r = rep[key]
         L.append(f"| {label} | {_pct(r['density'])} | {_pct(r['bad1'])} | {_pct(r['bad2'])} | "
-                 f"{r['avgerr']:.2f} | {_pct(r['sad_eval_fraction'], 3)} |")
+                 f"{r['avgerr']:.2f} | {_pct(r['eval_fraction'], 3)} |")
     chk = rep["check"]
     L += ["", f"**Acceptance ({'PASS' if chk['pass'] else 'FAIL'}"
           f"{'' if chk['enforced'] else ', informational: not enforced on the --quick crop'})**"
@@ -693,17 +693,17 @@ def _accuracy_lines(rep):
           "![error map](error_map.png)", "",
           "Error map: scored edge pixels coloured by |d - gt| (green <= 1, yellow <= 2, orange "
           "<= 4, red > 4, blue: no match), this pipeline's default mode beside StereoBM 7.", "",
-          "### Sweep: accuracy against SAD evaluations", "",
+          "### Sweep: accuracy against cost evaluations", "",
           "Left Sobel threshold x window x candidate mode (right threshold fixed). Each point "
           "is scored over its own left edges (a higher threshold scores fewer, stronger edges). "
           "StereoBM (dense) is drawn at W x H x 64 evaluations.", "",
           "![sweep](sweep.png)", "",
-          "| threshold | W | mode | scored | density % | bad-2 % | avg err | SAD evals | % dense |",
+          "| threshold | W | mode | scored | density % | bad-2 % | avg err | evals | % dense |",
           "|---|---|---|---|---|---|---|---|---|"]
     for r in rep["sweep"]:
         L.append(f"| {r['threshold']} | {r['window']} | {r['mode']} | {r['scored_pixels']} | "
                  f"{_pct(r['density'])} | {_pct(r['bad2'])} | {r['avgerr']:.2f} | "
-                 f"{r['sad_evaluations']} | {_pct(r['sad_eval_fraction'], 3)} |")
+                 f"{r['evaluations']} | {_pct(r['eval_fraction'], 3)} |")
     g = rep["ground_agreement"]
     L += ["", "### Ground-mask agreement on the synthetic scenes", "",
           f"Hue mode, {g['size'][0]}x{g['size'][1]}, frames of brightness "
@@ -766,13 +766,13 @@ def _throughput_lines(rep):
           f"pixels per clock; the commercial stereo head does {t['commercial_fps_752x480']:.0f} "
           f"frames/s at 752x480, one pixel per clock would give "
           f"{t['one_pixel_per_clock_fps_752x480']} frames/s.", "",
-          "| scene | size | cycles/frame | pixels/clock | fps @50 MHz (752x480) | SAD evals/frame "
+          "| scene | size | cycles/frame | pixels/clock | fps @50 MHz (752x480) | evals/frame "
           "| dense | % dense | bit-exact |", "|---|---|---|---|---|---|---|---|---|"]
     for name, r in t["scenes"].items():
         L.append(f"| {name} | {r['width']}x{r['height']} | {r['cycles_per_frame']} | "
                  f"{r['pixels_per_clock']} | {r['fps_at_50MHz_752x480']} | "
-                 f"{r['sad_evaluations_rtl']} | {r['sad_evaluations_dense']} | "
-                 f"{_pct(r['sad_eval_fraction'], 3)} | {r['bit_exact']} |")
+                 f"{r['evaluations_rtl']} | {r['evaluations_dense']} | "
+                 f"{_pct(r['eval_fraction'], 3)} | {r['bit_exact']} |")
     L += [f"| *commercial head* | 752x480 | | | {t['commercial_fps_752x480']:.0f} | | | | |",
           f"| *1 pixel/clock limit* | 752x480 | {REFERENCE_SIZE[0] * REFERENCE_SIZE[1]} | 1.0 | "
           f"{t['one_pixel_per_clock_fps_752x480']} | | | | |", ""]

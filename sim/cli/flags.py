@@ -37,7 +37,7 @@ GROUP_REGISTERS = {"ground": "GROUND", "sobel": "SOBEL", "matcher": "MATCH", "fr
 #: matcher (``ROWS / 2``), already beyond the XC3S1000's block RAM, and larger windows make an
 #: RTL run take many minutes. The ground mode keeps its established name ``--ground``.
 CLI_META = {
-    ("matcher", "window"): dict(help="SAD window side (odd); the matcher RTL is elaborated for it",
+    ("matcher", "window"): dict(help="matching window side (odd); the matcher RTL is elaborated for it",
                                 unit="px", range=(3, 15)),
     ("frontend", "ground", "mode"): dict(
         aliases=("--ground",), default_text="hue for colour images, luma for grayscale ones, "

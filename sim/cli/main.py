@@ -314,8 +314,8 @@ def stats_verdict(status, golden_stats):
 # ----------------------------------------------------------------------------------------------
 
 def cmd_compare(args, flags):
-    from sim.units import UNITS, Job
-    unit = UNITS.get(args.unit)
+    from sim.units import UNITS, Job, unit_name
+    unit = UNITS.get(unit_name(args.unit))
     if unit is None:
         raise CliError(f"unknown unit {args.unit!r}: choose from {', '.join(UNITS)}")
     left, right, grey = load_pair(args.left, args.right, args.crop, need_right=unit.stereo)
@@ -443,7 +443,7 @@ def cmd_run(args, flags):
         "matches": int(len(last.records)),
         "stats": {k: int(v) for k, v in last.stats.items()},
         "stats_rtl": stats_rtl,
-        "sad_eval_fraction_of_dense": round(last.stats["sad_evaluations"]
+        "eval_fraction_of_dense": round(last.stats["evaluations"]
                                             / (pixels * DISPARITIES), 5),
         "camera": camera.summary(mp.d_min, mp.d_max),
         "parameters": {f.names[0][2:]: _plain(flag_value(params, f)) for f in flags},
@@ -516,8 +516,8 @@ def _print_run(summary, last, failure, paths, args):
               f"{summary['fps_at_50MHz_752x480_same_rate']} frames/s at 752x480 at the same rate")
     stats = last.stats
     print(f"  matches {summary['matches']} of {stats['edge_pixels']} left edge pixels; "
-          f"SAD evaluations {stats['sad_evaluations']} "
-          f"({100 * summary['sad_eval_fraction_of_dense']:.2f}% of dense); statistics "
+          f"evaluations {stats['evaluations']} "
+          f"({100 * summary['eval_fraction_of_dense']:.2f}% of dense); statistics "
           f"{'equal' if summary['stats_match'] else 'DIFFER'}")
     cam = summary["camera"]
     near, far = cam["depth_range_m"]
@@ -597,7 +597,9 @@ def make_parser():
                        description="Run one unit on the given images with a backend, compare with "
                                    "golden, print one JSON line.", epilog=EXAMPLES,
                        formatter_class=fmt)
-    c.add_argument("--unit", required=True, help="color, ground, sobel, frontend, sad, pipeline")
+    c.add_argument("--unit", required=True,
+                   help="color, ground, sobel, freespace, frontend, matcher, pipeline (sad: "
+                        "deprecated alias of matcher)")
     _add_pair_options(c, run=False)
     r = sub.add_parser("run", help="the stereo pipeline on a pair (default: the embedded pair)",
                        description="The whole pipeline RTL on a stereo pair, checked against "

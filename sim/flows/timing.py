@@ -40,6 +40,7 @@ from pathlib import Path
 from sim.designs import all_designs, design, ports, registered
 from sim.paths import BUILD
 from sim.flows.verilog import export_verilog
+from sim.units import DEPRECATED_UNITS, unit_name
 
 __all__ = ["DEVICE", "SPARTAN3_SCALE", "TARGET_MHZ", "wrapper_verilog", "prepare_ecp5",
            "run_synth", "place_and_route", "time_designs", "write_report", "bench_timing", "main"]
@@ -326,7 +327,9 @@ def main(argv=None):
     ap.add_argument("--out", default=str(BUILD / "timing"),
                     help="output folder (default build/timing)")
     ap.add_argument("--designs", default=",".join(all_designs()),
-                    help="comma-separated designs (default: all of %(default)s)")
+                    help="comma-separated designs (default: all of %(default)s; "
+                         + ", ".join(f"{old}: deprecated alias of {new}"
+                                     for old, new in DEPRECATED_UNITS.items()) + ")")
     ap.add_argument("--seeds", default=",".join(map(str, DEFAULT_SEEDS)),
                     help="comma-separated nextpnr seeds (default %(default)s)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
@@ -336,10 +339,11 @@ def main(argv=None):
     names = _list(args.designs, str.strip, "design")
     seeds = _list(args.seeds, int, "seed")
     for n in names:
-        if n not in all_designs():
+        if n not in all_designs() and n not in DEPRECATED_UNITS:
             print(f"error: unknown design {n!r}; known: {', '.join(all_designs())}",
                   file=sys.stderr)
             return 2
+    names = [unit_name(n) for n in names]
     if args.jobs < 1:
         print(f"error: --jobs {args.jobs}: at least 1", file=sys.stderr)
         return 2

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from sim.designs import all_designs, ports, registered
+from sim.units import DEPRECATED_UNITS, unit_name
 from sim.paths import BUILD, ROOT
 
 __all__ = ["verilog_source", "export_verilog", "source_key", "write_if_changed",
@@ -153,19 +154,22 @@ def design_arguments(prog, description, out):
     and a list of design names (default all)."""
     ap = argparse.ArgumentParser(prog=prog, description=description)
     ap.add_argument("--out", default=out, help="output folder (default %(default)s)")
+    aliases = ", ".join(f"{old}: deprecated alias of {new}" for old, new in DEPRECATED_UNITS.items())
     ap.add_argument("names", nargs="*",
-                    help=f"designs (default: all of {', '.join(all_designs())})")
+                    help=f"designs (default: all of {', '.join(all_designs())}; {aliases})")
     return ap
 
 
 def chosen_designs(ap, args):
-    """The designs named on the command line (all when none, see :func:`all_designs`), or a
-    usage error."""
+    """The designs named on the command line (all when none, see :func:`all_designs`; a
+    deprecated alias gives its current name, with a warning), or a usage error."""
     known = all_designs()
+    names = []
     for name in args.names:
-        if name not in known:
+        if name not in known and name not in DEPRECATED_UNITS:
             ap.error(f"unknown design {name!r}; known: {', '.join(known)}")
-    return args.names or list(known)
+        names.append(unit_name(name))
+    return names or list(known)
 
 
 def source_key(name, params):

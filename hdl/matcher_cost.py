@@ -21,10 +21,10 @@ from amaranth.utils import bits_for
 
 from golden.matcher import COSTS
 
-__all__ = ["SadTree", "sad_latency", "term_max"]
+__all__ = ["CostTree", "cost_latency", "term_max"]
 
 
-def sad_latency(window, lines=None):
+def cost_latency(window, lines=None):
     n, stages = window * (window if lines is None else lines), 1
     while n > 1:
         n, stages = (n + 1) // 2, stages + 1
@@ -44,29 +44,30 @@ def _popcount8(v):
     return (pairs[0] + pairs[1]) + (pairs[2] + pairs[3])
 
 
-class SadTree(wiring.Component):
+class CostTree(wiring.Component):
     """Ports: ``valid``, ``tag``, ``left`` and ``right`` (``window * lines`` bytes each, index
     ``column * lines + line``) and ``mask`` (bit ``line``: that line's terms count; the others
-    are 0) in; ``o_valid``, ``o_tag``, ``sad`` (the window cost) out, :func:`sad_latency`
-    cycles later. ``cost``: ``"sad"`` or ``"census"``. ``lines`` (default ``window``): the
-    matcher feeds every line slot of its line store, the window's ``window`` of them masked
-    in, instead of selecting them (``hdl/matcher.py``); at most ``window`` mask bits may be
-    set (``sad`` is as wide as a window of ``window`` lines needs)."""
+    are 0) in; ``o_valid``, ``o_tag``, ``cost`` (the window cost) out, :func:`cost_latency`
+    cycles later. ``cost`` (elaboration parameter, kept as ``kind``): ``"sad"`` or
+    ``"census"``. ``lines`` (default ``window``): the matcher feeds every line slot of its line
+    store, the window's ``window`` of them masked in, instead of selecting them
+    (``hdl/matcher.py``); at most ``window`` mask bits may be set (``cost`` is as wide as a
+    window of ``window`` lines needs)."""
 
     def __init__(self, window=7, tag_width=1, cost="sad", lines=None):
         self.window = window
         self.lines = window if lines is None else lines
         if self.lines < window:
             raise ValueError(f"lines ({self.lines}) must be at least the window ({window})")
-        self.cost = cost
-        self.latency = sad_latency(window, self.lines)
+        self.kind = cost
+        self.latency = cost_latency(window, self.lines)
         self.term_max = term_max(cost)
-        self.sad_width = bits_for(self.term_max * window * window)
+        self.cost_width = bits_for(self.term_max * window * window)
         n = window * self.lines
         super().__init__({
             "valid": In(1), "tag": In(tag_width),
             "left": In(8 * n), "right": In(8 * n), "mask": In(self.lines),
-            "o_valid": Out(1), "o_tag": Out(tag_width), "sad": Out(self.sad_width),
+            "o_valid": Out(1), "o_tag": Out(tag_width), "cost": Out(self.cost_width),
         })
 
     def elaborate(self, platform):
@@ -77,7 +78,7 @@ class SadTree(wiring.Component):
             a, b = self.left[8 * i:8 * i + 8], self.right[8 * i:8 * i + 8]
             on = self.mask[i % self.lines]
             t = Signal(bits_for(self.term_max), name=f"ad{i}")
-            if self.cost == "sad":
+            if self.kind == "sad":
                 m.d.sync += t.eq(Mux(on, Mux(a >= b, a - b, b - a), 0))
             else:
                 m.d.sync += t.eq(_popcount8((a ^ b) & on.replicate(8)))
@@ -104,5 +105,5 @@ class SadTree(wiring.Component):
             v2, t2 = Signal(name=f"v{level}"), Signal(len(tag), name=f"t{level}")
             m.d.sync += [v2.eq(vs), t2.eq(ts)]
             vs, ts = v2, t2
-        m.d.comb += [self.sad.eq(terms[0][0]), self.o_valid.eq(vs), self.o_tag.eq(ts)]
+        m.d.comb += [self.cost.eq(terms[0][0]), self.o_valid.eq(vs), self.o_tag.eq(ts)]
         return m
