@@ -27,14 +27,19 @@ WORLD = [f"--goal={GOAL}", f"--extent={EXTENT}"]
 
 
 def small_recording(tmp_path_factory):
-    """``<tmp>/demo/small/radio.bin``: the closed loop's received bytes on the small world."""
+    """``<tmp>/demo/small/radio.bin``: the closed loop's received bytes on the small world
+    (made once per test session and worker)."""
     from sim.closedloop.loop import WORLDS, Channel, LoopConfig, run_world
-    cfg = LoopConfig(supersample=False, gif_every=0,
-                     channel=Channel(p_corrupt=0.05, p_truncate=0.05, p_garbage=0.03, seed=4))
-    res = run_world(WORLDS["small"], "truth", cfg)
-    path = tmp_path_factory.mktemp("demo") / "small" / "radio.bin"
-    path.parent.mkdir()
-    path.write_bytes(res.radio_bytes)
+    path = tmp_path_factory.getbasetemp() / "station-demo" / "small" / "radio.bin"
+    if not path.exists():
+        cfg = LoopConfig(supersample=False, gif_every=0,
+                         channel=Channel(p_corrupt=0.05, p_truncate=0.05, p_garbage=0.03,
+                                         seed=4))
+        res = run_world(WORLDS["small"], "truth", cfg)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".part")
+        tmp.write_bytes(res.radio_bytes)
+        tmp.replace(path)
     return path
 
 
