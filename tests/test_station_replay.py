@@ -48,11 +48,6 @@ def recording(tmp_path_factory):
     return small_recording(tmp_path_factory)
 
 
-def _station(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "station", *args], cwd=ROOT,
-                          capture_output=True, text=True, **kw)
-
-
 def _outputs(d):
     return (np.load(d / "map.npy"), json.loads((d / "path.json").read_text()),
             json.loads((d / "link.json").read_text()))
@@ -88,7 +83,7 @@ def test_replay_paces_by_the_packet_clock_and_never_skips(recording):
         replay(run, data, speed=-1)
 
 
-def test_replay_equals_listen_over_a_pty(recording, tmp_path):
+def test_replay_equals_listen_over_a_pty(recording, tmp_path, capsys):
     """The same bytes through ``listen`` (a pseudo-terminal, written in uneven chunks) and
     ``replay``: the same map, path and link statistics."""
     data = recording.read_bytes()
@@ -118,9 +113,8 @@ def test_replay_equals_listen_over_a_pty(recording, tmp_path):
         os.close(master)
         os.close(slave)
     assert proc.returncode == 0, err
-    r = _station("replay", str(recording), "--speed", "0", "--out", str(b), *WORLD)
-    assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout) == json.loads(out)
+    assert main(["replay", str(recording), "--speed", "0", "--out", str(b), *WORLD]) == 0
+    assert json.loads(capsys.readouterr().out) == json.loads(out)
     map_a, path_a, link_a = _outputs(a)
     map_b, path_b, link_b = _outputs(b)
     assert np.array_equal(map_a, map_b) and (map_a > 0.6).any()
