@@ -27,25 +27,25 @@ WORLD = [f"--goal={GOAL}", f"--extent={EXTENT}"]
 
 
 def small_recording(tmp_path_factory):
-    """``<tmp>/demo/small/radio.bin``: the closed loop's received bytes on the small world."""
+    """``<tmp>/demo/small/radio.bin``: the closed loop's received bytes on the small world
+    (made once per test session and worker)."""
     from sim.closedloop.loop import WORLDS, Channel, LoopConfig, run_world
-    cfg = LoopConfig(supersample=False, gif_every=0,
-                     channel=Channel(p_corrupt=0.05, p_truncate=0.05, p_garbage=0.03, seed=4))
-    res = run_world(WORLDS["small"], "truth", cfg)
-    path = tmp_path_factory.mktemp("demo") / "small" / "radio.bin"
-    path.parent.mkdir()
-    path.write_bytes(res.radio_bytes)
+    path = tmp_path_factory.getbasetemp() / "station-demo" / "small" / "radio.bin"
+    if not path.exists():
+        cfg = LoopConfig(supersample=False, gif_every=0,
+                         channel=Channel(p_corrupt=0.05, p_truncate=0.05, p_garbage=0.03,
+                                         seed=4))
+        res = run_world(WORLDS["small"], "truth", cfg)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".part")
+        tmp.write_bytes(res.radio_bytes)
+        tmp.replace(path)
     return path
 
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     return small_recording(tmp_path_factory)
-
-
-def _station(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "station", *args], cwd=ROOT,
-                          capture_output=True, text=True, **kw)
 
 
 def _outputs(d):
@@ -83,7 +83,7 @@ def test_replay_paces_by_the_packet_clock_and_never_skips(recording):
         replay(run, data, speed=-1)
 
 
-def test_replay_equals_listen_over_a_pty(recording, tmp_path):
+def test_replay_equals_listen_over_a_pty(recording, tmp_path, capsys):
     """The same bytes through ``listen`` (a pseudo-terminal, written in uneven chunks) and
     ``replay``: the same map, path and link statistics."""
     data = recording.read_bytes()
@@ -113,9 +113,8 @@ def test_replay_equals_listen_over_a_pty(recording, tmp_path):
         os.close(master)
         os.close(slave)
     assert proc.returncode == 0, err
-    r = _station("replay", str(recording), "--speed", "0", "--out", str(b), *WORLD)
-    assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout) == json.loads(out)
+    assert main(["replay", str(recording), "--speed", "0", "--out", str(b), *WORLD]) == 0
+    assert json.loads(capsys.readouterr().out) == json.loads(out)
     map_a, path_a, link_a = _outputs(a)
     map_b, path_b, link_b = _outputs(b)
     assert np.array_equal(map_a, map_b) and (map_a > 0.6).any()

@@ -105,14 +105,15 @@ function render() {
 }
 
 function health(h) {
-  const names = { LEFT_LOCKED: "left camera locked", RIGHT_LOCKED: "right camera locked",
-                  PIPELINE_ENABLED: "pipeline on", HUE_FALLBACK: "hue fallback to luma" };
-  const good = ["LEFT_LOCKED", "RIGHT_LOCKED", "PIPELINE_ENABLED"];
+  const flags = [["LEFT_LOCKED", "left camera", "locked", "not locked", true],
+                 ["RIGHT_LOCKED", "right camera", "locked", "not locked", true],
+                 ["PIPELINE_ENABLED", "pipeline", "on", "off", true],
+                 ["HUE_FALLBACK", "hue fallback", "on", "off", false]];
   let html = "";
-  for (const [k, label] of Object.entries(names)) {
+  for (const [k, label, yes, no, good] of flags) {
     const on = h.flag_names.includes(k);
-    const cls = good.includes(k) ? (on ? "" : " off") : (on ? " warn" : " idle");
-    html += `<span class="badge${cls}">${label}${good.includes(k) || on ? "" : ": no"}</span>`;
+    const cls = good ? (on ? "" : " off") : (on ? " warn" : " idle");
+    html += `<span class="badge${cls}">${label}: ${on ? yes : no}</span>`;
   }
   $("flags").innerHTML = html;
   const rows = [["frames", h.frames], ["pairs ok", h.pairs_ok],
@@ -168,6 +169,14 @@ function drawMap() {
   for (let y = Math.ceil(g.y_min); y <= g.y_min + g.ny * g.res; y++) {
     ctx.beginPath(); ctx.moveTo(0, Y(y)); ctx.lineTo(cv.width, Y(y)); ctx.stroke();
   }
+  ctx.fillStyle = "rgba(255,255,255,0.7)";
+  ctx.font = "11px sans-serif";
+  for (let x = Math.ceil(g.x_min); x < g.x_min + g.nx * g.res; x++) {
+    ctx.fillText(`x ${x} m`, X(x) + 3, H - 4);
+  }
+  for (let y = Math.ceil(g.y_min); y < g.y_min + g.ny * g.res; y++) {
+    ctx.fillText(`y ${y} m`, 3, Y(y) - 3);
+  }
   const m = view.last;
   if (m) {   // free-space bands of the last packet
     const [ox, oy] = m.origin;
@@ -193,7 +202,7 @@ function drawMap() {
       ctx.beginPath(); ctx.arc(X(px), Y(py), 3, 0, 2 * Math.PI); ctx.fill();
     }
     const [x, y, th] = m.pose;
-    const s = Math.max(8, 0.15 / g.res * scale);
+    const s = Math.max(6, 0.1 / g.res * scale);
     ctx.save();
     ctx.translate(X(x), Y(y));
     ctx.rotate(-th);
