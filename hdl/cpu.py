@@ -21,7 +21,8 @@ other addresses, bit 31 = 1  the I/O bus: the register block, the IIC master, th
                              ``io_timeout`` cycles reads 0xFFFF_FFFF (writes are lost)
 ===========================  ======================================================
 
-Timing of one access: RAM one wait state (2 cycles); timer 2 cycles, WAIT n more; I/O bus the
+Timing of one access: RAM no wait state (the read starts from the core's look-ahead address,
+a cycle before the access); timer 2 cycles, WAIT n more; I/O bus the
 strobe in the access's first cycle (combinational from the core's registered address),
 ``ready`` from the slave (one cycle later for every slave of this SoC), then the core's
 ``mem_ready`` a cycle after that, from a register (the read data go through a register, not
@@ -135,6 +136,7 @@ class RiscvCPU(wiring.Component):
         valid, instr, ready = Signal(), Signal(), Signal()
         addr, wdata, rdata = Signal(32), Signal(32), Signal(32)
         wstrb = Signal(4)
+        la_read, la_addr = Signal(), Signal(32)
         m.submodules.core = Instance(
             "picorv32",
             **{f"p_{k}": Const(v, 32) if k == "PROGADDR_RESET" else Const(v, 1)
@@ -143,6 +145,7 @@ class RiscvCPU(wiring.Component):
             o_trap=self.trap,
             o_mem_valid=valid, o_mem_instr=instr, i_mem_ready=ready,
             o_mem_addr=addr, o_mem_wdata=wdata, o_mem_wstrb=wstrb, i_mem_rdata=rdata,
+            o_mem_la_read=la_read, o_mem_la_addr=la_addr,
             i_pcpi_wr=0, i_pcpi_rd=Const(0, 32), i_pcpi_wait=0, i_pcpi_ready=0,
             i_irq=Const(0, 32),
         )
@@ -154,15 +157,17 @@ class RiscvCPU(wiring.Component):
                      is_timer.eq(addr[31] & (addr[16:20] == 3))]
         write = wstrb.any()
 
-        # RAM: one wait state.
+        # RAM, no wait state: a read is started by the core's look-ahead address (mem_la_read,
+        # the cycle before mem_valid) and its data are there with mem_valid; a write happens
+        # in the cycle of mem_valid. Either way ready comes at once.
         m.submodules.ram = ram = Memory(shape=32, depth=words, init=self._image)
         rp = ram.read_port()
         wp = ram.write_port(granularity=8)
         ram_ready = Signal()
-        ram_go = valid & ~addr[31] & ~ram_ready
-        m.d.sync += ram_ready.eq(ram_go)
-        m.d.comb += [rp.addr.eq(addr[2:2 + abits]), wp.addr.eq(addr[2:2 + abits]),
-                     wp.data.eq(wdata), wp.en.eq(Mux(ram_go, wstrb, 0))]
+        m.d.comb += [ram_ready.eq(valid & ~addr[31]),
+                     rp.addr.eq(la_addr[2:2 + abits]), rp.en.eq(la_read),
+                     wp.addr.eq(addr[2:2 + abits]), wp.data.eq(wdata),
+                     wp.en.eq(Mux(ram_ready, wstrb, 0))]
 
         # Registered answers of the timer and the I/O bus.
         reg_ready = Signal()

@@ -31,7 +31,9 @@
 #define XBEE_BD_LINK        7u         /**< ATBD value for 115200 baud */
 #define XBEE_GUARD_US       1100000u   /**< GT (1 s factory default) plus 10 % */
 #define XBEE_RESPONSE_US    200000u    /**< longest wait for one response */
-#define XBEE_POLL_US        100u       /**< delay between two polls of an empty UART */
+#define XBEE_POLL_US        20u        /**< delay between two polls of an empty UART: below one
+                                             byte time at 115200 baud (87 us), as the UART
+                                             holds one received byte */
 #define XBEE_AT_FRAME_ID    0x52u      /**< frame id of the API-mode AT queries */
 #define XBEE_ROBOT_ADDR     0x0002u    /**< MY of the robot's module */
 #define XBEE_STATION_ADDR   0x0001u    /**< DL: the base station (app.h APP_RADIO_DEST) */

@@ -79,18 +79,23 @@ uint32_t app_collect(app_t *app)
     uint32_t total = 0u;
     uint32_t misses = 0u;
     uint32_t level;
+    uint32_t base;
+    radio_summary_t *summary;
     if (app == NULL || app_open_summary(app) != FW_OK) {
         return 0u;
     }
+    /* locals: the summary's byte stores could alias app's members, which would be reloaded */
+    base = app->regs_base;
+    summary = &app->summary;
     /* bounded: what the FIFO held when the call began, at most APP_COLLECT_MAX records; one
      * RESULT read a record (the summary needs x, d and the marker bits only, so the second
      * half in RESULT_EXT is skipped) */
-    level = STEREO_GET(RESULT_LEVEL, LEVEL, STEREO_ReadReg(app->regs_base, STEREO_RESULT_LEVEL_OFFSET));
+    level = STEREO_GET(RESULT_LEVEL, LEVEL, STEREO_ReadReg(base, STEREO_RESULT_LEVEL_OFFSET));
     if (level > APP_COLLECT_MAX) {
         level = APP_COLLECT_MAX;
     }
     while (total < level) {
-        uint32_t r = STEREO_ReadReg(app->regs_base, STEREO_RESULT_OFFSET);
+        uint32_t r = STEREO_ReadReg(base, STEREO_RESULT_OFFSET);
         if ((r & STEREO_RESULT_VALID_MASK) == 0u) {
             /* a read in the cycle right after a RESULT read finds no whole record: once more */
             if (++misses > 1u) {
@@ -101,7 +106,7 @@ uint32_t app_collect(app_t *app)
         misses = 0u;
         total++;
         if ((r & STEREO_RESULT_EOF_MASK) == 0u) {
-            radio_summary_add(&app->summary, (uint16_t)STEREO_GET(RESULT, X, r),
+            radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
                               (uint8_t)STEREO_GET(RESULT, D, r));
         }
     }

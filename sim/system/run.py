@@ -3,6 +3,10 @@ cameras, configured and read by the firmware's host build through the CPU bus.
 
     python -m sim system [--left L --right R | --scene S] [--frames N] [--fault F]
                          [--width W --height H] [--timing ntsc|short] [--seed S]
+                         [--cpu picorv32]
+
+With ``--cpu`` the firmware runs cross-compiled on the core inside the SoC instead
+(:mod:`sim.system.cpu_run`); what follows describes the run without it.
 
 Cameras: each image pair is one NTSC field (default 720 x 240: the image is resized to 720 x 480
 and its even rows taken, as an interlaced camera's field), converted to YCbCr 4:2:2
@@ -61,6 +65,7 @@ import numpy as np
 from golden.bt656 import encode_bt656, ntsc_stream, rgb_to_ycbcr, timing_code, ycbcr_to_rgb
 from golden.pipeline import default_params, pipeline_frames
 from hdl import regmap
+from sim.system.cpu_run import CPU_FAULTS, LOST_FIELDS, run_cpu_system
 
 __all__ = ["FAULTS", "build", "camera_streams", "inject", "record_fields", "run_system", "main"]
 
@@ -423,8 +428,13 @@ def main(argv=None):
                          "sim/scenes/rendered.py or 'motorcycle'")
     ap.add_argument("--frames", type=int, default=5,
                     help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
-    ap.add_argument("--fault", choices=FAULTS,
-                    help=f"fault injected in field {FAULT_FIELD} (see the module documentation)")
+    ap.add_argument("--fault", choices=FAULTS + CPU_FAULTS,
+                    help=f"fault injected in field {FAULT_FIELD} (see the module documentation; "
+                         f"{', '.join(CPU_FAULTS)}: with --cpu, sim/system/cpu_run.py)")
+    ap.add_argument("--cpu", choices=("picorv32",),
+                    help="run the cross-compiled firmware on this core inside the SoC "
+                         "(sim/system/cpu_run.py; 720 x 240 fields, NTSC timing) instead of "
+                         "the firmware's host build on the bus")
     ap.add_argument("--width", type=int, default=720, help="field width, even, 16..720")
     ap.add_argument("--height", type=int, default=240, help="field height, 8..240")
     ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc",
@@ -436,6 +446,17 @@ def main(argv=None):
             raise SystemError_("give both --left and --right, or neither")
         if args.width % 2 or not 16 <= args.width <= 720 or not 8 <= args.height <= 240:
             raise SystemError_("--width must be even, 16..720; --height 8..240")
+        if args.cpu is None and args.fault in CPU_FAULTS:
+            raise SystemError_(f"--fault {args.fault} needs --cpu")
+        if args.cpu is not None and args.fault in FAULTS:
+            raise SystemError_(f"--fault {args.fault} runs with the host firmware: drop --cpu")
+        if args.cpu is not None and (args.width, args.height, args.timing) != (720, 240, "ntsc"):
+            raise SystemError_("--cpu runs 720 x 240 fields with NTSC timing (the firmware's "
+                               "geometry and the register defaults)")
+        if args.cpu is not None and args.fault == "camera-lost-left" and \
+                args.frames < FAULT_FIELD + LOST_FIELDS + 3:
+            raise SystemError_(f"--fault camera-lost-left needs --frames at least "
+                               f"{FAULT_FIELD + LOST_FIELDS + 3}")
         if args.frames < (FAULT_FIELD + 4 if args.fault else 1):
             raise SystemError_(f"--frames must be at least {FAULT_FIELD + 4 if args.fault else 1}")
         if args.left:
@@ -443,13 +464,18 @@ def main(argv=None):
             right = field_of(_load(args.right), args.width, args.height)
         else:
             left, right = scene_pair(args.scene, args.width, args.height)
-        res = run_system(left, right, frames=args.frames, fault=args.fault, timing=args.timing,
-                         seed=args.seed)
+        if args.cpu is not None:
+            res = run_cpu_system(left, right, frames=args.frames, fault=args.fault,
+                                 timing=args.timing, seed=args.seed)
+        else:
+            res = run_system(left, right, frames=args.frames, fault=args.fault,
+                             timing=args.timing, seed=args.seed)
     except SystemError_ as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(json.dumps(res))
-    return 0 if res["bit_exact"] else 1
+    ok = res["bit_exact"] and (args.cpu is None or res["radio_exact"])
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

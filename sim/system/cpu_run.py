@@ -1,0 +1,313 @@
+"""System simulation with the CPU inside: the whole SoC (``hdl.soc.SystemSoC`` with
+``cpu="picorv32"``) under Verilator, its core running the cross-compiled firmware
+(``build/firmware/firmware.bin``, ``make -C firmware rv32``); no host firmware in the loop.
+
+    python -m sim system --cpu picorv32 [--scene S] [--frames N] [--fault F]
+
+From BT.656 bytes to the radio UART's TX pin (``sim/system/harness/cpu_system.cpp``): the
+cameras as in :mod:`sim.system.run`, two ADV7180 models on the IIC pins, the TX pin decoded
+into bytes and those into XBee API frames (``station.radio.FrameDecoder``), an XBee model
+answering the firmware's API-mode queries (AP = 2, MY = the robot's address) on the RX pin.
+
+Checks (the JSON line):
+
+``bit_exact``
+    The records the firmware read (every RESULT read, seen on the I/O bus) split into frames at
+    the end-of-frame markers equal golden's (x, y, d) frame for frame (with a fault: as
+    :mod:`sim.system.run`, the frames before it and from the second pair after it).
+``radio_packets``, ``radio_exact``
+    The packets decoded from the pin; each one's bands equal ``station.radio.summarise_matches``
+    (the firmware's summary rule) of the records the firmware read between the previous
+    packet's first byte and this one's (the firmware closes its summary right before sending).
+``cpu``
+    ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
+    ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
+    firmware's enabling the video path to the end), ``cycles_per_record`` (those busy cycles
+    per record read: an upper bound of the drain cost), ``trapped``.
+
+Health (``frames``, ``drops``, ``fifo_overflow``, ...) is the sum of the packets' health fields:
+what the firmware reported. The run goes on after the last frame until a packet has covered it.
+
+Faults: ``camera-lost-left`` (the left camera's bytes stop for :data:`LOST_FIELDS` fields from
+field 1, then resume), ``iic-nack`` (the right decoder never answers), ``no-radio-module``
+(nothing answers the XBee queries).
+"""
+from __future__ import annotations
+
+import ctypes as C
+import fcntl
+import os
+import shutil
+import subprocess
+import time
+
+from golden.pipeline import default_params, pipeline_frames
+from hdl import regmap
+
+__all__ = ["CPU_FAULTS", "LOST_FIELDS", "build_cpu_system", "run_cpu_system"]
+
+CPU_FAULTS = ("camera-lost-left", "iic-nack", "no-radio-module")
+LOST_FIELDS = 4
+UART_DIVISOR = 434                  #: 115200 baud at 50 MHz (the firmware's BAUD)
+XBEE_ROBOT_ADDR = 0x0002            #: firmware/include/xbee.h
+REPORT_PS = 100_000_000_000         #: the firmware's report period, 100 ms
+SLICE_PS = 2_000_000_000            #: host poll period of the simulation, 2 ms
+_INSTRET = "soc__DOT__cpu__DOT__core__DOT__count_instr"
+_RAM = "soc__DOT__cpu__DOT__ram"
+
+_libs = {}
+
+
+def build_cpu_system(soc_params):
+    """``build/system/cpu-<hash>/libcpusystem.so`` for SystemSoC(cpu="picorv32", monitor=True,
+    **soc_params) with an empty RAM (the harness loads the image: the model does not depend on
+    the firmware); returns (path, build seconds)."""
+    from hdl.cpu import verilog_sources
+    from hdl.soc import SystemSoC
+    from sim.backends.verilator import VERILATOR_FLAGS, verilator_env
+    from sim.designs import silenced
+    from sim.flows.verilog import SIMULATION_PASSES, text_hash, verilog_source
+    from sim.paths import ROOT
+    from sim.system.run import HARNESS
+    harness_path = HARNESS.parent / "cpu_system.cpp"
+    soc = silenced(SystemSoC(cpu="picorv32", monitor=True, **soc_params))
+    verilog = verilog_source("soc", soc, soc_params, passes=SIMULATION_PASSES)
+    core = [p.read_text() for p in verilog_sources()]
+    harness = harness_path.read_text()
+    vlt = ('`verilator_config\npublic_flat_rd -module "picorv32" -var "count_instr"\n'
+           'public_flat_rw -module "soc.cpu" -var "ram"\n')
+    flags = [*VERILATOR_FLAGS, "-Wno-TIMESCALEMOD"]
+    key = text_hash(verilog, *core, harness, vlt, " ".join(flags))
+    if key in _libs:
+        return _libs[key], 0.0
+    base = ROOT / "build" / "system"
+    out = base / f"cpu-{key}"
+    lib = out / "libcpusystem.so"
+    base.mkdir(parents=True, exist_ok=True)
+    with open(base / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if lib.exists():
+            _libs[key] = lib
+            return lib, 0.0
+        t0 = time.monotonic()
+        tmp = base / f"cpu-{key}.tmp{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir()
+        (tmp / "soc.v").write_text(verilog)
+        (tmp / "cpu.vlt").write_text(vlt)
+        (tmp / "cpu_system.cpp").write_text(harness)
+        sources = []
+        for i, text in enumerate(core):
+            (tmp / f"core{i}.v").write_text(text)
+            sources.append(f"core{i}.v")
+        cmds = [
+            ["verilator", "--cc", "--exe", *flags, "--top-module", "soc", "-Mdir", "obj",
+             "-o", "../libcpusystem.so", "-CFLAGS", f"-std=c++17 -fPIC -DINSTRET={_INSTRET} -DRAM={_RAM}",
+             "-LDFLAGS", "-shared", "cpu.vlt", "soc.v", *sources, "cpu_system.cpp"],
+            ["make", "-C", "obj", "-f", "Vsoc.mk", "-j", "2", "CFG_CXXFLAGS_PCH_I=-include",
+             "OPT_FAST=-O2", "OPT_SLOW=-O0", "OPT_GLOBAL=-O1"],
+        ]
+        for cmd in cmds:
+            r = subprocess.run(cmd, cwd=tmp, env=verilator_env(), capture_output=True, text=True)
+            (tmp / "build.log").open("a").write("$ " + " ".join(cmd) + "\n" + r.stdout + r.stderr)
+            if r.returncode != 0:
+                tail = "\n".join((r.stdout + r.stderr).splitlines()[-20:])
+                raise RuntimeError(f"Verilator build of the SoC with its CPU failed "
+                                   f"({tmp / 'build.log'}):\n{tail}")
+        shutil.rmtree(tmp / "obj", ignore_errors=True)
+        shutil.rmtree(out, ignore_errors=True)
+        os.replace(tmp, out)
+        _libs[key] = lib
+        return lib, time.monotonic() - t0
+
+
+def _load(path):
+    lib = C.CDLL(str(path))
+    lib.sys_init.argtypes = [C.c_char_p, C.c_uint64, C.c_char_p, C.c_uint64] + \
+        [C.c_int64] * 5 + [C.c_uint32, C.c_uint32, C.c_int, C.c_int]
+    lib.sys_camera_stop.argtypes = [C.c_int, C.c_int64, C.c_int64]
+    lib.sys_run_until.argtypes = [C.c_int64]
+    lib.sys_load_ram.argtypes = [C.POINTER(C.c_uint32), C.c_uint64]
+    lib.sys_take_records.argtypes = [C.POINTER(C.c_uint64), C.POINTER(C.c_uint32), C.c_uint64]
+    lib.sys_take_records.restype = C.c_uint64
+    lib.sys_take_tx.argtypes = [C.POINTER(C.c_uint64), C.POINTER(C.c_uint8), C.c_uint64]
+    lib.sys_take_tx.restype = C.c_uint64
+    lib.sys_send_rx.argtypes = [C.c_char_p, C.c_uint64]
+    for name in ("sys_core_cycles", "sys_idle_cycles", "sys_trap_cycles", "sys_instructions",
+                 "sys_video_on_cycles", "sys_video_on_idle"):
+        getattr(lib, name).restype = C.c_uint64
+    lib.sys_time_ps.restype = C.c_int64
+    lib.sys_decoder_addressed.restype = C.c_uint64
+    lib.sys_decoder_addressed.argtypes = [C.c_int]
+    return lib
+
+
+def _xbee_answer(frame):
+    """The XBee's answer to an API frame the firmware sent (an AT query), or None."""
+    from station.radio import encode_frame
+    from station.wire import API_AT_COMMAND, API_AT_RESPONSE
+    if frame.api != API_AT_COMMAND or len(frame.data) < 3:
+        return None
+    fid, cmd = frame.data[0], bytes(frame.data[1:3])
+    values = {b"AP": bytes([2]), b"MY": XBEE_ROBOT_ADDR.to_bytes(2, "big")}
+    if cmd not in values:
+        return None
+    return encode_frame(bytes([API_AT_RESPONSE, fid]) + cmd + b"\x00" + values[cmd])
+
+
+def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
+    """Simulate with the CPU inside; returns the result dict (the JSON line's fields)."""
+    from sim.system import firmware
+    from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
+                                _field_spans, camera_streams)
+    from station.radio import FrameDecoder, summarise_matches
+    from station.wire import API_TX16
+    h, w = left.shape[:2]
+    params = default_params(w, h)
+    firmware.build_image()
+    image = firmware.image_words()
+    sections = firmware.sections()
+    ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
+    rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
+    soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
+                      cost=params.matcher.cost)
+    libpath, build_s = build_cpu_system(soc_params)
+    lib = _load(libpath)
+
+    golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
+    want = [[(int(r["x"]), int(r["y"]), int(r["d"])) for r in g.records] for g in golden]
+
+    result_addr = regmap.REGS_BASEADDR + regmap.register("RESULT").offset
+    nack = 0b10 if fault == "iic-nack" else 0
+    t0 = time.monotonic()
+    video_addr = regmap.REGS_BASEADDR + regmap.register("VIDEO").offset
+    lib.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345,
+                 result_addr, video_addr, UART_DIVISOR, nack)
+    words_in = (C.c_uint32 * len(image))(*image)
+    if lib.sys_load_ram(words_in, len(image)) != 0:
+        lib.sys_final()
+        raise RuntimeError("the firmware image does not fit the CPU's RAM")
+    lib.sys_start()
+    if fault == "camera-lost-left":
+        # from field 1's first timing code, for LOST_FIELDS fields (1716 x 262.5 bytes each)
+        pos = _field_spans(ldata)[FAULT_FIELD]["codes"][0] - 3
+        lib.sys_camera_stop(0, pos, int(LOST_FIELDS * 1716 * 262.5) * CAM_PS)
+    decoder = FrameDecoder()
+    records = []                    # (cycle, word) not yet given to a packet
+    packets, exact_packets = [], []
+    out_frames, current, aborted = [], [], 0
+    total_records = 0
+    stream_ps = max(len(ldata), len(rdata)) * CAM_PS
+    if fault == "camera-lost-left":
+        stream_ps += int(LOST_FIELDS * 1716 * 262.5) * CAM_PS
+    # start-up (the XBee, the decoders; up to 6 s without a radio module) + the streams + two
+    # report periods
+    startup_ps = 7 * 10**12 if fault == "no-radio-module" else REPORT_PS
+    end_ps = startup_ps + stream_ps + 2 * REPORT_PS
+    last_frame_cycle = None
+    cyc = (C.c_uint64 * 65536)()
+    words = (C.c_uint32 * 65536)()
+    txb = (C.c_uint8 * 65536)()
+    frame_start_cycle = 0
+    try:
+        now = 0
+        while now < end_ps:
+            now += SLICE_PS
+            lib.sys_run_until(now)
+            while n := lib.sys_take_records(cyc, words, len(words)):
+                for i in range(n):
+                    word = words[i]
+                    if not word >> 31:
+                        continue
+                    records.append((cyc[i], word))
+                    total_records += 1
+                    if word >> 29 & 1:              # abort marker
+                        current, aborted = [], aborted + 1
+                    elif word >> 28 & 1:            # end of frame
+                        out_frames.append(current)
+                        current = []
+                        if len(out_frames) == frames:
+                            last_frame_cycle = cyc[i]
+                    else:
+                        current.append((word & 0x3FF, word >> 10 & 0x3FF, word >> 20 & 0xFF))
+            while n := lib.sys_take_tx(cyc, txb, len(txb)):
+                for i in range(n):
+                    b = txb[i]
+                    if b == 0x7E:
+                        frame_start_cycle = cyc[i]
+                    for f in decoder.feed_frames(bytes([b])):
+                        if fault != "no-radio-module" and (answer := _xbee_answer(f)):
+                            lib.sys_send_rx(answer, len(answer))
+                        if f.api == API_TX16 and f.packet is not None:
+                            mine = [r for c, r in records if c < frame_start_cycle]
+                            records = [(c, r) for c, r in records if c >= frame_start_cycle]
+                            matches = [(r & 0x3FF, r >> 10 & 0x3FF, r >> 20 & 0xFF)
+                                       for r in mine if not r >> 28 & 1]
+                            pkt = f.packet
+                            expect = summarise_matches(matches, pkt.width, len(pkt.bands))
+                            packets.append((frame_start_cycle, pkt, len(mine)))
+                            exact_packets.append(tuple(pkt.bands) == tuple(expect))
+            if last_frame_cycle is not None and any(c > last_frame_cycle for c, _p, _n in packets):
+                break
+        cycles = lib.sys_core_cycles()
+        idle = lib.sys_idle_cycles()
+        video_cycles = lib.sys_video_on_cycles()
+        video_idle = lib.sys_video_on_idle()
+        instructions = lib.sys_instructions()
+        trapped = lib.sys_trap_cycles() > 0
+        addressed = [lib.sys_decoder_addressed(k) for k in range(2)]
+    finally:
+        lib.sys_final()
+    seconds = time.monotonic() - t0
+
+    health = {k: 0 for k in ("frames", "pairs_ok", "mispaired", "drops", "matcher_errors",
+                             "fifo_overflow")}
+    cam_errors = [0, 0]
+    flags = []
+    for _c, pkt, _n in packets:
+        for k in health:
+            health[k] += getattr(pkt.health, k)
+        cam_errors = [a + b for a, b in zip(cam_errors, pkt.health.cam_errors)]
+        flags.append(pkt.health.flags)
+    if fault is None or fault in ("iic-nack", "no-radio-module"):
+        exact = out_frames[:frames] == want if fault is None else \
+            len(out_frames) >= frames and out_frames[:frames] == want
+    else:
+        tail = frames - FAULT_FIELD - 2 - LOST_FIELDS
+        exact = (tail > 0 and len(out_frames) >= FAULT_FIELD + tail
+                 and out_frames[:FAULT_FIELD] == want[:FAULT_FIELD]
+                 and out_frames[len(out_frames) - tail:] == want[frames - tail:])
+    if fault == "camera-lost-left":
+        counted = health["mispaired"] + health["drops"] + sum(cam_errors) > 0 or \
+            any(not f & 1 for f in flags)
+    elif fault == "iic-nack":
+        counted = addressed[1] > 0
+    elif fault == "no-radio-module":
+        counted = len(packets) > 0
+    else:
+        counted = True
+    span = cycles - video_cycles if video_cycles else 0
+    busy = span - (idle - video_idle)
+    drained = total_records
+    return {
+        "bit_exact": bool(exact and counted), "fault": fault, "fault_counted": bool(counted),
+        "width": w, "height": h, "timing": timing, "frames": health["frames"],
+        "frames_out": len(out_frames), "pairs_ok": health["pairs_ok"],
+        "mispaired": health["mispaired"], "drops": health["drops"],
+        "errors": {"camera_left": cam_errors[0], "camera_right": cam_errors[1],
+                   "matcher": health["matcher_errors"]},
+        "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
+        "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
+        "record_fields": ["x", "y", "d"],
+        "radio_packets": len(packets),
+        "radio_exact": bool(packets) and all(exact_packets),
+        "radio_bands": [list(p.bands) for _c, p, _n in packets],
+        "radio_flags": flags,
+        "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
+                "instructions": int(instructions),
+                "busy_fraction": round(busy / span, 4) if span > 0 else None,
+                "cycles_per_record": round(busy / drained, 1) if drained else None,
+                "trapped": trapped},
+        "core_cycles": int(cycles), "sim_seconds": round(seconds, 1),
+        "build_seconds": round(build_s, 1),
+    }
