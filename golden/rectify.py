@@ -2,15 +2,18 @@
 ground bit into the left camera's geometry (:func:`golden.rig.right_to_left_map`).
 
 The map. A grid of nodes every ``GRID`` = 32 pixels, from (0, 0) to the first multiple of 32
-at or past the last column and row (``grid_shape``), holds for each node the source position
-in the right image minus the node's own position, in 1/16 pixel, as signed integers
-(:func:`build_map`, ``MAP_DTYPE``: ``dx`` and ``dy``). A pixel ``(u, v)`` between nodes takes
-the bilinear blend of its cell's four nodes with weights in 1/32, rounded half up to 1/16
-pixel::
+past the last column and row (``grid_shape``), holds for each node the source position
+in the right image minus the node's own position, in 1/16 pixel, as signed integers of
+:data:`OFFSET_BITS` bits (:func:`build_map`, ``MAP_DTYPE``: ``dx`` and ``dy``). A pixel
+``(u, v)`` between nodes takes the blend of its cell's four nodes, first down the cell's two
+node columns, then along the row, each step rounded half up to 1/16 pixel (so the hardware
+computes a node column's value once per 32 pixels and then only adds along the row, in 16-bit
+words)::
 
     i, fu = u >> 5, u & 31;  j, fv = v >> 5, v & 31
-    acc = (n[j,i] (32-fu) + n[j,i+1] fu) (32-fv) + (n[j+1,i] (32-fu) + n[j+1,i+1] fu) fv
-    sx16 = 16 u + ((acc_x + 512) >> 10),  sy16 = 16 v + ((acc_y + 512) >> 10)
+    c_k = (n[j,k] (32-fv) + n[j+1,k] fv + 16) >> 5          for k = i, i + 1
+    off = (c_i (32-fu) + c_(i+1) fu + 16) >> 5
+    sx16 = 16 u + off_x,  sy16 = 16 v + off_y
 
 The sample. ``x0 = sx16 >> 4``, ``ax = sx16 & 15`` (and the same for y). The luminance is
 the bilinear blend of the 2 x 2 pixels at ``(x0, y0)``, rounded half up::
@@ -20,8 +23,8 @@ the bilinear blend of the 2 x 2 pixels at ``(x0, y0)``, rounded half up::
 and the ground bit is the nearest pixel's (``x0 + (ax >= 8)``, ``y0 + (ay >= 8)``).
 
 The border rule. Every row index is first clamped to the rows the hardware holds for output
-row ``v``, ``v + lo .. v + lo + span`` (``lo`` is a register, ``span`` the line buffer's depth
-less one, an elaboration parameter), then to the image; every column index to the image. So a
+row ``v``, ``v + lo .. v + lo + span`` (``lo``, within ``-span .. 0``, is a register, ``span``
+the line buffer's readable depth less one, an elaboration parameter), then to the image; every column index to the image. So a
 pixel whose source lies outside the right image repeats the edge pixel, and a map whose
 vertical warp exceeds the buffer is degraded, never undefined (:func:`fits` tells which).
 Pixels with a source outside the image are outside the valid region (:func:`valid_region`).
@@ -33,10 +36,13 @@ cost of up to half a pixel of horizontal resampling error.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = ["GRID", "FRAC", "MAP_DTYPE", "grid_shape", "build_map", "source_positions",
-           "rectify", "fits", "row_window", "valid_region"]
+           "rectify", "fits", "row_window", "valid_region", "RectifyParams", "node_words",
+           "RectifiedPipelineModel", "rectified_pipeline_frames"]
 
 #: Pixels between map nodes (a power of two).
 GRID = 32
@@ -44,13 +50,14 @@ GRID = 32
 FRAC = 4
 #: A map node: source minus node position, 1/16 pixel.
 MAP_DTYPE = np.dtype([("dx", np.int16), ("dy", np.int16)])
-#: Range of a node's offsets in 1/16 px (12-bit signed words in the hardware).
-OFFSET_BITS = 12
+#: Width of a node's signed offsets in 1/16 px: up to +-32 px of warp.
+OFFSET_BITS = 10
 
 
 def grid_shape(width, height, grid=GRID):
-    """``(rows, cols)`` of map nodes for a width x height image."""
-    return -(-(height - 1) // grid) + 1, -(-(width - 1) // grid) + 1
+    """``(rows, cols)`` of map nodes for a width x height image: every pixel's cell has both
+    its node rows and columns (a pixel on a node uses the next one with weight 0)."""
+    return (height - 1) // grid + 2, (width - 1) // grid + 2
 
 
 def build_map(rig, doffs, width=None, height=None, grid=GRID):
@@ -82,24 +89,26 @@ def source_positions(nodes, width, height, grid=GRID):
     v = np.arange(height, dtype=np.int64)[:, None]
     i, fu = u >> shift, u & (grid - 1)
     j, fv = v >> shift, v & (grid - 1)
+    half = 1 << (shift - 1)
     out = []
     for k in ("dx", "dy"):
         n = nodes[k].astype(np.int64)
-        top = n[j, i] * (grid - fu) + n[j, i + 1] * fu
-        bot = n[j + 1, i] * (grid - fu) + n[j + 1, i + 1] * fu
-        acc = top * (grid - fv) + bot * fv
-        off = (acc + (1 << (2 * shift - 1))) >> (2 * shift)
-        out.append(off)
+        jr = j[:, 0]
+        cols = (n[jr] * (grid - fv) + n[jr + 1] * fv + half) >> shift   # (H, node columns)
+        rows = np.arange(len(v))[:, None]
+        ci, cn = cols[rows, i], cols[rows, i + 1]
+        out.append((ci * (grid - fu) + cn * fu + half) >> shift)
     return ((u << FRAC) + out[0]).astype(np.int32), ((v << FRAC) + out[1]).astype(np.int32)
 
 
 def row_window(nodes, width, height, span, grid=GRID):
     """The ``lo`` register that best fits the map into a buffer of ``span + 1`` rows: the
-    least ``floor(source row) - v`` over the image, so the rows below are held as far as the
-    buffer reaches."""
+    least ``floor(source row) - v`` over the image, kept within ``-span .. 0`` (the rows the
+    buffer can hold: it never holds rows that have not arrived yet beyond ``span``, and always
+    the output row itself)."""
     _, sy = source_positions(nodes, width, height, grid)
     v = np.arange(height)[:, None]
-    return int(((sy >> FRAC) - v).min())
+    return int(min(0, max(-span, ((sy >> FRAC) - v).min())))
 
 
 def fits(nodes, width, height, lo, span, grid=GRID):
@@ -107,14 +116,29 @@ def fits(nodes, width, height, lo, span, grid=GRID):
     rows ``v + lo .. v + lo + span``."""
     _, sy = source_positions(nodes, width, height, grid)
     v = np.arange(height)[:, None]
-    y0 = np.clip(sy >> FRAC, 0, height - 1)
-    y1 = np.clip((sy >> FRAC) + 1, 0, height - 1)
-    return bool(((y0 - v >= lo) & (y1 - v <= lo + span)).all())
+    y0 = sy >> FRAC
+    # a row outside the image is replaced by the edge row whatever the buffer holds
+    low = (y0 - v >= lo) | (y0 >= height - 1)
+    high = (y0 + 1 - v <= lo + span) | (y0 + 1 <= 0)
+    return bool((low & high).all())
+
+
+def node_words(nodes, stride):
+    """``(address, word)`` of every node as the hardware's map memory holds it: address
+    ``j * stride + k`` (``stride`` a power of two), word ``dx | dy << OFFSET_BITS`` in
+    two's complement."""
+    mask = (1 << OFFSET_BITS) - 1
+    out = []
+    for j in range(nodes.shape[0]):
+        for k in range(nodes.shape[1]):
+            out.append((j * stride + k, (int(nodes["dx"][j, k]) & mask)
+                        | (int(nodes["dy"][j, k]) & mask) << OFFSET_BITS))
+    return out
 
 
 def rectify(y, ground, nodes, lo, span, grid=GRID, horizontal="linear"):
     """The rectified luminance (uint8) and ground bit (uint8 0/1) of one right image (see the
-    module text)."""
+    module text). A map of zeros (the rectifier's enable bit off) gives the image back."""
     y = np.asarray(y)
     h, w = y.shape
     sx, sy = source_positions(nodes, w, h, grid)
@@ -169,3 +193,58 @@ def valid_region(rig, doffs, grid=GRID):
         else:
             y1 -= 1
     raise ValueError("no pixel of the rectified image has its source inside the right image")
+
+
+@dataclass(frozen=True)
+class RectifyParams:
+    """What the right camera's rectifier runs with: the map ``nodes`` (:data:`MAP_DTYPE`
+    array), the buffer's first row ``lo`` (a register) and its depth less one ``span`` (an
+    elaboration parameter), the horizontal interpolation, and the enable bit (off: the pixels
+    pass unchanged)."""
+    nodes: np.ndarray
+    lo: int = 0
+    span: int = 8
+    horizontal: str = "linear"
+    enable: bool = True
+
+    def __post_init__(self):
+        if not -self.span <= self.lo <= 0:
+            raise ValueError(f"lo must be within -span..0 (-{self.span}..0), not {self.lo}")
+
+
+class RectifiedPipelineModel:
+    """:class:`golden.pipeline.PipelineModel` with the right camera's luminance and ground bit
+    rectified between its ground classifier and its Sobel unit (its free space is the
+    classifier's, unrectified)."""
+
+    def __init__(self, params, rect):
+        from .pipeline import PipelineModel
+        self.inner = PipelineModel(params)
+        self.rect = rect
+
+    def step(self, left_rgb, right_rgb):
+        from .color import rgb_to_yhs
+        from .frontend import FrontEndFrame
+        from .matcher import match
+        from .pipeline import PipelineFrame
+        from .sobel import sobel_edges
+        m = self.inner
+        lf = m.left.step(left_rgb)
+        y, h, s = rgb_to_yhs(right_rgb)
+        status = (m.right.ground.sets is not None, m.right.ground.hue_fallback)
+        sets = m.right.ground.sets
+        mask = m.right.ground.step(y, h, s)
+        r = self.rect
+        nodes = r.nodes if r.enable else np.zeros_like(r.nodes)
+        ry, rmask = rectify(y, mask, nodes, r.lo, r.span, horizontal=r.horizontal)
+        edge, neg = sobel_edges(ry, rmask, m.right.params.sobel)
+        rf = FrontEndFrame(ry, h, s, rmask, edge, neg, status, sets,
+                           m.right.params.free.rows(mask))
+        records, stats = match(lf.output(), rf.output(), m.params.matcher)
+        return PipelineFrame(lf, rf, records, stats)
+
+
+def rectified_pipeline_frames(left_frames, right_frames, params, rect):
+    """:func:`golden.pipeline.pipeline_frames` with the right camera rectified (``rect``)."""
+    model = RectifiedPipelineModel(params, rect)
+    return [model.step(l, r) for l, r in zip(left_frames, right_frames)]

@@ -137,11 +137,11 @@ def _board_image(rays, origin, pose, cols, rows, square):
     return np.clip(np.rint(acc / len(rays)), 0, 255).astype(np.uint8)
 
 
-def board_views(rig, cols=9, rows=6, square=0.03, views=12, seed=0, distance=(0.7, 1.3),
-                margin=20, supersample=3):
+def board_views(rig, cols=9, rows=6, square=0.03, views=12, seed=0, distance=(0.5, 1.2),
+                margin=20, supersample=3, tilt_deg=45.0):
     """``views`` checkerboard pairs through ``rig``: a list of ``(left, right, corners_left,
     corners_right)``, grey uint8 images and the true inner-corner pixels (``cols * rows`` x 2,
-    row by row). Poses are seeded random (distance, up to 30 degrees of tilt each way), kept
+    row by row). Poses are seeded random (distance, up to ``tilt_deg`` of tilt each way), kept
     only when every corner lies ``margin`` pixels inside both images."""
     rng = np.random.default_rng(seed)
     R, C = rig.Rm, rig.centre
@@ -154,7 +154,8 @@ def board_views(rig, cols=9, rows=6, square=0.03, views=12, seed=0, distance=(0.
         tries += 1
         if tries > 1000 * views:
             raise RuntimeError("no board pose fits the rig's views")
-        Rb = rotation(rng.uniform(-20, 20), rng.uniform(-30, 30), rng.uniform(-30, 30)).T
+        Rb = rotation(rng.uniform(-20, 20), rng.uniform(-tilt_deg, tilt_deg),
+                      rng.uniform(-tilt_deg, tilt_deg)).T
         z = rng.uniform(*distance)
         centre = np.array([rng.uniform(-0.25, 0.25) * z, rng.uniform(-0.15, 0.15) * z, z])
         size = np.array([(cols + 1) * square, (rows + 1) * square, 0]) / 2
