@@ -11,7 +11,15 @@ disparities with it. A rig file is one JSON object whose keys are the field name
      "valid": [0, 0, 752, 480],                               # rectified region x, y, w, h
      "doffs_px": 0.0,                                         # cx_right - cx_left
      "width": 752, "height": 480,                             # image size the numbers are for
-     "mount_forward_m": 0.0, "mount_left_m": 0.0}             # rig centre on the robot
+     "mount_forward_m": 0.0, "mount_left_m": 0.0,             # rig centre on the robot
+     "rig": {...}}                                            # optional: the calibration
+
+``rig`` (optional) is what ``python -m sim calibrate`` measured: both lenses with their
+distortion, the right camera's pose (:meth:`golden.rig.Rig.to_dict` keys), ``doffs`` (the
+principal points' distance of the module's rectification, :mod:`golden.rectify`), ``window``
+(``[d_min, d_max]`` that fits the rig) and the calibration's figures. With it, the image is
+the left camera's as captured (distorted) and the right image is rectified into its geometry;
+``fx fy cx cy`` are the left camera's, ``doffs_px`` the rectification's.
 
 Geometry. Pixel ``(x, y)`` is column, row, the centre of the top-left pixel at (0, 0). The
 camera frame has X right, Y down, Z along the optical axis, pitched down by ``tilt_deg``.
@@ -68,7 +76,7 @@ REFERENCE_TILT_DEG = 12.0
 
 #: Every key of a rig file, in order; the first five are required.
 KEYS = ("fx", "fy", "cx", "cy", "baseline_m", "height_m", "tilt_deg", "valid", "doffs_px",
-        "width", "height", "mount_forward_m", "mount_left_m")
+        "width", "height", "mount_forward_m", "mount_left_m", "rig")
 REQUIRED = KEYS[:5]
 
 #: Names other camera descriptions use for a key: an unknown-key error suggests the key.
@@ -113,6 +121,7 @@ class Camera:
     height: int | None = None
     mount_forward_m: float = 0.0        # rig centre in the robot frame (x forward, y left)
     mount_left_m: float = 0.0
+    rig: dict | None = field(default=None, compare=False)   # the calibration (golden.rig)
     source: str = field(default="default", compare=False)   # where it came from (summaries)
 
     def __post_init__(self):
@@ -136,8 +145,34 @@ class Camera:
                 raise ValueError(f"valid must be [x, y, w, h] in whole pixels with w, h > 0, "
                                  f"not {v!r}")
             values["valid"] = tuple(v)
+        if self.rig is not None:
+            from .rig import Rig
+            if not isinstance(self.rig, dict):
+                raise ValueError(f"rig must be an object (the calibration), not {self.rig!r}")
+            try:
+                Rig.from_dict(self.rig)
+            except (KeyError, TypeError, ValueError, IndexError) as e:
+                raise ValueError(f"rig: not a calibrated rig ({type(e).__name__}: {e})") \
+                    from None
+            doffs = self.rig.get("doffs", 0.0)
+            _number("rig.doffs", doffs)
+            window = self.rig.get("window")
+            if window is not None and not (
+                    isinstance(window, (list, tuple)) and len(window) == 2
+                    and all(isinstance(a, int) and not isinstance(a, bool) for a in window)
+                    and 0 <= window[0] <= window[1] <= 255):
+                raise ValueError(f"rig.window must be [d_min, d_max] within 0..255, not "
+                                 f"{window!r}")
         for k, v in values.items():
             object.__setattr__(self, k, v)
+
+    @property
+    def rectified(self):
+        """The calibrated rig (:class:`golden.rig.Rig`) when the file has one, else None."""
+        if self.rig is None:
+            return None
+        from .rig import Rig
+        return Rig.from_dict(self.rig)
 
     # -- files ------------------------------------------------------------------------------
     @classmethod
@@ -202,8 +237,8 @@ class Camera:
 
     def scaled(self, width, height):
         """The same camera resampled to a width x height image: focal lengths and principal
-        point scale with the size (pixel centres at half-pixel positions), ``valid`` is
-        dropped. ValueError unless the camera states its own size."""
+        point scale with the size (pixel centres at half-pixel positions), ``valid`` and
+        ``rig`` are dropped. ValueError unless the camera states its own size."""
         if self.width is None or self.height is None:
             raise ValueError("a camera without width and height cannot be scaled")
         _whole("width", width)
@@ -211,7 +246,7 @@ class Camera:
         return replace(self, width=width, height=height,
                        fx=self.fx * width / self.width, fy=self.fy * height / self.height,
                        cx=(self.cx + 0.5) * width / self.width - 0.5,
-                       cy=(self.cy + 0.5) * height / self.height - 0.5, valid=None)
+                       cy=(self.cy + 0.5) * height / self.height - 0.5, valid=None, rig=None)
 
     def cropped(self, x, y, width=None, height=None):
         """The same camera on the ``width`` x ``height`` crop whose top-left corner is (x, y)."""

@@ -119,7 +119,7 @@ def test_bad_camera_files(tmp_path, data, message):
 
 def test_rig_file_keys_are_the_field_names():
     assert KEYS == ("fx", "fy", "cx", "cy", "baseline_m", "height_m", "tilt_deg", "valid",
-                    "doffs_px", "width", "height", "mount_forward_m", "mount_left_m")
+                    "doffs_px", "width", "height", "mount_forward_m", "mount_left_m", "rig")
     assert tuple(FIELD.to_dict()) == KEYS
     assert set(KEYS) <= {f for f in Camera.__dataclass_fields__}
 

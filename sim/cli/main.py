@@ -65,6 +65,7 @@ examples:
   python -m sim run --frames 4 --threshold 160 --uniqueness 32 --out build/tuned
   python -m sim compare --unit sobel --left L.png --crop 64x32+100+200 --stalls 3
   python -m sim compare --unit pipeline --left L.png --right R.png --backend verilator
+  python -m sim calibrate --pairs boards/ --board 9x6 --square 0.03 --out rig.json
 
 exit status: 0 bit-exact, 1 not bit-exact, 2 user error (one 'error:' line on stderr),
 3 internal failure (a simulator missing or failing)"""
@@ -592,7 +593,8 @@ def make_parser():
                                 "and reports.")
     parser.add_argument("--version", action="version",
                         version=f"%(prog)s {ver} (register map {MAP_VERSION})")
-    sub = parser.add_subparsers(dest="command", parser_class=Parser, metavar="{compare,run}")
+    sub = parser.add_subparsers(dest="command", parser_class=Parser,
+                                metavar="{compare,run,calibrate}")
     c = sub.add_parser("compare", help="run one unit (or the pipeline) and compare with golden",
                        description="Run one unit on the given images with a backend, compare with "
                                    "golden, print one JSON line.", epilog=EXAMPLES,
@@ -606,6 +608,8 @@ def make_parser():
                                    "golden; writes views, matches.csv and summary.json.",
                        epilog=EXAMPLES, formatter_class=fmt)
     _add_pair_options(r, run=True)
+    from sim.cli.calibrate import add_parser as add_calibrate
+    add_calibrate(sub, fmt)
     flags = pipeline_flags(reserved={*c._option_string_actions, *r._option_string_actions})
     for p in (c, r):
         add_param_flags(p, flags)
@@ -620,6 +624,9 @@ def main(argv=None):
             return cmd_compare(args, flags)
         if args.command == "run":
             return cmd_run(args, flags)
+        if args.command == "calibrate":
+            from sim.cli.calibrate import cmd_calibrate
+            return cmd_calibrate(args)
         sys.stderr.write(parser.format_usage())
         print("error: give a command: compare or run (python -m sim --help)", file=sys.stderr)
         return EXIT_USER_ERROR

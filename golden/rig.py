@@ -1,0 +1,271 @@
+"""A calibrated stereo rig as it is mounted: two pinhole cameras with lens distortion, the
+right camera's pose against the left's, and the rectification the module runs.
+
+Conventions are OpenCV's. A camera frame has x right, y down, z forward; a point ``X_l`` in
+the left camera's frame is ``X_r = R X_l + T`` in the right camera's frame. A lens maps a
+normalised point ``(x, y) = (X/Z, Y/Z)`` to a pixel through the radial and tangential model
+of ``cv2.projectPoints`` (coefficients ``k1 k2 p1 p2 k3``)::
+
+    r2 = x^2 + y^2,  radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3
+    xd = x radial + 2 p1 x y + p2 (r2 + 2 x^2)
+    yd = y radial + p1 (r2 + 2 y^2) + 2 p2 x y
+    u = fx xd + cx,  v = fy yd + cy
+
+Two rectifications:
+
+* :func:`bouguet` is the textbook one (``cv2.stereoRectify``'s rotations): both cameras are
+  turned half the relative rotation each, then together so that the baseline becomes the x
+  axis; both images are undistorted and resampled. The calibration tool uses it to report how
+  well the rig was measured (the vertical residual of the corners).
+* :func:`right_to_left_map` is what the module does, because it has block RAM for one
+  camera's few lines only: the left image stays as it is, and the right image is resampled
+  into a virtual camera with the left camera's orientation, focal lengths and distortion,
+  placed at the right camera's centre, with its principal point ``doffs`` pixels right of the
+  left's. A point at infinity then lands on the same pixel in both images (plus ``doffs``),
+  and a nearer point moves along the row by its disparity, exactly when the baseline lies
+  along the left camera's x axis and the lens is distortion-free; with distortion it also
+  moves vertically by the distortion's difference over the disparity (largest in the image
+  corners, for near points), and a baseline off the left camera's x axis (right camera centre
+  ``C = -R^T T``) by ``C_y / C_x`` of the disparity.
+  Points are taken back to the left camera's own frame by :func:`triangulate`, which removes
+  the left lens' distortion.
+
+The rig's fields are floats and tuples so that a rig can be a frozen dataclass and a JSON
+object (:meth:`Rig.to_dict`, :meth:`Rig.from_dict`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+__all__ = ["Lens", "Rig", "rotation", "rodrigues", "distort", "undistort", "project",
+           "bouguet", "right_to_left_map", "triangulate", "map_vertical_span"]
+
+
+@dataclass(frozen=True)
+class Lens:
+    """One camera's intrinsics (pixels) and its distortion ``(k1, k2, p1, p2, k3)``."""
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    dist: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        d = tuple(float(v) for v in self.dist) + (0.0,) * (5 - len(self.dist))
+        if len(d) != 5:
+            raise ValueError(f"dist takes at most 5 coefficients, not {len(self.dist)}")
+        object.__setattr__(self, "dist", d)
+        for k in ("fx", "fy", "cx", "cy"):
+            object.__setattr__(self, k, float(getattr(self, k)))
+        if self.fx <= 0 or self.fy <= 0:
+            raise ValueError("fx and fy must be positive")
+
+    @property
+    def K(self):
+        """The 3 x 3 camera matrix."""
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], np.float64)
+
+    @classmethod
+    def from_K(cls, K, dist=()):
+        K = np.asarray(K, np.float64)
+        return cls(K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(np.ravel(dist)[:5]))
+
+
+def rotation(roll_deg=0.0, pitch_deg=0.0, yaw_deg=0.0):
+    """The rotation matrix of a camera turned by ``yaw`` about y (positive: to the right),
+    then ``pitch`` about x (positive: down) and ``roll`` about z (positive: clockwise in the
+    image), as the matrix taking a point's coordinates in the original frame to the turned
+    camera's frame."""
+    r, p, y = (math.radians(a) for a in (roll_deg, pitch_deg, yaw_deg))
+    rz = np.array([[math.cos(r), math.sin(r), 0], [-math.sin(r), math.cos(r), 0], [0, 0, 1]])
+    rx = np.array([[1, 0, 0], [0, math.cos(p), -math.sin(p)], [0, math.sin(p), math.cos(p)]])
+    ry = np.array([[math.cos(y), 0, -math.sin(y)], [0, 1, 0], [math.sin(y), 0, math.cos(y)]])
+    return rz @ rx @ ry
+
+
+def rodrigues(v):
+    """The rotation matrix of rotation vector ``v`` (axis times angle, radians), as
+    ``cv2.Rodrigues``."""
+    v = np.asarray(v, np.float64).ravel()
+    th = float(np.linalg.norm(v))
+    if th < 1e-15:
+        return np.eye(3)
+    k = v / th
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(th) * kx + (1 - math.cos(th)) * kx @ kx
+
+
+def _axis_angle(R):
+    """Rotation vector of rotation matrix ``R`` (inverse of :func:`rodrigues`)."""
+    c = (np.trace(R) - 1) / 2
+    th = math.acos(max(-1.0, min(1.0, c)))
+    if th < 1e-15:
+        return np.zeros(3)
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return w * th / (2 * math.sin(th))
+
+
+def distort(lens, xn, yn):
+    """Pixel coordinates of normalised points through ``lens`` (the model in the module text)."""
+    k1, k2, p1, p2, k3 = lens.dist
+    r2 = xn * xn + yn * yn
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
+    yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
+    return lens.fx * xd + lens.cx, lens.fy * yd + lens.cy
+
+
+def undistort(lens, u, v, iterations=40):
+    """Normalised points ``(x, y)`` of pixels ``(u, v)`` through ``lens``: the fixed-point
+    iteration of ``cv2.undistortPoints``, run to convergence."""
+    xd = (np.asarray(u, np.float64) - lens.cx) / lens.fx
+    yd = (np.asarray(v, np.float64) - lens.cy) / lens.fy
+    k1, k2, p1, p2, k3 = lens.dist
+    if not any(lens.dist):
+        return xd, yd
+    x, y = xd.copy(), yd.copy()
+    for _ in range(iterations):
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dx = 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        dy = p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        x = (xd - dx) / radial
+        y = (yd - dy) / radial
+    return x, y
+
+
+def project(lens, points):
+    """Pixels ``(u, v)`` of points (N x 3, the camera's frame) through ``lens``."""
+    p = np.asarray(points, np.float64)
+    return distort(lens, p[..., 0] / p[..., 2], p[..., 1] / p[..., 2])
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Two cameras and the right one's pose: ``X_r = R X_l + T`` (T in metres).
+
+    ``width`` x ``height`` is the image size the intrinsics are for."""
+    left: Lens
+    right: Lens
+    R: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    T: tuple = (-0.1, 0.0, 0.0)
+    width: int = 752
+    height: int = 480
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        R = np.asarray(self.R, np.float64).reshape(3, 3)
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise ValueError("R must be a rotation matrix")
+        object.__setattr__(self, "R", tuple(map(tuple, R.tolist())))
+        object.__setattr__(self, "T", tuple(float(t) for t in np.ravel(self.T)))
+        if len(self.T) != 3:
+            raise ValueError("T takes 3 values")
+
+    @property
+    def Rm(self):
+        return np.array(self.R, np.float64)
+
+    @property
+    def Tv(self):
+        return np.array(self.T, np.float64)
+
+    @property
+    def centre(self):
+        """The right camera's centre in the left camera's frame, ``-R^T T``."""
+        return -self.Rm.T @ self.Tv
+
+    @property
+    def baseline_m(self):
+        return float(np.linalg.norm(self.Tv))
+
+    def to_dict(self):
+        """The rig as JSON-ready lists: ``K_left``, ``dist_left``, ``K_right``,
+        ``dist_right``, ``R``, ``T``, ``size``."""
+        return {"K_left": self.left.K.tolist(), "dist_left": list(self.left.dist),
+                "K_right": self.right.K.tolist(), "dist_right": list(self.right.dist),
+                "R": [list(r) for r in self.R], "T": list(self.T),
+                "size": [self.width, self.height]}
+
+    @classmethod
+    def from_dict(cls, d):
+        return cls(Lens.from_K(d["K_left"], d["dist_left"]),
+                   Lens.from_K(d["K_right"], d["dist_right"]), d["R"], d["T"],
+                   int(d["size"][0]), int(d["size"][1]))
+
+    def with_errors(self, *, row_offset=0.0, roll_deg=0.0, pitch_deg=0.0, yaw_deg=0.0,
+                    focal_scale=1.0, k1=None, k2=0.0):
+        """This rig with the right camera turned by ``roll``, ``pitch`` and ``yaw`` about its
+        own centre, its principal point ``row_offset`` pixels lower, its focal lengths scaled
+        by ``focal_scale``, and (``k1`` not None) both lenses given the radial distortion
+        ``k1, k2``."""
+        E = rotation(roll_deg, pitch_deg, yaw_deg)
+        right = replace(self.right, fx=self.right.fx * focal_scale,
+                        fy=self.right.fy * focal_scale, cy=self.right.cy + row_offset)
+        left = self.left
+        if k1 is not None:
+            left = replace(left, dist=(k1, k2, 0, 0, 0))
+            right = replace(right, dist=(k1, k2, 0, 0, 0))
+        return replace(self, left=left, right=right, R=E @ self.Rm, T=E @ self.Tv)
+
+
+def bouguet(rig):
+    """``(R1, R2)``: the rectifying rotations of ``cv2.stereoRectify`` (Bouguet): each camera
+    turned half the relative rotation, then both so that the baseline is the x axis."""
+    om = _axis_angle(rig.Rm)
+    r_r = rodrigues(-0.5 * om)
+    t = r_r @ rig.Tv
+    idx = 0                                    # horizontal stereo: align t with x
+    c = t[idx]
+    uu = np.zeros(3)
+    uu[idx] = 1.0 if c > 0 else -1.0
+    ww = np.cross(t, uu)
+    nw = np.linalg.norm(ww)
+    if nw > 0:
+        ww *= math.acos(abs(c) / np.linalg.norm(t)) / nw
+    wR = rodrigues(ww)
+    R1 = wR @ r_r.T
+    R2 = wR @ r_r
+    return R1, R2
+
+
+def right_to_left_map(rig, xs, ys, doffs=0.0):
+    """Source pixels in the right image of output pixels ``(xs, ys)`` of the rectified right
+    image (the virtual camera of the module text: the left lens, principal point ``doffs``
+    pixels further right, the left camera's orientation, the right camera's centre)."""
+    xn, yn = undistort(replace(rig.left, cx=rig.left.cx + doffs), xs, ys)
+    rays = np.stack([xn, yn, np.ones_like(xn)], axis=-1) @ rig.Rm.T
+    return project(rig.right, rays)
+
+
+def triangulate(rig, x, y, d, doffs=0.0):
+    """Points (N x 3, metres) in the left camera's frame of matches at left pixel ``(x, y)``
+    with disparity ``d`` in the module's geometry (left image as captured, right image from
+    :func:`right_to_left_map` with ``doffs``): both pixels undistorted through the left lens,
+    depth from their horizontal difference over the baseline along x, the point on the left
+    pixel's ray. NaN where the difference is not positive."""
+    x = np.asarray(x, np.float64)
+    y = np.asarray(y, np.float64)
+    xl, yl = undistort(rig.left, x, y)
+    xr, _ = undistort(replace(rig.left, cx=rig.left.cx + doffs),
+                      x - np.asarray(d, np.float64), y)
+    dn = xl - xr
+    bx = rig.centre[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(dn > 0, bx / dn, np.nan)
+    return np.stack([xl * z, yl * z, z], axis=-1)
+
+
+def map_vertical_span(rig, doffs=0.0, step=8):
+    """``(lo, hi)``: the least and greatest source-row minus output-row of
+    :func:`right_to_left_map` over the image (sampled every ``step`` pixels and on the last
+    row and column), the vertical warp a line buffer must hold."""
+    xs = np.unique(np.r_[np.arange(0, rig.width, step), rig.width - 1]).astype(np.float64)
+    ys = np.unique(np.r_[np.arange(0, rig.height, step), rig.height - 1]).astype(np.float64)
+    gx, gy = np.meshgrid(xs, ys)
+    _, sy = right_to_left_map(rig, gx, gy, doffs)
+    dv = sy - gy
+    return float(dv.min()), float(dv.max())

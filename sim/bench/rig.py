@@ -1,0 +1,139 @@
+"""Misaligned rigs: the motorcycle pair re-shot through each rig of :data:`sim.scenes.rig.RIGS`,
+matched by the golden pipeline (default configuration, ground model off) without and with the
+right camera's rectification from a calibration of checkerboards rendered through the rig.
+
+Per rig: the calibration's figures (views, RMS, Bouguet's and the module's vertical
+residual, the map's vertical warp in rows), then the matches, the points within 2 px of the
+ground truth and bad-2 (the share of matches with ground truth that are more than 2 px off),
+unrectified and rectified. Scoring goes through the points in the left camera's frame: a
+rectified match is triangulated with the calibration (:func:`golden.rig.triangulate`, the
+left lens' distortion removed), projected into the original left image with its documented
+camera, and its disparity there (``f B / z - doffs``) compared with the ground truth at the
+nearest pixel. An unrectified match is what the module gives today: its pixel and disparity
+taken as the original image's.
+
+``python -m sim.bench.rig [--rigs NAME,...] [--views N] [--span ROWS] [--horizontal
+linear|nearest]`` prints the table.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+__all__ = ["score", "run_rig", "run", "markdown"]
+
+
+def score(records, gt, camera=None, rig=None, doffs=0.0):
+    """``(matches, within2, bad2)`` of records against the original left image's ground
+    truth ``gt`` (see the module text; ``rig`` None: unrectified, pixels taken as they are)."""
+    from golden.matcher import record_disparity
+    from golden.rig import triangulate
+    d = record_disparity(records)
+    x = records["x"].astype(np.float64)
+    y = records["y"].astype(np.float64)
+    if rig is not None:
+        p = triangulate(rig, x, y, d, doffs)
+        z = p[:, 2]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x = camera.fx * p[:, 0] / z + camera.cx
+            y = camera.fy * p[:, 1] / z + camera.cy
+            d = camera.fx * camera.baseline_m / z - camera.doffs_px
+    h, w = gt.shape
+    xi = np.rint(x)
+    yi = np.rint(y)
+    ok = np.isfinite(xi) & np.isfinite(yi) & (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
+    g = np.full(len(d), np.inf)
+    g[ok] = gt[yi[ok].astype(int), xi[ok].astype(int)]
+    scored = np.isfinite(g) & np.isfinite(d)
+    within = scored & (np.abs(d - g) <= 2)
+    n = int(scored.sum())
+    return len(records), int(within.sum()), (n - int(within.sum())) / n if n else float("nan")
+
+
+def run_rig(name, views=20, span=8, horizontal="linear", grid=32, seed=0, workdir=None):
+    """One rig's row of the table (a dict)."""
+    from golden.pipeline import default_params, pipeline_frames
+    from golden.rectify import (RectifyParams, build_map, fits, rectified_pipeline_frames,
+                                row_window)
+    from sim.cli.calibrate import calibrate
+    from sim.scenes.camera import MOTORCYCLE
+    from sim.scenes.data import motorcycle
+    from sim.scenes.rig import board_views, motorcycle_rig, reshoot_pair, rig_named, write_views
+    t0 = time.time()
+    rig = rig_named(name)
+    left, right, gt = motorcycle()
+    with tempfile.TemporaryDirectory(dir=workdir) as folder:
+        write_views(folder, board_views(rig, views=views, seed=seed))
+        cal = calibrate(folder, (9, 6), 0.03, grid=grid)
+    t_cal = time.time() - t0
+    cam = cal["camera"]
+    crig = cam.rectified
+    doffs = cam.rig["doffs"]
+    l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
+    h, w = l2.shape[:2]
+    params = default_params(w, h, ground="off")
+    unrect = pipeline_frames([l2], [r2], params)[0]
+    nodes = build_map(crig, doffs, grid=grid)
+    lo = row_window(nodes, w, h, span, grid)
+    rect = RectifyParams(nodes, lo, span, horizontal)
+    rectified = rectified_pipeline_frames([l2], [r2], params, rect)[0]
+    u = score(unrect.records, gt)
+    r = score(rectified.records, gt, MOTORCYCLE, crig, doffs)
+    return {"rig": name, "views": cal["views"], "rms_px": cal["rms_px"],
+            "residual_px": cal["residual_px"], "module_residual_px": cal["module_residual_px"],
+            "warp_rows": cal["vertical_span_rows"], "lo": lo, "span": span,
+            "fits": fits(nodes, w, h, lo, span, grid),
+            "unrectified": dict(zip(("matches", "within2", "bad2"), u)),
+            "rectified": dict(zip(("matches", "within2", "bad2"), r)),
+            "seconds": round(time.time() - t0, 1), "calibration_s": round(t_cal, 1)}
+
+
+def run(names=None, **kw):
+    from sim.scenes.rig import RIGS
+    return [run_rig(n, **kw) for n in (names or list(RIGS))]
+
+
+def markdown(rows):
+    out = ["| rig | views | RMS px | residual px (Bouguet / module) | warp rows | lo, span | "
+           "unrectified matches / within 2 / bad-2 | rectified matches / within 2 / bad-2 |",
+           "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        u, c = r["unrectified"], r["rectified"]
+        out.append(f"| {r['rig']} | {r['views']} | {r['rms_px']:.3f} | "
+                   f"{r['residual_px']:.3f} / {r['module_residual_px']:.3f} | "
+                   f"{r['warp_rows'][0]:+.2f} .. {r['warp_rows'][1]:+.2f} | "
+                   f"{r['lo']}, {r['span']}{'' if r['fits'] else ' (does not fit)'} | "
+                   f"{u['matches']:,} / {u['within2']:,} / {100 * u['bad2']:.1f} % | "
+                   f"{c['matches']:,} / {c['within2']:,} / {100 * c['bad2']:.1f} % |")
+    return "\n".join(out)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="python -m sim.bench.rig", description=__doc__.split("\n\n")[0])
+    p.add_argument("--rigs", help="comma-separated rig names (default: all)")
+    p.add_argument("--views", type=int, default=20)
+    p.add_argument("--span", type=int, default=8)
+    p.add_argument("--grid", type=int, default=32)
+    p.add_argument("--horizontal", default="linear", choices=("linear", "nearest"))
+    p.add_argument("--json", action="store_true", help="one JSON line per rig")
+    a = p.parse_args(argv)
+    names = a.rigs.split(",") if a.rigs else None
+    rows = []
+    from sim.scenes.rig import RIGS
+    for n in names or list(RIGS):
+        row = run_rig(n, views=a.views, span=a.span, horizontal=a.horizontal, grid=a.grid)
+        rows.append(row)
+        if a.json:
+            print(json.dumps(row), flush=True)
+    if not a.json:
+        print(markdown(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,224 @@
+"""``python -m sim calibrate --pairs DIR --board COLSxROWS --square M --out rig.json``: a stereo
+rig's calibration from checkerboard pairs (OpenCV), written as the camera file ``--camera``
+reads.
+
+Steps: the board's inner corners in every pair (``cv2.findChessboardCorners``, refined to
+subpixel by ``cv2.cornerSubPix``); each camera's intrinsics and distortion ``k1 k2 p1 p2``
+(``cv2.calibrateCamera``); both refined together with the right camera's pose
+(``cv2.stereoCalibrate``); Bouguet's rectification (``cv2.stereoRectify``) for the corners'
+rectified vertical residual; and the module's own rectification
+(:func:`golden.rig.right_to_left_map`: the right image resampled into the left camera's
+geometry, principal points ``doffs_px`` apart, the calibrated ``cx_right - cx_left``), with its
+vertical residual at the corners (which includes the vertical parallax the lens distortion
+gives at the board's distance) and the vertical warp its line buffer must hold.
+
+The file is a :class:`golden.camera.Camera` of the left camera as captured (its ``fx fy cx cy``,
+the baseline along its x axis, ``doffs_px``, the valid region of the rectified right image)
+with the calibration under ``rig`` (:data:`RIG_KEYS`): both lenses, ``R``, ``T``, the image
+size, the rectification's source (``doffs`` and the map grid of :mod:`golden.rectify`), the
+disparity window that fits the rig, and the measured errors.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from sim.errors import CliError
+
+__all__ = ["MIN_VIEWS", "calibrate", "add_parser", "cmd_calibrate", "parse_board"]
+
+#: Fewest pairs in which the board must be found in both images.
+MIN_VIEWS = 4
+
+
+def parse_board(text):
+    """``COLSxROWS`` (inner corners, each at least 2) as ``(cols, rows)``; CliError otherwise."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text or "")
+    if not m or int(m[1]) < 2 or int(m[2]) < 2:
+        raise CliError(f"board {text!r} is not COLSxROWS inner corners (each at least 2), "
+                       f"e.g. 9x6")
+    return int(m[1]), int(m[2])
+
+
+def _pairs(folder):
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise CliError(f"pairs folder {str(folder)!r} does not exist or is not a folder")
+    left = {p.name[len("left_"):]: p for p in folder.glob("left_*.png")}
+    right = {p.name[len("right_"):]: p for p in folder.glob("right_*.png")}
+    if not left and not right:
+        raise CliError(f"no left_*.png / right_*.png pairs in {str(folder)!r}")
+    lonely = sorted(set(left) ^ set(right))
+    if lonely:
+        side = "left" if lonely[0] in left else "right"
+        raise CliError(f"{side}_{lonely[0]} in {str(folder)!r} has no partner: every "
+                       f"left_SUFFIX.png needs a right_SUFFIX.png")
+    return [(left[k], right[k]) for k in sorted(left)]
+
+
+def _grey(path, role):
+    from sim.cli.main import load_image
+    img = load_image(str(path), role)
+    if img.ndim == 3:
+        import cv2
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    return img
+
+
+def _corners(img, board):
+    import cv2
+    ok, c = cv2.findChessboardCorners(img, board, flags=cv2.CALIB_CB_ADAPTIVE_THRESH
+                                      | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not ok:
+        return None
+    c = cv2.cornerSubPix(img, c, (5, 5), (-1, -1),
+                         (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
+    if c[0, 0, 1] > c[-1, 0, 1] or (abs(c[0, 0, 1] - c[-1, 0, 1]) < 1e-9 and c[0, 0, 0] > c[-1, 0, 0]):
+        c = c[::-1].copy()          # the same corner order in both views: first is top
+    return c.astype(np.float32)
+
+
+def calibrate(folder, board, square, near_m=None, grid=32):
+    """The calibration of the pairs in ``folder`` (see the module text): a dict with the
+    ``camera`` (:class:`golden.camera.Camera`) and the figures ``views``, ``pairs``,
+    ``rms_px``, ``residual_px`` (Bouguet, median |dy| at the corners), ``module_residual_px``
+    (the module's rectification, the same), ``vertical_span_rows`` and ``window``. CliError on
+    bad input (see :func:`cmd_calibrate`)."""
+    import cv2
+    from golden.camera import Camera
+    from golden.rig import Lens, Rig, map_vertical_span, undistort, project
+    if not square > 0:
+        raise CliError(f"square size must be positive, not {square}")
+    pairs = _pairs(folder)
+    if len(pairs) < MIN_VIEWS:
+        raise CliError(f"{len(pairs)} pairs in {str(folder)!r}: calibration needs at least "
+                       f"{MIN_VIEWS}")
+    size = None
+    objp = np.zeros((board[0] * board[1], 3), np.float32)
+    objp[:, :2] = np.mgrid[0:board[0], 0:board[1]].T.reshape(-1, 2) * square
+    obj, pl, pr = [], [], []
+    for lp, rp in pairs:
+        left, right = _grey(lp, "left"), _grey(rp, "right")
+        if left.shape != right.shape:
+            raise CliError(f"{lp.name} is {left.shape[1]}x{left.shape[0]} but {rp.name} is "
+                           f"{right.shape[1]}x{right.shape[0]}: a pair must match")
+        if size is None:
+            size = left.shape
+        elif left.shape != size:
+            raise CliError(f"{lp.name} is {left.shape[1]}x{left.shape[0]} but the first pair is "
+                           f"{size[1]}x{size[0]}: every pair must have the same size")
+        cl, cr = _corners(left, board), _corners(right, board)
+        if cl is not None and cr is not None:
+            obj.append(objp)
+            pl.append(cl)
+            pr.append(cr)
+    if len(obj) < MIN_VIEWS:
+        raise CliError(f"board of {board[0]}x{board[1]} inner corners found in both images of "
+                       f"{len(obj)} of {len(pairs)} pairs: calibration needs at least "
+                       f"{MIN_VIEWS} (check --board)")
+    h, w = size
+    flags = cv2.CALIB_FIX_K3
+    _, K1, D1, _, _ = cv2.calibrateCamera(obj, pl, (w, h), None, None, flags=flags)
+    _, K2, D2, _, _ = cv2.calibrateCamera(obj, pr, (w, h), None, None, flags=flags)
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-9)
+    rms, K1, D1, K2, D2, R, T, _, _ = cv2.stereoCalibrate(
+        obj, pl, pr, K1, D1, K2, D2, (w, h), criteria=crit,
+        flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags)
+    rig = Rig(Lens.from_K(K1, D1), Lens.from_K(K2, D2), R, T.ravel(), w, h)
+    # Bouguet: rectified rows of both views' corners
+    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(K1, D1, K2, D2, (w, h), R, T, alpha=0)
+    al = np.concatenate(pl)
+    ar = np.concatenate(pr)
+    yl = cv2.undistortPointsIter(al, K1, D1, R1, P1, crit)[:, 0, 1]
+    yr = cv2.undistortPointsIter(ar, K2, D2, R2, P2, crit)[:, 0, 1]
+    residual = float(np.median(np.abs(yl - yr)))
+    # the module's rectification: right corners into the left camera's geometry
+    doffs = float(K2[0, 2] - K1[0, 2])
+    xn, yn = undistort(rig.right, ar[:, 0, 0], ar[:, 0, 1])
+    rays = np.stack([xn, yn, np.ones_like(xn)], -1) @ rig.Rm    # R^T per ray
+    vl = Lens(rig.left.fx, rig.left.fy, rig.left.cx + doffs, rig.left.cy, rig.left.dist)
+    _, vr = project(vl, rays)
+    module_residual = float(np.median(np.abs(vr - al[:, 0, 1])))
+    lo, hi = map_vertical_span(rig, doffs)
+    baseline = float(rig.centre[0])
+    if baseline <= 0:
+        raise CliError("the right camera is not to the right of the left one: swap the "
+                       "left_ and right_ images")
+    window = _window(rig.left.fx * baseline, doffs, near_m)
+    from golden.rectify import valid_region
+    valid = valid_region(rig, doffs, grid)
+    extra = {**rig.to_dict(), "doffs": doffs, "grid": grid, "window": list(window),
+             "rms_px": round(float(rms), 4), "views": len(obj),
+             "residual_px": round(residual, 4), "module_residual_px": round(module_residual, 4),
+             "vertical_span_rows": [round(lo, 3), round(hi, 3)]}
+    camera = Camera(fx=float(K1[0, 0]), fy=float(K1[1, 1]), cx=float(K1[0, 2]),
+                    cy=float(K1[1, 2]), baseline_m=baseline, doffs_px=doffs, width=w, height=h,
+                    valid=valid, rig=extra, source=f"calibration of {folder}")
+    return {"camera": camera, "views": len(obj), "pairs": len(pairs),
+            "rms_px": round(float(rms), 4), "residual_px": round(residual, 4),
+            "module_residual_px": round(module_residual, 4),
+            "vertical_span_rows": [round(lo, 3), round(hi, 3)], "window": list(window)}
+
+
+def _window(fb, doffs, near_m, width=64):
+    """``(d_min, d_max)``: a window of ``width`` disparities. With ``near_m`` it ends at the
+    disparity of that depth (so everything from it outwards is in range as far as the window
+    reaches); without, it starts at the first disparity with a finite depth (``d + doffs >
+    0``), so it reaches to the farthest depths."""
+    if near_m is None:
+        d_min = max(0, int(np.floor(-doffs)) + 1)
+        return d_min, min(255, d_min + width - 1)
+    d_max = min(255, int(np.ceil(fb / near_m - doffs)))
+    return max(0, d_max - width + 1), max(d_max, width - 1)
+
+
+def add_parser(sub, formatter_class=None):
+    """The ``calibrate`` subcommand on the subparsers ``sub``."""
+    c = sub.add_parser("calibrate", help="a stereo rig's calibration from checkerboard pairs",
+                       description="Calibrate a stereo rig from checkerboard pairs (OpenCV); "
+                                   "print one JSON line of figures, write the camera file.",
+                       formatter_class=formatter_class)
+    c.add_argument("--pairs", required=True, metavar="DIR",
+                   help="folder of left_SUFFIX.png and right_SUFFIX.png pairs")
+    c.add_argument("--board", required=True, metavar="COLSxROWS",
+                   help="the board's inner corners, e.g. 9x6")
+    c.add_argument("--square", required=True, type=_metres, metavar="METRES",
+                   help="side of one square [unit: m; > 0]")
+    c.add_argument("--near", type=_metres, metavar="METRES",
+                   help="nearest depth the disparity window must reach [unit: m; default: the "
+                        "window starts at infinity]")
+    c.add_argument("--out", required=True, metavar="rig.json", help="camera file to write")
+    return c
+
+
+def _metres(text):
+    import argparse
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"takes metres, not {text!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, not {text}")
+    return v
+
+
+def cmd_calibrate(args):
+    """Run ``calibrate``; exit 0. Bad input (folder, pairs without partner, fewer than
+    :data:`MIN_VIEWS` pairs or views with the board, images that differ in size, an unusable
+    ``--out``) is a CliError, found before anything is written."""
+    import json
+    board = parse_board(args.board)
+    out = Path(args.out)
+    if out.is_dir():
+        raise CliError(f"--out {args.out!r} is a folder: give the file to write")
+    if not out.parent.exists() or not out.parent.is_dir():
+        raise CliError(f"--out {args.out!r}: folder {str(out.parent)!r} does not exist")
+    result = calibrate(args.pairs, board, args.square, args.near)
+    try:
+        result["camera"].to_json(out)
+    except OSError as e:
+        raise CliError(f"cannot write {args.out!r}: {e}") from None
+    print(json.dumps({k: v for k, v in result.items() if k != "camera"} | {"out": str(out)}))
+    return 0
