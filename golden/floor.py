@@ -168,7 +168,9 @@ def floor_flags(y, d16, line, params):
 
 def _scores(y, d16, slopes, kl, params):
     """Support (row bands with an inlier), records below and score of the lines ``(slopes[i],
-    bin kl[i, j])``: arrays of shape ``kl.shape``."""
+    bin kl[i, j])``: arrays of shape ``kl.shape``; score = ``support_weight * support -
+    below_weight * below`` (among equal scores the first, the lowest line, wins: a line too
+    low costs floor points, one too high obstacle points)."""
     u = (d16[None, :] << 4) - slopes[:, None] * y[None, :]
     k = u >> BIN_SHIFT                                        # (slopes, records)
     rb = y >> params.row_shift
