@@ -1,0 +1,260 @@
+"""The floor decision by stereo geometry: the bit-exact specification of the floor line, its
+learning from the matched points, and the floor flag of each match.
+
+A flat floor seen by a rectified pair has a disparity that is a linear function of the image
+row (the v-disparity line of Labayrade, Aubert and Tarel 2002): ``d(v) = (B / h) (v cos t -
+c_y cos t + f sin t)`` for a baseline ``B``, a camera height ``h``, a pitch ``t`` and a focal
+length ``f`` in pixels. Every surface a camera sees at row ``v`` is at least as near as the
+floor would be there, so nothing visible lies below the line: points on it are floor, points
+under it are mismatches or reflections in the floor (neither is an obstacle), and obstacles
+lie above it.
+
+**The line** (:class:`FloorLine`) is two integers: ``slope`` in 1/256 px of disparity per row
+(:data:`SLOPE_BITS` bits, unsigned) and ``offset`` in 1/256 px (:data:`OFFSET_BITS` bits,
+signed). Its disparity at row ``y`` in 1/16 px (the unit of the records' ``d16``) is
+``line16(y) = (slope * y + offset) >> 4`` (``>>`` rounds towards minus infinity).
+
+**The flag** (:func:`floor_flags`): a record ``(y, d16)`` is a floor point when
+``d16 <= line16(y) + tol16(y)``, ``tol16(y) = tol + (max(line16(y), 0) >> tol_shift)``: the
+tolerance grows with the floor's disparity, as the disparity error of a plane that bends (a
+ramp) or tilts does. Without a line no record is a floor point.
+
+**The line's sources** (:class:`FloorParams` ``mode``):
+
+* ``rig``: from the rig's height, pitch, focal length and baseline (:meth:`FloorLine.from_rig`),
+  fixed;
+* ``learn`` (the default): learned from each frame's matched points and used for the next
+  frame (:func:`learn_line`), starting from the rig's line when a rig is given, else from no
+  line (the first frame has no floor points);
+* ``off``: no line, no floor points.
+
+**Learning** (:func:`learn_line`) is an integer Hough search over the records of one frame
+(all of them, floor points included). For each slope ``s`` of ``slope_min, slope_min +
+slope_step, .. slope_max`` every record gives ``u = 16 d16 - s y`` (1/256 px), binned by
+``u >> BIN_SHIFT`` (1/2 px bins). A candidate line ``(s, k)`` has offset ``k << BIN_SHIFT``
+plus half a bin; its support is the number of records in bins ``k - band .. k + band`` and its
+count below the number of records in bins ``< k - band``. Its score is ``support - below_weight
+* below``: the floor is the lowest line with many points on it, so a line through the
+obstacles (which have points below it, on the floor and on the obstacles' lower parts) scores
+less than the floor itself. The best score wins (ties: the smaller slope, then the smaller
+offset); with a support under ``min_support`` the previous line is kept. Over the rows the
+slopes cover (``slope_max`` 1/256 px a row: 0.62 px a row, a camera 0.2 m above the floor with
+a 0.12 m baseline) a constant-disparity band (a wall, the far background) cannot be the floor.
+
+The record stage of the pipeline (``hdl/floor.py``) computes the flag from a line held in
+registers; the CPU learns the line from each frame's records, as :func:`learn_line` does, and
+writes it for the next frame (:class:`FloorModel` is that loop).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "learn_line", "line16",
+           "SLOPE_BITS", "OFFSET_BITS", "LINE_FRAC", "BIN_SHIFT", "TOL_BITS", "TOL_SHIFT_BITS",
+           "MODES"]
+
+#: Bits of the line's slope (unsigned, 1/256 px per row) and offset (signed, 1/256 px).
+SLOPE_BITS = 10
+OFFSET_BITS = 18
+#: The line's fraction bits (1/256 px); ``line16`` drops four of them.
+LINE_FRAC = 8
+#: Learning bins: ``u >> BIN_SHIFT`` in 1/256 px, 1/2 px bins.
+BIN_SHIFT = 7
+#: Bits of the flag's tolerance (1/16 px) and of its growth shift.
+TOL_BITS = 8
+TOL_SHIFT_BITS = 3
+MODES = ("learn", "rig", "off")
+
+
+@dataclass(frozen=True)
+class FloorLine:
+    """A v-disparity floor line: ``line16(y) = (slope * y + offset) >> 4`` (1/16 px)."""
+    slope: int
+    offset: int
+
+    def __post_init__(self):
+        if not 0 <= self.slope < 1 << SLOPE_BITS:
+            raise ValueError(f"floor slope {self.slope} outside 0..{(1 << SLOPE_BITS) - 1}")
+        lim = 1 << (OFFSET_BITS - 1)
+        if not -lim <= self.offset < lim:
+            raise ValueError(f"floor offset {self.offset} outside {-lim}..{lim - 1}")
+
+    @classmethod
+    def from_rig(cls, *, focal_px, baseline_m, height_m, pitch_deg, cy):
+        """The flat floor's line of a rig (``golden.camera.Camera`` / ``Rig`` quantities),
+        rounded to the fixed point (values outside the fields are clipped)."""
+        import math
+        p = math.radians(pitch_deg)
+        k = baseline_m / height_m
+        slope = round(256 * k * math.cos(p))
+        offset = round(256 * k * (focal_px * math.sin(p) - cy * math.cos(p)))
+        lim = 1 << (OFFSET_BITS - 1)
+        return cls(min(max(slope, 0), (1 << SLOPE_BITS) - 1), min(max(offset, -lim), lim - 1))
+
+    @classmethod
+    def from_camera(cls, camera):
+        """The line of a :class:`golden.camera.Camera` with a known height (None without)."""
+        if getattr(camera, "height_m", None) is None:
+            return None
+        return cls.from_rig(focal_px=camera.fy, baseline_m=camera.baseline_m,
+                            height_m=camera.height_m, pitch_deg=camera.tilt_deg, cy=camera.cy)
+
+    def at16(self, y):
+        """``line16`` at rows ``y`` (int64 array)."""
+        return line16(self, y)
+
+
+def line16(line, y):
+    y = np.asarray(y, dtype=np.int64)
+    return (np.int64(line.slope) * y + np.int64(line.offset)) >> 4
+
+
+@dataclass(frozen=True)
+class FloorParams:
+    """The floor decision's parameters (the FLOOR registers of ``hdl/regmap.py`` hold ``tol``,
+    ``tol_shift`` and the line; the learning parameters are the CPU's)."""
+    mode: str = "learn"
+    #: Flag tolerance above the line, 1/16 px (24: 1.5 px), and its growth ``line16 >>
+    #: tol_shift`` (3: 1/8 of the floor's disparity).
+    tol: int = 4
+    tol_shift: int = 6
+    #: Learning: slopes searched (1/256 px per row), the band half-width in bins, the weight
+    #: of the records below a line, the least support of a learned line.
+    slope_min: int = 32
+    slope_max: int = 160
+    slope_step: int = 2
+    band: int = 2
+    below_weight: int = 1
+    min_support: int = 4
+    #: With a rig: how far a learned line may depart from the rig's, in slope (1/256 px per
+    #: row) and in px at the lowest record's row.
+    prior_slope: int = 16
+    prior_px: int = 12
+    #: A learned line replaces the current one only when it scores more than this above it.
+    margin: int = 16
+    #: Support counts row bands of ``1 << row_shift`` rows with an inlier (a wall's foot
+    #: supports a line over a few rows, a floor over many); score = ``support_weight *
+    #: support - below_weight * below``.
+    row_shift: int = 3
+    support_weight: int = 4
+    #: The line of the first frame (the rig's); None: no line until one is learned.
+    initial: FloorLine | None = None
+
+    def validate(self):
+        if self.mode not in MODES:
+            raise ValueError(f"floor mode must be one of {', '.join(MODES)}, not {self.mode!r}")
+        for name, bits in (("tol", TOL_BITS), ("tol_shift", TOL_SHIFT_BITS)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or \
+                    not 0 <= v < 1 << bits:
+                raise ValueError(f"floor {name}={v!r} outside 0..{(1 << bits) - 1}")
+        if not 0 <= self.slope_min <= self.slope_max < 1 << SLOPE_BITS or self.slope_step < 1:
+            raise ValueError("floor slopes need 0 <= slope_min <= slope_max < 1024, step >= 1")
+        if self.mode == "rig" and self.initial is None:
+            raise ValueError("floor mode rig needs a rig (its line)")
+        return self
+
+
+def floor_flags(y, d16, line, params):
+    """The floor flag (uint8 0/1) of records at rows ``y`` with disparities ``d16``."""
+    y = np.asarray(y, dtype=np.int64)
+    d16 = np.asarray(d16, dtype=np.int64)
+    if line is None or params.mode == "off":
+        return np.zeros(y.shape, dtype=np.uint8)
+    l16 = line16(line, y)
+    tol = np.int64(params.tol) + (np.maximum(l16, 0) >> np.int64(params.tol_shift))
+    return (d16 <= l16 + tol).astype(np.uint8)
+
+
+def _scores(y, d16, slopes, kl, params):
+    """Support (row bands with an inlier), records below and score of the lines ``(slopes[i],
+    bin kl[i, j])``: arrays of shape ``kl.shape``; score = ``support_weight * support -
+    below_weight * below`` (among equal scores the first, the lowest line, wins: a line too
+    low costs floor points, one too high obstacle points)."""
+    u = (d16[None, :] << 4) - slopes[:, None] * y[None, :]
+    k = u >> BIN_SHIFT                                        # (slopes, records)
+    rb = y >> params.row_shift
+    nrb = int(rb.max()) + 1 if rb.size else 1
+    support = np.zeros(kl.shape, np.int64)
+    below = np.zeros(kl.shape, np.int64)
+    for i in range(slopes.size):
+        ki = k[i]
+        order = np.argsort(ki, kind="stable")
+        ks = ki[order]
+        below[i] = np.searchsorted(ks, kl[i] - params.band, side="left")
+        # inliers of bin window [kl - band, kl + band]: per row band, any?
+        lo = np.searchsorted(ks, kl[i] - params.band, side="left")
+        hi = np.searchsorted(ks, kl[i] + params.band, side="right")
+        seen = np.zeros((kl.shape[1], nrb), bool)
+        rbs = rb[order]
+        for j in range(kl.shape[1]):
+            seen[j, rbs[lo[j]:hi[j]]] = True
+        support[i] = seen.sum(axis=1)
+    return support, below, support * params.support_weight - below * params.below_weight
+
+
+def learn_line(y, d16, params, previous=None, prior=None):
+    """The line learned from one frame's records (see the module docstring); ``previous``
+    when no line has the least support or none beats ``previous`` by ``margin``. With a
+    ``prior`` line (the rig's) only lines within ``prior_slope`` of its slope and within
+    ``prior_px`` px of it at the lowest record's row are candidates."""
+    y = np.asarray(y, dtype=np.int64)
+    d16 = np.asarray(d16, dtype=np.int64)
+    if y.size == 0:
+        return previous
+    lo_s, hi_s = params.slope_min, params.slope_max
+    if prior is not None:
+        lo_s = max(lo_s, prior.slope - params.prior_slope)
+        hi_s = min(hi_s, prior.slope + params.prior_slope)
+        if lo_s > hi_s:
+            return previous
+    slopes = np.arange(lo_s, hi_s + 1, params.slope_step, dtype=np.int64)
+    u = (d16[None, :] << 4) - slopes[:, None] * y[None, :]
+    k = u >> BIN_SHIFT
+    klo, khi = int(k.min()), int(k.max())
+    bins = np.arange(klo, khi + 1, dtype=np.int64)
+    kl = np.broadcast_to(bins, (slopes.size, bins.size))
+    support, below, score = _scores(y, d16, slopes, kl, params)
+    offsets = (kl << BIN_SHIFT) + (1 << (BIN_SHIFT - 1))
+    lim = 1 << (OFFSET_BITS - 1)
+    ok = (support >= params.min_support) & (offsets >= -lim) & (offsets < lim)
+    if prior is not None:
+        y_ref = int(y.max())
+        at_ref = slopes[:, None] * y_ref + offsets
+        ok &= np.abs(at_ref - (prior.slope * y_ref + prior.offset)) <= params.prior_px << LINE_FRAC
+    if not ok.any():
+        return previous
+    score = np.where(ok, score, np.iinfo(np.int64).min)
+    best = int(np.argmax(score))          # first maximum: smaller slope, then smaller offset
+    si, ji = divmod(best, bins.size)
+    if previous is not None and \
+            int(score[si, ji]) <= line_score(y, d16, previous, params) + params.margin:
+        return previous
+    return FloorLine(int(slopes[si]), int(offsets[si, ji]))
+
+
+def line_score(y, d16, line, params):
+    """The learning score of ``line`` on records ``(y, d16)``: its bin is ``(offset - 64) >>
+    BIN_SHIFT``, then as for the candidates of :func:`learn_line`."""
+    kl = np.array([[(line.offset - (1 << (BIN_SHIFT - 1))) >> BIN_SHIFT]], np.int64)
+    return int(_scores(np.asarray(y, np.int64), np.asarray(d16, np.int64),
+                       np.array([line.slope], np.int64), kl, params)[2][0, 0])
+
+
+class FloorModel:
+    """The floor decision from reset, one frame's records per ``step``: the flags by the line
+    of this frame, then (``learn``) the line of the next frame from this frame's records."""
+
+    def __init__(self, params):
+        self.params = params.validate()
+        self.line = None if params.mode == "off" else params.initial
+
+    def step(self, records):
+        """Floor flags of one frame's records (``y``, ``d16``); the line they used is
+        ``self.used`` afterwards."""
+        self.used = self.line
+        flags = floor_flags(records["y"], records["d16"], self.line, self.params)
+        if self.params.mode == "learn":
+            self.line = learn_line(records["y"], records["d16"], self.params, self.line,
+                                   prior=self.params.initial)
+        return flags

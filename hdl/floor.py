@@ -1,0 +1,135 @@
+"""The floor flag of each match record, from a v-disparity floor line held in registers
+(specification: ``golden/floor.py`` :func:`golden.floor.floor_flags`).
+
+A record ``(y, d16)`` is a floor point when ``d16 <= line16(y) + tol16(y)``, with
+``line16(y) = (slope * y + offset) >> 4`` and ``tol16 = tol + (max(line16, 0) >> tol_shift)``;
+with ``enable`` low no record is. The CPU learns the line from each frame's records
+(:func:`golden.floor.learn_line`) and writes it for the next frame; a frame uses the register
+values of the cycle before its first record (or its ``eof`` record) enters the unit, so a
+write during a frame applies from the next one.
+
+Pipeline (every path one carry chain of at most 16 bits): (1) ``slope * y`` (a multiplier
+block, registered); (2) the low 12 bits of ``+ offset`` and their carry; (3) the high bits
+with the carry; ``line16`` saturated to 14 bits signed (a disparity window never reaches
+beyond 2 ** 12 in 1/16 px, so the comparison is unchanged); (4) ``tol16``; (5) the threshold
+``line16 + tol16``; (6) the comparison, into the output register. The stages advance together
+when the output register is free or taken, and ``i.ready`` is that condition (no skid
+buffer: its payload multiplexer would cost a LUT per record bit, and the unit sits between the
+matcher's output FIFO and the result FIFO, both registered). Latency: 6 cycles; one record a
+cycle.
+"""
+from amaranth.hdl import Cat, Const, Module, Mux, Signal, signed
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from golden.floor import OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
+
+__all__ = ["FloorFlag", "floor_record_layout", "LATENCY"]
+
+LATENCY = 6
+#: Bits of the saturated line and of the threshold (signed).
+_LINE_BITS = 14
+_LO = 12
+
+
+def floor_record_layout(layout):
+    """``layout`` (a record layout with ``y``, ``d16`` and ``eof``) with a ``floor`` bit
+    before ``eof``."""
+    members = dict(layout.members)
+    eof = members.pop("eof")
+    return data.StructLayout({**members, "floor": 1, "eof": eof})
+
+
+class FloorFlag(wiring.Component):
+    """Adds the floor flag to match records.
+
+    Parameters
+    ----------
+    layout : StructLayout
+        The input records (``hdl.matcher.match_record_layout`` of a census matcher: ``y``,
+        ``d16`` and ``eof`` are used, the other fields pass through).
+
+    Ports
+    -----
+    i : In(stream of ``layout``)
+        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``.
+    o : Out(stream of :func:`floor_record_layout`)
+        The same records with ``floor``, in order, :data:`LATENCY` cycles later without stalls.
+    enable, slope, offset, tol, tol_shift : In
+        The floor decision's registers (``golden.floor.FloorParams`` and ``FloorLine``):
+        ``offset`` is signed, the rest unsigned.
+    """
+
+    def __init__(self, layout):
+        self._in = layout
+        self._out = floor_record_layout(layout)
+        super().__init__({
+            "i": In(stream.Signature(layout)),
+            "o": Out(stream.Signature(self._out)),
+            "enable": In(1), "slope": In(SLOPE_BITS), "offset": In(signed(OFFSET_BITS)),
+            "tol": In(TOL_BITS), "tol_shift": In(TOL_SHIFT_BITS),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        en = ~self.o.valid | self.o.ready
+        m.d.comb += self.i.ready.eq(en)
+        take = self.i.valid & en
+        rec = self.i.payload
+
+        # the registers of the current frame: followed until its first beat enters
+        first = Signal(init=1)
+        live = {n: Signal.like(getattr(self, n), name=f"cur_{n}")
+                for n in ("enable", "slope", "offset", "tol", "tol_shift")}
+        with m.If(take):
+            m.d.sync += first.eq(rec.eof)
+        with m.If(first & ~take):
+            m.d.sync += [live[n].eq(getattr(self, n)) for n in live]
+
+        def stage(k, **values):
+            regs = {}
+            for name, v in values.items():
+                r = Signal(v.shape(), name=f"{name}{k}")
+                with m.If(en):
+                    m.d.sync += r.eq(v)
+                regs[name] = r
+            return regs
+
+        # (1) slope * y
+        s1 = stage(1, v=self.i.valid, rec=rec, prod=live["slope"] * rec.y,
+                   offset=live["offset"], enable=live["enable"], tol=live["tol"],
+                   tol_shift=live["tol_shift"])
+        # (2) low bits of the sum and their carry
+        lo = s1["prod"][:_LO] + s1["offset"].as_unsigned()[:_LO]
+        s2 = stage(2, v=s1["v"], rec=s1["rec"], lo=lo, prod_hi=s1["prod"][_LO:],
+                   off_hi=s1["offset"][_LO:].as_signed(), enable=s1["enable"], tol=s1["tol"],
+                   tol_shift=s1["tol_shift"])
+        # (3) the high bits with the carry; line16 = sum >> 4, saturated to _LINE_BITS signed
+        hi = Signal(signed(max(len(s2["prod_hi"]) + 1, len(s2["off_hi"])) + 1))
+        m.d.comb += hi.eq(s2["prod_hi"] + s2["off_hi"] + s2["lo"][_LO])
+        l16 = Cat(s2["lo"][4:_LO], hi).as_signed()
+        top = (1 << (_LINE_BITS - 1)) - 1
+        sat = Signal(signed(_LINE_BITS))
+        m.d.comb += sat.eq(Mux(l16 > top, top, Mux(l16 < -top - 1, -top - 1, l16)))
+        s3 = stage(3, v=s2["v"], rec=s2["rec"], line=sat, enable=s2["enable"], tol=s2["tol"],
+                   tol_shift=s2["tol_shift"])
+        # (4) tol16 = tol + (max(line16, 0) >> tol_shift)
+        pos = Mux(s3["line"] < 0, 0, s3["line"].as_unsigned()[:_LINE_BITS - 1])
+        grow = Signal(_LINE_BITS - 1)
+        m.d.comb += grow.eq(pos >> s3["tol_shift"])
+        s4 = stage(4, v=s3["v"], rec=s3["rec"], line=s3["line"], enable=s3["enable"],
+                   tol16=(s3["tol"] + grow)[:_LINE_BITS])
+        # (5) threshold = line16 + tol16
+        thr = Signal(signed(_LINE_BITS + 2))
+        m.d.comb += thr.eq(s4["line"] + s4["tol16"])
+        s5 = stage(5, v=s4["v"], rec=s4["rec"], thr=thr, enable=s4["enable"])
+        # (6) the comparison into the output register
+        flag = s5["enable"] & ~s5["rec"].eof & \
+            (Cat(s5["rec"].d16, Const(0, 1)).as_signed() <= s5["thr"])
+        out = self.o.payload
+        with m.If(en):
+            m.d.sync += self.o.valid.eq(s5["v"])
+            for name in self._in.members:
+                m.d.sync += getattr(out, name).eq(getattr(s5["rec"], name))
+            m.d.sync += out.floor.eq(flag)
+        return m

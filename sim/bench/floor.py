@@ -1,0 +1,205 @@
+"""The floor decision against ground off, per scene (``python -m sim.bench.floor [--out DIR]``).
+
+Scenes: the hard floors of :mod:`sim.scenes.floors` and the project's rendered scenes
+(:data:`sim.scenes.rendered.SCENES`), 320 x 240, three frames of camera noise (sigma 2), the
+last one scored; the Middlebury 2014 motorcycle pair, three frames of the same image, its floor
+truth the robust plane of :func:`sim.bench.ground.motorcycle_truth`. The golden pipeline
+(``golden.pipeline.default_params``: the RTL's matcher) runs in each mode:
+
+* ``off``: ground model off, no floor decision (the reference);
+* ``appearance``: the ground model in the scene's mode (hue, or luminance for grey scenes and
+  ``grey_room``) removing pixels before matching, no floor decision;
+* ``geometry``: ground model off, the floor flag of ``golden/floor.py`` (the line learned
+  frame to frame, starting from the rig's line where the scene has a rig);
+* ``both``: the ground model and the floor flag.
+
+Figures per scene and mode (records of the last frame): obstacle points (records off the floor
+truth, not flagged) and those within 2 px of the true disparity (``d16 / 16``), as a share of
+``off``'s; floor matches (records on the floor truth) and the share of ``off``'s floor matches
+that the mode removed or flagged (the rest reach the radio summary as obstacles); census window
+evaluations and their saving against ``off``.
+
+Must hold (the default mode, :data:`DEFAULT_MODE`): good obstacle points >= 95 % of ``off``'s
+and floor matches removed or flagged >= 80 % on every scene (``grey_room`` in luminance mode;
+an existing scene without floor matches passes the second); on the motorcycle pair good
+obstacle points >= 95 % and at most 20 % of its floor matches left unflagged.
+"""
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from golden.floor import FloorLine, FloorModel, FloorParams
+
+__all__ = ["MODES", "DEFAULT_MODE", "LIMITS", "scene_frames", "score", "run", "markdown",
+           "check", "main"]
+
+MODES = ("off", "appearance", "geometry", "both")
+#: The mode the command line and the SoC run by default.
+DEFAULT_MODE = "geometry"
+LIMITS = dict(good_ratio=0.95, floor_done=0.80, moto_unflagged=0.20)
+FRAMES = 3
+WIDTH, HEIGHT = 320, 240
+
+
+def scene_frames(name, frames=FRAMES):
+    """(left frames, right frames, true disparity, floor truth, floor line of the rig or None,
+    appearance ground mode) of one scene."""
+    from sim.scenes.floors import FLOOR_SCENES, NOMINAL_PITCH_DEG, floor_pair
+    from sim.scenes.rendered import Rig, make_scene
+    if name == "motorcycle":
+        from sim.scenes.data import motorcycle
+        from sim.bench.ground import motorcycle_truth
+        left, right, gt = motorcycle()
+        floor, _ = motorcycle_truth(gt)
+        return [left] * frames, [right] * frames, np.asarray(gt, np.float64), floor, None, "hue"
+    if name in FLOOR_SCENES:
+        fr = [floor_pair(name, WIDTH, HEIGHT, seed=k) for k in range(frames)]
+        mode = FLOOR_SCENES[name].mode
+        nominal = Rig.scaled(WIDTH, HEIGHT, pitch_deg=NOMINAL_PITCH_DEG)
+    else:
+        base = make_scene(name, WIDTH, HEIGHT)
+        rng = np.random.default_rng(7)
+        fr = [replace(base, left=_noisy(base.left, rng), right=_noisy(base.right, rng))
+              for _ in range(frames)]
+        mode, nominal = "hue", base.rig
+    line = FloorLine.from_rig(focal_px=nominal.focal_px, baseline_m=nominal.baseline_m,
+                              height_m=nominal.cam_height_m, pitch_deg=nominal.pitch_deg,
+                              cy=nominal.cy)
+    gt = np.where(fr[0].disparity > 0, fr[0].disparity, np.inf).astype(np.float64)
+    return [f.left for f in fr], [f.right for f in fr], gt, fr[0].ground, line, mode
+
+
+def _noisy(img, rng, sigma=2.0):
+    return np.clip(np.rint(img + rng.normal(0, sigma, img.shape)), 0, 255).astype(np.uint8)
+
+
+def run_mode(lefts, rights, ground, floor_params):
+    """(last frame's records, its statistics, its floor flags) of the golden pipeline and the
+    floor decision over the frames from reset."""
+    from golden.pipeline import PipelineModel, default_params
+    h, w = lefts[0].shape[:2]
+    model = PipelineModel(default_params(w, h, ground=ground))
+    floor = FloorModel(floor_params)
+    for left, right in zip(lefts, rights):
+        f = model.step(left, right)
+        flags = floor.step(f.records)
+    return f.records, f.stats, flags
+
+
+def score(records, stats, flags, gt, floor):
+    """The figures of one mode's last frame (see the module docstring)."""
+    x, y = records["x"], records["y"]
+    g = gt[y, x]
+    on_floor = floor[y, x]
+    flagged = flags.astype(bool)
+    known = np.isfinite(g)
+    good = known & (np.abs(records["d16"] / 16.0 - g) <= 2.0)
+    obstacle = ~on_floor & ~flagged
+    return {"obstacle_points": int((obstacle & known).sum()),
+            "good_obstacle": int((obstacle & good).sum()),
+            "floor_matches": int(on_floor.sum()),
+            "floor_unflagged": int((on_floor & ~flagged).sum()),
+            "evaluations": int(stats["sad_evaluations"]),
+            "edge_pixels": int(stats["edge_pixels"])}
+
+
+def scene_figures(name, params=None):
+    lefts, rights, gt, floor, line, appearance = scene_frames(name)
+    base = params or FloorParams()
+    geo = replace(base, initial=line)
+    off = FloorParams(mode="off")
+    runs = {"off": ("off", off), "appearance": (appearance, off),
+            "geometry": ("off", geo), "both": (appearance, geo)}
+    out = {}
+    for mode, (ground, fp) in runs.items():
+        out[mode] = score(*run_mode(lefts, rights, ground, fp), gt, floor)
+    ref = out["off"]
+    for mode, v in out.items():
+        v["good_ratio"] = round(v["good_obstacle"] / max(1, ref["good_obstacle"]), 4)
+        v["accuracy"] = round(v["good_obstacle"] / max(1, v["obstacle_points"]), 4)
+        v["floor_done"] = round(1 - v["floor_unflagged"] / ref["floor_matches"], 4) \
+            if ref["floor_matches"] else 1.0
+        v["work_saved"] = round(1 - v["evaluations"] / max(1, ref["evaluations"]), 4)
+    out["appearance_mode"] = appearance
+    return out
+
+
+def scene_names():
+    from sim.scenes.floors import floor_scene_names
+    from sim.scenes.rendered import scene_names as rendered
+    return floor_scene_names() + rendered() + ["motorcycle"]
+
+
+def check(rep, mode=DEFAULT_MODE):
+    """The must-holds the mode misses, as strings."""
+    bad = []
+    for name, r in rep["scenes"].items():
+        v = r[mode]
+        if v["good_ratio"] < LIMITS["good_ratio"]:
+            bad.append(f"{name}: good obstacle points {v['good_ratio']:.3f} of ground off")
+        if name == "motorcycle":
+            if 1 - v["floor_done"] > LIMITS["moto_unflagged"]:
+                bad.append(f"{name}: {1 - v['floor_done']:.3f} of floor matches unflagged")
+        elif v["floor_done"] < LIMITS["floor_done"]:
+            bad.append(f"{name}: floor matches removed or flagged {v['floor_done']:.3f}")
+    return bad
+
+
+def run(names=None, params=None):
+    rep = {"scenes": {n: scene_figures(n, params) for n in (names or scene_names())},
+           "default_mode": DEFAULT_MODE}
+    rep["failed"] = check(rep)
+    return rep
+
+
+def markdown(rep):
+    lines = ["### Floor decision (golden/floor.py) against ground off", "",
+             "Last of three frames. Good obstacle points: records off the floor truth, not "
+             "flagged, within 2 px of the truth, as a share of ground off's; floor done: the "
+             "share of ground off's floor matches removed or flagged; work saved: census window "
+             f"evaluations against ground off. Default mode: {rep['default_mode']}.", "",
+             "| scene | mode | obstacle points | good (x off) | accuracy | floor matches | "
+             "floor done | work saved |", "|---|---|---|---|---|---|---|---|"]
+    for name, r in rep["scenes"].items():
+        for mode in MODES:
+            v = r[mode]
+            label = f"{mode} ({r['appearance_mode']})" if mode in ("appearance", "both") \
+                else mode
+            lines.append(f"| {name} | {label} | {v['obstacle_points']} | "
+                         f"{v['good_obstacle']} ({v['good_ratio']:.3f}) | {v['accuracy']:.3f} | "
+                         f"{v['floor_matches']} | {v['floor_done']:.3f} | "
+                         f"{100 * v['work_saved']:.1f} % |")
+    lines += ["", "Must hold (default mode): " + ("all met" if not rep["failed"] else
+                                                 "NOT met: " + "; ".join(rep["failed"]))]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m sim.bench.floor",
+                                 description=__doc__.split("\n")[0])
+    ap.add_argument("--out", default="build/bench", help="output folder (default %(default)s)")
+    ap.add_argument("--scene", action="append", help="only this scene (repeatable)")
+    args = ap.parse_args(argv)
+    known = scene_names()
+    for s in args.scene or ():
+        if s not in known:
+            print(f"error: unknown scene {s!r}; known: {', '.join(known)}", file=sys.stderr)
+            return 2
+    rep = run(args.scene)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "floor.json").write_text(json.dumps(rep, indent=1) + "\n")
+    (out / "floor.md").write_text(markdown(rep))
+    print(markdown(rep))
+    if rep["failed"]:
+        print("error: floor requirements not met: " + "; ".join(rep["failed"]), file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

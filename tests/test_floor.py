@@ -1,0 +1,89 @@
+"""golden/floor.py: the floor line's fixed point, the flag rule and the learning."""
+import numpy as np
+import pytest
+
+from golden.floor import (FloorLine, FloorModel, FloorParams, floor_flags, learn_line,
+                          line16)
+from sim.scenes.rendered import Rig, ground_disparity
+
+
+def test_rig_line_is_the_flat_floor():
+    rig = Rig.scaled(320, 240)
+    line = FloorLine.from_rig(focal_px=rig.focal_px, baseline_m=rig.baseline_m,
+                              height_m=rig.cam_height_m, pitch_deg=rig.pitch_deg, cy=rig.cy)
+    rows = np.arange(80, 240)
+    assert np.abs(line16(line, rows) / 16 - ground_disparity(rig, rows)).max() < 0.3
+
+
+def test_flag_rule():
+    """At or below the line plus a tolerance growing with the line's disparity; nothing
+    without a line or with mode off."""
+    line = FloorLine(256, -16 * 256)           # d = y - 16
+    p = FloorParams(tol=8, tol_shift=4)
+    y = np.array([10, 16, 100, 100, 100, 100])
+    d16 = np.array([0, 8, 0, 84 * 16, 84 * 16 + 8 + 84, 84 * 16 + 9 + 84])
+    assert floor_flags(y, d16, line, p).tolist() == [0, 1, 1, 1, 1, 0]   # none above the horizon
+    assert floor_flags(y, d16, None, p).sum() == 0
+    assert floor_flags(y, d16, line, FloorParams(mode="off")).sum() == 0
+    assert line16(FloorLine(3, -17), np.array([0, 5])).tolist() == [-2, -1]   # floor shift
+
+
+def planted(rng, line, n_floor=300, n_obstacle=600, height=240):
+    """Floor points on ``line`` (+-0.5 px), obstacles above it (constant-disparity columns),
+    mismatches anywhere."""
+    yf = rng.integers(100, height, n_floor)
+    df = line16(line, yf) + rng.integers(-8, 9, n_floor)
+    yo = rng.integers(0, height, n_obstacle)
+    do = np.maximum(line16(line, yo), 0) + rng.integers(16, 400, n_obstacle)
+    y = np.concatenate([yf, yo, rng.integers(0, height, 30)])
+    d = np.concatenate([df, do, rng.integers(0, 1000, 30)])
+    return y, np.clip(d, 0, 4095)
+
+
+def test_learning_finds_the_floor_under_obstacles():
+    rng = np.random.default_rng(1)
+    truth = FloorLine(80, -4000)
+    y, d16 = planted(rng, truth)
+    got = learn_line(y, d16, FloorParams())
+    assert abs(got.slope - truth.slope) <= 4
+    rows = np.arange(120, 240)
+    assert np.abs(line16(got, rows) - line16(truth, rows)).max() <= 24     # 1.5 px
+
+
+def test_learning_keeps_the_line_without_evidence():
+    """Too few records, or none beating the current line by the margin: the line stays."""
+    p = FloorParams()
+    prev = FloorLine(86, -5600)
+    assert learn_line(np.array([100]), np.array([300]), p, prev) is prev
+    y, d16 = planted(np.random.default_rng(2), prev)
+    assert learn_line(y, d16, p, prev) == prev
+
+
+def test_prior_limits_the_search():
+    rng = np.random.default_rng(3)
+    truth = FloorLine(40, -1000)
+    y, d16 = planted(rng, truth)
+    prior = FloorLine(100, -6000)
+    got = learn_line(y, d16, FloorParams(), prior=prior)
+    assert got is None or abs(got.slope - prior.slope) <= FloorParams().prior_slope
+
+
+def test_model_uses_last_frames_line():
+    rng = np.random.default_rng(4)
+    truth = FloorLine(80, -4000)
+    model = FloorModel(FloorParams())
+    frames = [planted(rng, truth) for _ in range(3)]
+    recs = [dict(y=y, d16=d) for y, d in frames]
+    assert model.step(recs[0]).sum() == 0 and model.used is None
+    flags = model.step(recs[1])
+    assert model.used is not None and flags[:300].mean() > 0.7 and flags[300:900].mean() < 0.05
+
+
+def test_bad_parameters():
+    for kw in (dict(mode="sky"), dict(tol=256), dict(tol_shift=8), dict(slope_min=900, slope_max=10),
+               dict(mode="rig")):
+        with pytest.raises(ValueError):
+            FloorParams(**kw).validate()
+    for s, o in ((1024, 0), (-1, 0), (0, 1 << 17)):
+        with pytest.raises(ValueError):
+            FloorLine(s, o)

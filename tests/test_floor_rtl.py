@@ -1,0 +1,132 @@
+"""The floor flag unit (hdl/floor.py) against golden.floor, with the line learned frame to
+frame as the CPU does it: bit-exact with random stalls on both sides, over several frames."""
+import random
+
+import numpy as np
+import pytest
+from amaranth.sim import Simulator
+
+from golden.floor import FloorLine, FloorParams, floor_flags, learn_line
+from hdl.floor import LATENCY, FloorFlag, floor_record_layout
+from hdl.matcher import match_record_layout
+from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
+
+LAYOUT = match_record_layout(1024, 1024, 255, cost="census", window=7)
+
+
+def frame_records(rng, height, width, line, n, d_max=255):
+    """Raster-ordered records: half near the floor line, the rest anywhere."""
+    y = np.sort(rng.integers(0, height, n))
+    x = rng.integers(0, width, n)
+    near = np.clip(line.at16(y) + rng.integers(-40, 60, n), 0, d_max * 16 + 8)
+    any_ = rng.integers(0, d_max * 16 + 9, n)
+    d16 = np.where(rng.random(n) < 0.5, near, any_)
+    order = np.lexsort((x, y))
+    return dict(x=x[order], y=y[order], d16=d16[order], d=(d16[order] + 8) >> 4,
+                cost=rng.integers(0, 392, n), conf=rng.integers(0, 256, n))
+
+
+def run(frames, configs, seed):
+    """Feed the frames (each followed by its eof record), the registers of frame k written a
+    cycle before its first beat; returns the (floor flags, payload fields) per frame."""
+    dut = FloorFlag(LAYOUT)
+    rng = random.Random(seed)
+    got = [[] for _ in frames]
+
+    async def feed(ctx):
+        for k, (rec, cfg) in enumerate(zip(frames, configs)):
+            for name, value in cfg.items():
+                ctx.set(getattr(dut, name), value)
+            ctx.set(dut.i.valid, 0)
+            await ctx.tick()                   # written before the frame's first record
+            n = len(rec["y"])
+            for j in range(n + 1):
+                beat = {f: int(rec[f][j]) for f in ("x", "y", "d", "d16", "cost", "conf")} \
+                    if j < n else {"eof": 1}
+                while seed is not None and rng.random() < 0.3:
+                    ctx.set(dut.i.valid, 0)
+                    await ctx.tick()
+                ctx.set(dut.i.payload, {f: beat.get(f, 0) for f in LAYOUT.members})
+                ctx.set(dut.i.valid, 1)
+                await ctx.tick().until(dut.i.ready)
+                # a register write in the middle of a frame applies from the next one
+                if j == n // 2:
+                    ctx.set(dut.slope, (cfg["slope"] + 37) % 1024)
+                    ctx.set(dut.tol, 255)
+            ctx.set(dut.i.valid, 0)
+
+    async def drain(ctx):
+        k = 0
+        out_rng = random.Random(None if seed is None else seed + 1)
+        while k < len(frames):
+            ready = seed is None or out_rng.random() < 0.6
+            ctx.set(dut.o.ready, ready)
+            if ready and ctx.get(dut.o.valid):
+                p = ctx.get(dut.o.payload)
+                if p.eof:
+                    assert p.floor == 0
+                    k += 1
+                else:
+                    got[k].append((p.floor, p.y, p.d16, p.x, p.conf))
+            await ctx.tick()
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(feed)
+    sim.add_testbench(drain)
+    sim.run_until(1e-8 * (sum(len(r["y"]) for r in frames) * 10 + 2000))
+    return got
+
+
+@pytest.mark.parametrize("seed", [None, 1, 2])
+def test_learned_line_bit_exact_over_frames(seed):
+    """Four frames: the registers of frame k+1 are the line golden learns from frame k's
+    records (the CPU's loop), with tolerances and shifts varied; enable low on one frame."""
+    rng = np.random.default_rng(5 if seed is None else seed)
+    params = FloorParams()
+    truth = FloorLine(86, -5600)
+    line = FloorLine(70, -3000)
+    frames, configs, lines = [], [], []
+    for k in range(4):
+        rec = frame_records(rng, 240, 320, truth, 150)
+        tol, shift = [(4, 6), (24, 3), (0, 0), (255, 7)][k]
+        enable = int(k != 2)
+        frames.append(rec)
+        lines.append((line, FloorParams(tol=tol, tol_shift=shift, mode="learn" if enable else "off")))
+        configs.append(dict(enable=enable, slope=line.slope, offset=line.offset, tol=tol,
+                            tol_shift=shift))
+        line = learn_line(rec["y"], rec["d16"], params, line)
+    assert len({l for l, _ in lines}) >= 2           # the learning moved the line
+    got = run(frames, configs, seed)
+    for rec, (line, p), g in zip(frames, lines, got):
+        want = floor_flags(rec["y"], rec["d16"], line, p)
+        assert [t[0] for t in g] == want.tolist()
+        assert [t[1:] for t in g] == list(zip(rec["y"].tolist(), rec["d16"].tolist(),
+                                               rec["x"].tolist(), rec["conf"].tolist()))
+    assert 0 < sum(t[0] for g in got for t in g) < sum(len(g) for g in got)
+
+
+def test_extreme_lines_saturate_as_golden():
+    """Lines far above and below every disparity, negative offsets, the widest slope."""
+    rng = np.random.default_rng(9)
+    lines = [FloorLine(1023, 131071), FloorLine(0, -131072), FloorLine(1023, -131072),
+             FloorLine(0, 131071), FloorLine(512, -200000 // 2)]
+    frames, configs = [], []
+    for line in lines:
+        frames.append(frame_records(rng, 1024, 1024, FloorLine(100, 0), 60))
+        configs.append(dict(enable=1, slope=line.slope, offset=line.offset, tol=17, tol_shift=2))
+    got = run(frames, configs, 3)
+    for rec, line, g in zip(frames, lines, got):
+        want = floor_flags(rec["y"], rec["d16"], line, FloorParams(tol=17, tol_shift=2))
+        assert [t[0] for t in g] == want.tolist()
+
+
+def test_layout_and_latency():
+    assert list(floor_record_layout(LAYOUT).members)[-2:] == ["floor", "eof"]
+    assert LATENCY == 6
+
+
+def test_meets_the_timing_rule(tmp_path):
+    c = synthesize_component("floorflag", FloorFlag(LAYOUT), tmp_path)
+    assert c["levels"] <= MAX_LEVELS and c["carry_bits"] <= MAX_CARRY, c
+    assert c["RAMB16"] == 0 and c["LUT4"] < 200, c

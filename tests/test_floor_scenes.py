@@ -1,0 +1,56 @@
+"""The hard floor scenes and the motorcycle's robust floor truth."""
+import numpy as np
+import pytest
+
+from sim.scenes.floors import FLOOR_SCENES, floor_pair, floor_scene_names
+from sim.scenes.rendered import ground_disparity
+
+
+def test_scenes_render_with_truth():
+    """Every scene renders at a small size, deterministically, with a floor and obstacles; on
+    a flat floor the true floor disparity is the rig's analytic one."""
+    for name in floor_scene_names():
+        f = floor_pair(name, 64, 48, seed=1)
+        assert f.left.shape == (48, 64, 3) and f.left.dtype == np.uint8
+        assert 0.2 < f.ground.mean() < 0.95, name
+        assert np.array_equal(f.left, floor_pair(name, 64, 48, seed=1).left)
+        assert not np.array_equal(f.left, floor_pair(name, 64, 48, seed=2).left)
+        if FLOOR_SCENES[name].ramp is None:
+            rows = np.nonzero(f.ground.any(axis=1))[0]
+            want = ground_disparity(f.rig, rows)
+            got = np.array([f.disparity[r][f.ground[r]].mean() for r in rows])
+            assert np.allclose(got, want, rtol=1e-3, atol=1e-3), name
+
+
+def test_ramp_bends_and_tilt_moves_the_floor():
+    flat = floor_pair("planks", 64, 48)
+    ramp = floor_pair("ramp", 160, 120)
+    tilted = floor_pair("tilted", 64, 48)
+    rows = np.nonzero(ramp.ground.any(axis=1))[0]
+    above = np.array([ramp.disparity[r][ramp.ground[r]].mean() for r in rows]) \
+        - ground_disparity(ramp.rig, rows)
+    assert above.max() > 2.0 and above.min() > -1e-3      # the ramp is nearer than a flat floor
+    assert abs(above[-1]) < 1e-3                          # the flat floor in front of it
+    assert tilted.rig.pitch_deg != flat.rig.pitch_deg
+
+
+def test_unknown_scene():
+    with pytest.raises(ValueError, match="unknown floor scene"):
+        floor_pair("lawn")
+
+
+def test_robust_motorcycle_truth():
+    """Refitting on the pixels within tolerance moves the plane off the obstacles: a plane
+    with obstacles standing on it, outliers above, is found exactly."""
+    from sim.bench.ground import motorcycle_truth
+    h, w = 80, 60
+    yy, xx = np.mgrid[0:h, 0:w]
+    gt = (0.2 * yy + 0.01 * xx + 3).astype(np.float32)
+    gt[h - 20:, 10:30] += 15.0                   # an obstacle on the bottom quarter
+    gt[0, 0] = np.inf
+    floor, obstacle = motorcycle_truth(gt)
+    assert floor[h - 20:, 10:30].sum() == 0
+    assert floor.sum() + obstacle.sum() == h * w - 1
+    assert floor[h - 20:, 30:].all()
+    one_pass, _ = motorcycle_truth(gt, refits=0)
+    assert one_pass[h - 20:, 30:].sum() < floor[h - 20:, 30:].sum()
