@@ -47,7 +47,7 @@ def test_hand_case_single_candidate():
     e_r = np.zeros((5, 16)); e_r[2, 7] = 1
     recs, st = match(frame(y_l, e_l), frame(y_r, e_r), MatcherParams(d_max=8, window=3))
     assert as_array(recs).tolist() == [[10, 2, 3, 0]]
-    assert st == {"edge_pixels": 1, "border": 0, "no_candidate": 0, "sad_evaluations": 1,
+    assert st == {"edge_pixels": 1, "border": 0, "no_candidate": 0, "evaluations": 1,
                   "matches": 1, "rejected": 0, "drops": 0}
 
 
@@ -57,7 +57,7 @@ def test_neg_must_agree():
     e_r = np.zeros((5, 16)); e_r[2, 7] = 1
     n_r = np.zeros((5, 16)); n_r[2, 7] = 1
     recs, st = match(frame(y, e_l), frame(y, e_r, n_r), MatcherParams(d_max=8, window=3))
-    assert len(recs) == 0 and st["no_candidate"] == 1 and st["sad_evaluations"] == 0
+    assert len(recs) == 0 and st["no_candidate"] == 1 and st["evaluations"] == 0
 
 
 def test_tie_takes_smaller_d():
@@ -68,7 +68,7 @@ def test_tie_takes_smaller_d():
     e_r = np.zeros((5, 16)); e_r[2, 7] = 1; e_r[2, 8] = 1
     recs, st = match(frame(y, e_l), frame(y, e_r), MatcherParams(d_max=8, window=3))
     assert as_array(recs).tolist() == [[10, 2, 2, 0]]
-    assert st["sad_evaluations"] == 2
+    assert st["evaluations"] == 2
 
 
 def test_uniqueness_rule():
@@ -108,7 +108,7 @@ def test_border_rule():
     e_l[3, 4] = 1                                          # inside, d in 0..2
     recs, st = match(frame(y, e_l), frame(y, e_r), MatcherParams(d_max=8, window=5))
     assert st["border"] == 4 and st["edge_pixels"] == 6
-    assert st["sad_evaluations"] == 1 + 3
+    assert st["evaluations"] == 1 + 3
     # x=4: candidates 0, 1, 2 all cost 0; d = 2 is far from the winner d = 0: rejected.
     assert as_array(recs).tolist() == [[2, 3, 0, 0]] and st["rejected"] == 1
 
@@ -119,14 +119,14 @@ def test_widen_and_full():
     e_r = np.zeros((3, 20)); e_r[1, 8] = 1             # d = 4 exactly
     p = MatcherParams(d_max=10, window=3)
     _, st = match(frame(y, e_l), frame(y, e_r), p)
-    assert st["sad_evaluations"] == 1
+    assert st["evaluations"] == 1
     _, st = match(frame(y, e_l), frame(y, e_r), MatcherParams(d_max=10, window=3, widen=True))
-    assert st["sad_evaluations"] == 3                  # d = 3, 4, 5
+    assert st["evaluations"] == 3                  # d = 3, 4, 5
     _, st = match(frame(y, e_l), frame(y, e_r), MatcherParams(d_max=10, window=3, mode="full"))
-    assert st["sad_evaluations"] == 11                 # d = 0..10 (x - d - 1 >= 0 for all)
+    assert st["evaluations"] == 11                 # d = 0..10 (x - d - 1 >= 0 for all)
     _, st = match(frame(y, e_l), frame(y, e_r), MatcherParams(d_min=5, d_max=10, window=3,
                                                              widen=True))
-    assert st["sad_evaluations"] == 1                  # only d = 5 is left
+    assert st["evaluations"] == 1                  # only d = 5 is left
 
 
 @pytest.mark.parametrize("kw, message", [
@@ -199,7 +199,7 @@ def test_plain_form_cases_occur():
         _, st_none = match(left, right, MatcherParams(**{**p.__dict__, "consistency": "none"}))
         lost += st_none["matches"] - st["matches"]
         _, st_int = match(left, right, MatcherParams(**{**p.__dict__, "subpixel": False}))
-        assert st["sad_evaluations"] == st_int["sad_evaluations"]
+        assert st["evaluations"] == st_int["evaluations"]
         ys, xs, _, cand = candidates(left, right, p)
         row = {(y, x): i for i, (y, x) in enumerate(zip(ys.tolist(), xs.tolist()))}
         padded = np.pad(cand, ((0, 0), (1, 1)))          # d_min - 1 and d_max + 1: never
@@ -297,7 +297,7 @@ def test_v2_subpixel_on_a_shifted_texture():
     cm, cp = window_costs(census(left_y), census(right_y), [4, 4], [20, 20], [2, 4], 3,
                           "census")
     assert recs["d16"][0] == 48 + subpixel_offset([cm], [0], [cp])[0]
-    assert recs["conf"][0] > 0 and st["sad_evaluations"] == 9     # every d, no post-step
+    assert recs["conf"][0] > 0 and st["evaluations"] == 9     # every d, no post-step
 
 
 def test_shifted_texture_recovers_disparity():
