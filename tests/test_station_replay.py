@@ -164,6 +164,7 @@ def test_bad_input_gets_one_error_line_and_writes_nothing(recording, tmp_path, c
             ["replay", str(tmp_path), "--out", str(out)],
             ["replay", str(recording), "--speed", "-2", "--out", str(out)],
             ["replay", str(recording), "--extent", "1,2,3", "--out", str(out)],
+            ["replay", str(recording), "--camera", str(text), "--out", str(out)],
             ["listen", "--port", str(tmp_path / "ttyNONE"), "--out", str(out)],
             ["listen", "--port", os.ttyname(slave), "--out", str(out)],
         ]
@@ -221,3 +222,25 @@ def test_replay_writes_an_mcap_log_with_foxglove_schemas(recording, tmp_path, ca
                  "--out", str(tmp_path / "out2")]) == 2
     assert capsys.readouterr().err.startswith("error:")
     assert not (tmp_path / "out2").exists()
+
+
+def test_replay_reads_the_rig_file(recording, tmp_path, capsys):
+    """``--camera rig.json`` is the camera the station triangulates with: the module's own
+    field written as a rig file gives the default station's map, a rig with another
+    baseline another map (the maps need no planning: the planner is left out of those)."""
+    from dataclasses import replace as dc_replace
+    from golden.camera import FIELD
+    field = tmp_path / "field.json"
+    FIELD.to_json(field)
+    assert main(["replay", str(recording), "--speed", "0", "--out", str(tmp_path / "f"),
+                 "--camera", str(field), *WORLD]) == 0
+    capsys.readouterr()
+    got = np.load(tmp_path / "f" / "map.npy")
+
+    def map_with(cam):
+        st = make_station((3.0, 0.0), (-0.5, -1.5, 3.5, 1.5), cam)
+        st.replan = lambda t, reason: None
+        StationRun(st).feed(recording.read_bytes())
+        return st.grid.logodds
+    assert np.array_equal(got, map_with(None))
+    assert not np.array_equal(got, map_with(dc_replace(FIELD, baseline_m=0.2)))
