@@ -268,7 +268,8 @@ class FrameDecoder:
     Counters (``stats()``): ``accepted`` (packets returned), ``accepted_by_api``,
     ``rejected[reason]`` for every reason in ``REJECT_REASONS``, ``tx_status[name]``,
     ``at_responses``, ``modem_status``, ``other_api``, ``garbage_bytes`` (bytes outside any
-    frame), ``lost`` (packets missing according to the sequence numbers) and ``duplicates``
+    frame, counted when the next start delimiter arrives or at ``flush()``, so that the
+    counters seen after each packet do not depend on how the bytes were chunked), ``lost`` (packets missing according to the sequence numbers) and ``duplicates``
     (same as ``rejected["duplicate"]``).
     """
 
@@ -284,6 +285,7 @@ class FrameDecoder:
         self.modem_status = 0
         self.other_api = 0
         self.garbage_bytes = 0
+        self._garbage_pending = 0     # bytes outside frames since the last start delimiter
         self.lost = 0
         self._last_seq = None
         self.last_address = None
@@ -324,12 +326,14 @@ class FrameDecoder:
             nxt = data.find(START_DELIMITER, pos)
             end = len(data) if nxt < 0 else nxt
             if self._skipping:
-                self.garbage_bytes += end - pos
+                self._garbage_pending += end - pos
             else:
                 self._buf += data[pos:end]
                 self._try_decode(out)
             if nxt < 0:
                 break
+            self.garbage_bytes += self._garbage_pending
+            self._garbage_pending = 0
             if not self._skipping:
                 self._reject("truncated")       # a new frame starts inside this one
             self._buf = bytearray(data[nxt:nxt + 1])
@@ -338,7 +342,10 @@ class FrameDecoder:
         return out
 
     def flush(self) -> None:
-        """End of stream: a partial frame left in the buffer is counted as truncated."""
+        """End of stream: a partial frame left in the buffer is counted as truncated, the
+        bytes after the last frame as garbage."""
+        self.garbage_bytes += self._garbage_pending
+        self._garbage_pending = 0
         if not self._skipping:
             self._reject("truncated")
 
@@ -364,7 +371,7 @@ class FrameDecoder:
         rest, used2, bad2 = _unescape(raw[used:], length + 1)
         if len(rest) < length + 1:
             return                              # wait for the rest
-        self.garbage_bytes += len(raw) - used - used2
+        self._garbage_pending += len(raw) - used - used2
         self._skip()
         body, ck = bytes(rest[:length]), rest[length]
         if bad_escape or bad2:

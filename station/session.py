@@ -117,10 +117,13 @@ class StationRun:
         self._plan_max = 0.0
 
     def feed(self, data: bytes) -> list[PacketInfo]:
-        st = self.station
+        """Feed raw bytes in any chunking. The decoder gets them one frame at a time, so each
+        packet's ``PacketInfo.link`` holds the counters as of that packet, not as of the end
+        of the chunk."""
         out = []
-        for pkt in st.decoder.feed(data):
-            out.append(self.handle(pkt))
+        for piece in frames_of(bytes(data)):
+            for pkt in self.station.decoder.feed(piece):
+                out.append(self.handle(pkt))
         return out
 
     def handle(self, pkt: RadioPacket) -> PacketInfo:

@@ -48,6 +48,17 @@ def recording(tmp_path_factory):
     return small_recording(tmp_path_factory)
 
 
+def _mcap_messages(path):
+    """topic -> list of (log time, message as a dict)."""
+    from mcap.reader import make_reader
+    out = {}
+    with open(path, "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages():
+            out.setdefault(channel.topic, []).append(
+                {"log_time": message.log_time, **json.loads(message.data)})
+    return out
+
+
 def _outputs(d):
     return (np.load(d / "map.npy"), json.loads((d / "path.json").read_text()),
             json.loads((d / "link.json").read_text()))
@@ -84,8 +95,8 @@ def test_replay_paces_by_the_packet_clock_and_never_skips(recording):
 
 
 def test_replay_equals_listen_over_a_pty(recording, tmp_path, capsys):
-    """The same bytes through ``listen`` (a pseudo-terminal, written in uneven chunks) and
-    ``replay``: the same map, path and link statistics."""
+    """The same bytes through ``listen`` (a pseudo-terminal, written in uneven chunks, the live
+    view on) and ``replay``: the same map, path, link statistics and MCAP log."""
     data = recording.read_bytes()
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -95,11 +106,15 @@ def test_replay_equals_listen_over_a_pty(recording, tmp_path, capsys):
     a, b = tmp_path / "listen", tmp_path / "replay"
     proc = subprocess.Popen(
         [sys.executable, "-m", "station", "listen", "--port", os.ttyname(slave), "--out",
-         str(a), "--idle-exit", "1.0", "--duration", "60", "--write-every", "0", *WORLD],
+         str(a), "--idle-exit", "1.0", "--duration", "60", "--write-every", "0", "--mcap",
+         str(tmp_path / "listen.mcap"), "--http", "127.0.0.1:0", *WORLD],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         ready, _, _ = select.select([proc.stderr], [], [], 60)
-        assert ready and proc.stderr.readline().startswith("listening on"), "no start"
+        assert ready
+        lines = [proc.stderr.readline(), proc.stderr.readline()]
+        assert lines[0].startswith("live view on http://127.0.0.1:") and \
+            lines[1].startswith("listening on"), lines
         k, sizes = 0, [1, 7, 300, 64, 1000, 3]
         while k < len(data):
             n = sizes[k % len(sizes)]
@@ -113,8 +128,15 @@ def test_replay_equals_listen_over_a_pty(recording, tmp_path, capsys):
         os.close(master)
         os.close(slave)
     assert proc.returncode == 0, err
-    assert main(["replay", str(recording), "--speed", "0", "--out", str(b), *WORLD]) == 0
+    assert main(["replay", str(recording), "--speed", "0", "--out", str(b), "--mcap",
+                 str(tmp_path / "replay.mcap"), *WORLD]) == 0
     assert json.loads(capsys.readouterr().out) == json.loads(out)
+    logs = [_mcap_messages(tmp_path / f"{n}.mcap") for n in ("listen", "replay")]
+    for m in logs:                     # the planner's host times differ from run to run
+        for plan in m["/planner"]:
+            for k in ("last_plan_s", "plan_s_mean", "plan_s_max"):
+                plan.pop(k)
+    assert logs[0] == logs[1] and len(logs[0]["/robot/pose"]) > 100
     map_a, path_a, link_a = _outputs(a)
     map_b, path_b, link_b = _outputs(b)
     assert np.array_equal(map_a, map_b) and (map_a > 0.6).any()
@@ -142,6 +164,7 @@ def test_bad_input_gets_one_error_line_and_writes_nothing(recording, tmp_path, c
             ["replay", str(tmp_path), "--out", str(out)],
             ["replay", str(recording), "--speed", "-2", "--out", str(out)],
             ["replay", str(recording), "--extent", "1,2,3", "--out", str(out)],
+            ["replay", str(recording), "--camera", str(text), "--out", str(out)],
             ["listen", "--port", str(tmp_path / "ttyNONE"), "--out", str(out)],
             ["listen", "--port", os.ttyname(slave), "--out", str(out)],
         ]
@@ -199,3 +222,25 @@ def test_replay_writes_an_mcap_log_with_foxglove_schemas(recording, tmp_path, ca
                  "--out", str(tmp_path / "out2")]) == 2
     assert capsys.readouterr().err.startswith("error:")
     assert not (tmp_path / "out2").exists()
+
+
+def test_replay_reads_the_rig_file(recording, tmp_path, capsys):
+    """``--camera rig.json`` is the camera the station triangulates with: the module's own
+    field written as a rig file gives the default station's map, a rig with another
+    baseline another map (the maps need no planning: the planner is left out of those)."""
+    from dataclasses import replace as dc_replace
+    from golden.camera import FIELD
+    field = tmp_path / "field.json"
+    FIELD.to_json(field)
+    assert main(["replay", str(recording), "--speed", "0", "--out", str(tmp_path / "f"),
+                 "--camera", str(field), *WORLD]) == 0
+    capsys.readouterr()
+    got = np.load(tmp_path / "f" / "map.npy")
+
+    def map_with(cam):
+        st = make_station((3.0, 0.0), (-0.5, -1.5, 3.5, 1.5), cam)
+        st.replan = lambda t, reason: None
+        StationRun(st).feed(recording.read_bytes())
+        return st.grid.logodds
+    assert np.array_equal(got, map_with(None))
+    assert not np.array_equal(got, map_with(dc_replace(FIELD, baseline_m=0.2)))

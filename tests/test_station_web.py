@@ -172,3 +172,58 @@ def test_the_page_files_are_package_data():
              for p in (Path(ROOT) / "station" / "static").iterdir()]
     assert {"static/index.html", "static/app.js", "static/style.css"} <= set(files)
     assert all(any(fnmatch.fnmatch(f, g) for g in globs) for f in files), (files, globs)
+
+
+def test_a_client_that_stops_reading_is_disconnected_not_buffered_without_end():
+    """A page that hangs (here: a websocket that never reads) must not make the station
+    buffer without bound: past ``max_backlog`` waiting messages it is disconnected and
+    counted, and a reading client beside it still gets every message."""
+    import base64 as b64
+    import time
+    from station.web import LiveView
+    view = LiveView("127.0.0.1", 0, {"source": "test", "goal": [0, 0], "grid": {}},
+                    max_backlog=200)
+    view.start()
+    try:
+        stuck = socket.create_connection(("127.0.0.1", view.port))
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        key = b64.b64encode(os.urandom(16)).decode()
+        stuck.sendall((f"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\n"
+                       f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+                       f"Sec-WebSocket-Version: 13\r\n\r\n").encode())
+        assert b" 101 " in stuck.recv(1024).split(b"\r\n")[0]
+        assert view.wait_clients(1, timeout=10)
+        n = 3000
+
+        got = {"packets": 0}
+
+        async def reader():
+            import aiohttp
+            async with aiohttp.ClientSession() as s:
+                async with s.ws_connect(view.url + "ws") as ws:
+                    async for msg in ws:
+                        d = json.loads(msg.data)
+                        got["packets"] += d["type"] == "packet"
+                        if d["type"] == "end":
+                            return got["packets"]
+
+        async def both():
+            task = asyncio.create_task(reader())
+            while view.connections < 2:
+                await asyncio.sleep(0.01)
+            pad = "x" * 20000
+            for i in range(n):
+                view._post("packet", {"type": "packet", "index": i, "pad": pad}, (0.0, 0.0))
+                while got["packets"] < i - 100 and not task.done():  # the reader keeps up
+                    await asyncio.sleep(0.002)
+            view._post("end", {"type": "end"})
+            return await asyncio.wait_for(task, 60)
+        got = asyncio.run(both())
+        deadline = time.monotonic() + 10
+        while view.slow_clients_closed == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert got == n
+        assert view.slow_clients_closed == 1 and len(view.clients) == 0
+        stuck.close()
+    finally:
+        view.stop()
