@@ -180,7 +180,8 @@ class GroundClassifier(FramedUnit):
     for its right neighbour's ``luma_ok`` (not at the end of a line), and leaves with its left
     neighbour's, for ``luma_row`` in hue fallback; (4) output register.
 
-    Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
+    Memory (:class:`GroundHistogram`, :class:`GroundSets`): one 512 x 32-bit block RAM,
+    word = {model (16 bits), this frame's count (16 bits)}
     (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel (address
     register, read, read-data register, increment and write, the two writes in flight
     forwarded); two distributed RAMs of 2 x 256 bits hold the hue and luma ground sets,
