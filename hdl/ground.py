@@ -95,7 +95,7 @@ class GroundHistogram(wiring.Component):
         Count one pixel in bin ``bin`` (any cycle; one per cycle).
     rd_own, rd_addr : In(1), In(9)
         The search reads at ``rd_addr`` while ``rd_own`` (no pixels are counted meanwhile);
-        ``hist`` (Out) is the word read, one cycle after the address.
+        ``data`` (Out) is the word read, one cycle after the address.
     wr_en, wr_addr, wr_model : In(1), In(9), In(16)
         The search writes {``wr_model``, count 0} at ``wr_addr``; it has priority over the
         count update.
@@ -104,7 +104,7 @@ class GroundHistogram(wiring.Component):
     bin: In(9)
     rd_own: In(1)
     rd_addr: In(9)
-    hist: Out(2 * HIST_BITS)
+    data: Out(2 * HIST_BITS)
     wr_en: In(1)
     wr_addr: In(9)
     wr_model: In(HIST_BITS)
@@ -145,7 +145,7 @@ class GroundHistogram(wiring.Component):
                          wr.data.eq(Cat(Const(0, HIST_BITS), self.wr_model)), wr.en.eq(1)]
         with m.Else():
             m.d.comb += [wr.addr.eq(bin2), wr.data.eq(upd_data), wr.en.eq(u2)]
-        m.d.comb += self.hist.eq(rd.data)
+        m.d.comb += self.data.eq(rd.data)
         return m
 
 
@@ -180,7 +180,8 @@ class GroundClassifier(FramedUnit):
     for its right neighbour's ``luma_ok`` (not at the end of a line), and leaves with its left
     neighbour's, for ``luma_row`` in hue fallback; (4) output register.
 
-    Memory: one 512 x 32-bit block RAM, word = {model (16 bits), this frame's count (16 bits)}
+    Memory (:class:`GroundHistogram`, :class:`GroundSets`): one 512 x 32-bit block RAM,
+    word = {model (16 bits), this frame's count (16 bits)}
     (hue bins 0-191, luma bins 256-511), updated read-modify-write per region pixel (address
     register, read, read-data register, increment and write, the two writes in flight
     forwarded); two distributed RAMs of 2 x 256 bits hold the hue and luma ground sets,
@@ -317,7 +318,7 @@ class GroundClassifier(FramedUnit):
         m.d.comb += in_region.eq((track.x >= cfg.ref_x) & (track.x < ref_x_end) &
                                  (track.y >= cfg.ref_y) & (track.y <= last_row))
         luma_px = track.x[0] ^ track.y[0]
-        m.submodules.hist = hist = GroundHistogram()
+        m.submodules.histogram = hist = GroundHistogram()
         m.d.comb += [
             hist.add.eq(track.accept & in_region &
                         (luma_px | ((p.s >= cfg.s_min) & in_range(p.y)))),
@@ -328,7 +329,7 @@ class GroundClassifier(FramedUnit):
             hist.wr_model.eq(search.wr_model),
         ]
         m.d.comb += [search.req.eq(busy), search.commit.eq(commit),
-                     search.model_valid.eq(model_valid), search.hist.eq(hist.hist)]
+                     search.model_valid.eq(model_valid), search.hist.eq(hist.data)]
 
         region_end = Signal()
         m.d.comb += region_end.eq(track.accept & (p.eof | (p.eol & (track.y == last_row))) &

@@ -250,11 +250,13 @@ class IICBusEngine(wiring.Component):
         m = Module()
         m.submodules.timer = timer = IICQuarterTimer(self._clk_div)
         m.d.comb += timer.scl.eq(self.scl)
+        # the engine's registers, shared by the methods that make its states
         r = SimpleNamespace(
-            word=Signal(10), shift=Signal(8), bits=Signal(4), count=Signal(8),
-            active=Signal(),       # the bus is ours (between our START and STOP)
-            reading=self.reading, need_count=Signal(), is_addr=Signal(),
-            scl_low=self.scl_oe, sda_low=self.sda_oe)
+            word=Signal(10, name="word"), shift=Signal(8, name="shift"),
+            bits=Signal(4, name="bits"), count=Signal(8, name="count"),
+            active=Signal(name="active"),   # the bus is ours (between our START and STOP)
+            reading=self.reading, need_count=Signal(name="need_count"),
+            is_addr=Signal(name="is_addr"), scl_low=self.scl_oe, sda_low=self.sda_oe)
 
         def quarter(wait_scl_high=False):
             """Condition that ends a quarter period (and reloads the timer)."""

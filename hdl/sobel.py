@@ -62,6 +62,7 @@ of the output like any other (``i.ready`` does not look at the payload). A reset
 the registers the same way (not the line buffer, which needs no clearing).
 """
 from amaranth.hdl import Module, Signal, Mux, Cat, signed
+from amaranth.utils import bits_for
 from amaranth.lib import stream, memory, data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -97,8 +98,9 @@ class SobelFlush(wiring.Component):
         The ``eof`` beat is accepted: flushing starts in the next cycle, at column 0.
     single_row : In(1)
         With ``start``: the frame has one row (its flush row then carries the ``sof``).
-    last_x : In(range(max_width))
-        The frame's last column (known: the ``eof`` beat has ``eol``).
+    last_x : In(bits_for(max_width))
+        The frame's last column (known: the ``eof`` beat has ``eol``), as the frame tracker
+        holds it.
     step : In(1)
         The unit's chain moves: the flush beat is taken and the next one made up.
     end : In(1)
@@ -112,7 +114,7 @@ class SobelFlush(wiring.Component):
 
     def __init__(self, max_width):
         super().__init__({
-            "start": In(1), "single_row": In(1), "last_x": In(range(max_width)),
+            "start": In(1), "single_row": In(1), "last_x": In(bits_for(max_width)),
             "step": In(1), "end": In(1),
             "flushing": Out(1), "col": Out(range(max_width)), "tag": Out(_Tag),
         })

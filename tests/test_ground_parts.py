@@ -78,7 +78,7 @@ def test_histogram_counts_every_add(seed, hot):
         ctx.set(dut.rd_own, 1)
         for b in range(HIST_WORDS + 1):
             if b:
-                assert ctx.get(dut.hist) == model[b - 1] << HIST_BITS | count[b - 1], b - 1
+                assert ctx.get(dut.data) == model[b - 1] << HIST_BITS | count[b - 1], b - 1
             ctx.set(dut.rd_addr, b % HIST_WORDS)
             await ctx.tick()
 
