@@ -29,8 +29,8 @@ from golden.matcher import DISPARITY_SPAN
 
 from .matcher_store import LineWidths
 
-__all__ = ["Scanner", "job_layout", "KIND_JOB", "KIND_ROW", "KIND_FRAME", "MATCHER_WIDEN",
-           "STORE_VIEW"]
+__all__ = ["Scanner", "CandidateMask", "RowReady", "job_layout", "KIND_JOB", "KIND_ROW",
+           "KIND_FRAME", "MATCHER_WIDEN", "STORE_VIEW"]
 
 #: The largest candidate spread ``widen`` the scanner implements (golden/matcher.py step 2).
 MATCHER_WIDEN = 2
@@ -109,14 +109,10 @@ class Scanner(wiring.Component):
         W = self._window
         r = W // 2
         D = self._max_disparity
-        DB = bits_for(D)
         ND = min(D + 1, DISPARITY_SPAN)
         ROWS = self._rows
         MW = self._max_width
         XB, XW, YW, SB = LineWidths.of(MW, self._max_height, ROWS)
-        cams = [{name: getattr(self, f"{side}_{name}") for name in STORE_VIEW}
-                for side in ("left", "right")]
-        L, R = cams
         push = self.o.payload
         done = self.done
 
@@ -128,14 +124,17 @@ class Scanner(wiring.Component):
         # columns past the row's end (columns beyond it are not edges).
         WD = MATCHER_WIDEN
         XS = bits_for(MW + WD)            # scanner columns 0 .. width + WD
-        s_row = Signal(YW)
-        s_slot = Signal(SB)
+        m.submodules.rows = rows = RowReady(max_width=MW, max_height=self._max_height,
+                                            window=W, rows=ROWS)
+        m.d.comb += [getattr(rows, f"{side}_{name}").eq(getattr(self, f"{side}_{name}"))
+                     for side in ("left", "right") for name in STORE_VIEW]
+        m.d.comb += [rows.done.eq(done), rows.complete.eq(self.complete)]
         s_inside_row = Signal()
         s_width = Signal(XW)
         s_last = Signal(XS)               # s_width + WD - 1: the last column read
         ca = Signal(XS)                   # column address issued
         # Right column address: ca - d_min (two's complement, XS + 1 bits; negative = outside)
-        CW = max(XS, DB) + 1
+        CW = max(XS, bits_for(D)) + 1
         car = Signal(CW)
         v1 = Signal()                     # stage 1 holds the data of column c1
         c1 = Signal(XS)
@@ -149,11 +148,11 @@ class Scanner(wiring.Component):
 
         adv = Signal()
         # In drop mode the scanner waits for the queue too, until the row's flags are being
-        # overwritten (s_doomed); then it runs and drops the jobs that do not fit.
-        s_doomed = Signal()
+        # overwritten (rows.doomed); then it runs and drops the jobs that do not fit.
+        s_doomed = rows.doomed
         m.d.comb += [adv.eq(self.o.ready | (self.drop_mode & s_doomed)),
-                     self.left_flag_addr.eq(Cat(ca[:XB], s_slot)),
-                     self.right_flag_addr.eq(Cat(car[:XB], s_slot)),
+                     self.left_flag_addr.eq(Cat(ca[:XB], rows.slot)),
+                     self.right_flag_addr.eq(Cat(car[:XB], rows.slot)),
                      self.left_flag_en.eq(adv), self.right_flag_en.eq(adv)]
         lf = self.left_flag_data
         rf = self.right_flag_data
@@ -167,62 +166,18 @@ class Scanner(wiring.Component):
 
         # Stage 2: left pixel c2 - WD against the masks of right columns c2, c2 - 1, ...
         v2 = Signal(); c2 = Signal(XS); le2 = Signal(); ln2 = Signal()
-        # bit k: xl2 >= d_min + k + r (a thermometer, shifted per column)
-        xmask = Signal(ND)
-        # bit k: d_min + k <= d_max. Registered in two steps from the (static) registers.
-        span = Signal(DB + 1)             # d_max - d_min, negative: empty window
-        xmin = Signal(DB + 2)             # d_min + r + WD - 1: column c2 - 1 of that x
-        rng = Signal(ND)
-        m.d.sync += [span.eq(self.d_max - self.d_min), xmin.eq(self.d_min + r + WD - 1),
-                     rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
         xl2 = Signal(XS)
         m.d.comb += xl2.eq(c2 - WD)
-        # the right edges that make candidates: of the left edge's Gx sign, or of either
-        same = Signal(ND + 2 * WD)
-        m.d.comb += same.eq(Mux(self.sign_any, pos_mask | neg_mask,
-                                Mux(ln2, neg_mask, pos_mask)))
-        # candidate k: right column xl2 - d_min - k (bit k + WD) or, widened by w, any of the
-        # bits k + WD - w .. k + WD + w
-        spread = [same[WD:WD + ND]]
-        for w in range(1, WD + 1):
-            spread.append(spread[-1] | same[WD - w:WD - w + ND] | same[WD + w:WD + w + ND])
-        adaptive = spread[WD]             # widen >= WD: the widest spread
-        for w in reversed(range(WD)):
-            adaptive = Mux(self.widen == w, spread[w], adaptive)
-        cand2 = Signal(ND)
-        m.d.comb += cand2.eq(rng & xmask & Mux(self.mode_full, (1 << ND) - 1, adaptive))
+        m.submodules.candidates = cm = CandidateMask(max_width=MW, max_disparity=D, window=W)
+        m.d.comb += [cm.pos_mask.eq(pos_mask), cm.neg_mask.eq(neg_mask), cm.neg.eq(ln2),
+                     cm.c2.eq(c2), cm.d_min.eq(self.d_min), cm.d_max.eq(self.d_max),
+                     cm.mode_full.eq(self.mode_full), cm.sign_any.eq(self.sign_any),
+                     cm.widen.eq(self.widen)]
         # Stage 3: count and push.
         v3 = Signal(); edge3 = Signal(); border3 = Signal(); cand3 = Signal(ND)
         x3 = Signal(XW); last3 = Signal()
         want_push = Signal()
         m.d.comb += want_push.eq(edge3 & ~border3 & (cand3 != 0))
-        # Drop-mode doom test for the scanner's own row (its flags are being overwritten):
-        # wrow > s_lim, registered one step ahead from the next wrow (wrow + 1 at a write that
-        # starts a line; the sof's wrow of 1 is never above s_lim). s_lim changes only at
-        # ROW_END and at `complete`, cycles before the scanner is in SCAN again, and the test
-        # matters only in SCAN: there the register equals the test on this cycle's wrow.
-        s_lim = Signal(YW + 1, init=ROWS)     # s_row + ROWS
-        s_doom = [Signal(name=f"s_doom_{side}") for side in ("left", "right")]
-        m.d.sync += [d.eq((c["wrow"] > s_lim) | (c["write"] & c["fresh"] & (c["wrow"] == s_lim)))
-                     for d, c in zip(s_doom, cams)]
-        m.d.comb += s_doomed.eq(s_doom[0] | s_doom[1])
-
-        s_need = Signal(YW + 1, init=r)   # s_row + r
-        ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
-        m.d.comb += [ok_l.eq(L["open"] & (L["rows"] > s_need)),
-                     ok_r.eq(R["open"] & (R["rows"] > s_need)),
-                     has_l.eq(L["open"] & (L["rows"] > s_row)),
-                     has_r.eq(R["open"] & (R["rows"] > s_row))]
-        lacks = Signal()
-        m.d.comb += lacks.eq((L["ended"] & ~has_l) | (R["ended"] & ~has_r))
-        size_bad = Signal()
-        m.d.comb += size_bad.eq((L["rows"] != 0) & (R["rows"] != 0) & (L["width"] != R["width"]))
-        active = Signal()
-        m.d.comb += active.eq(~done & (L["open"] | R["open"]) & ~self.complete)
-        sc_end = Signal(); sc_go = Signal(); sc_inside = Signal()
-        m.d.sync += [sc_end.eq(active & (lacks | size_bad)),
-                     sc_go.eq(active & (ok_l | L["ended"]) & (ok_r | R["ended"]) & has_l & has_r),
-                     sc_inside.eq(ok_l & ok_r & (s_row >= r))]
         # The counts go out through one-cycle event registers: the decision (adv, the doom
         # test) and the matcher's 32-bit counters are not one path.
         ev = {name: getattr(self, name) for name in
@@ -230,15 +185,16 @@ class Scanner(wiring.Component):
         m.d.sync += [e.eq(0) for e in ev.values()]
         with m.FSM(name="scanner"):
             with m.State("WAIT"):
-                # The decision is taken on registered conditions (computed above from this
-                # cycle's counts); SETTLE gives them a cycle after the row changed.
-                with m.If(sc_end):
+                # The decision is taken on registered conditions (RowReady, from this cycle's
+                # counts); SETTLE gives them a cycle after the row changed.
+                with m.If(rows.end):
                     m.next = "FRAME_END"
-                with m.Elif(sc_go):
-                    m.d.sync += [s_inside_row.eq(sc_inside), s_width.eq(L["width"]),
-                                 s_last.eq(L["width"] + WD - 1), ca.eq(0),
+                with m.Elif(rows.go):
+                    m.d.comb += cm.clear.eq(1)
+                    m.d.sync += [s_inside_row.eq(rows.inside), s_width.eq(self.left_width),
+                                 s_last.eq(self.left_width + WD - 1), ca.eq(0),
                                  car.eq(-self.d_min), c1r.eq(-self.d_min),
-                                 v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0), xmask.eq(0),
+                                 v1.eq(0), v2.eq(0), v3.eq(0), c1.eq(0),
                                  pos_mask.eq(0), neg_mask.eq(0)]
                     m.d.sync += [e.eq(0) for e in l_edge]
                     m.next = "SCAN"
@@ -257,11 +213,10 @@ class Scanner(wiring.Component):
                         m.d.sync += [l_edge[k].eq(l_edge[k - 1]) for k in range(1, WD)]
                         m.d.sync += [l_neg[k].eq(l_neg[k - 1]) for k in range(1, WD)]
                     m.d.sync += [v2.eq(v1), c2.eq(c1), le2.eq(l_edge[-1]), ln2.eq(l_neg[-1])]
-                    with m.If(v2):
-                        m.d.sync += xmask.eq(Cat(c2 >= xmin, xmask[:-1]))
+                    m.d.comb += cm.shift.eq(v2)
                     m.d.sync += [v3.eq(v2 & (c2 >= WD)), edge3.eq(v2 & (c2 >= WD) & le2),
                                  border3.eq(~s_inside_row | (xl2 < r) | (xl2 + r >= s_width)),
-                                 cand3.eq(cand2), x3.eq(xl2), last3.eq(v2 & (c2 == s_last))]
+                                 cand3.eq(cm.cand), x3.eq(xl2), last3.eq(v2 & (c2 == s_last))]
                     with m.If(edge3):
                         m.d.sync += ev["edge_pixels"].eq(1)
                         with m.If(border3):
@@ -277,8 +232,7 @@ class Scanner(wiring.Component):
             with m.State("ROW_END"):
                 m.d.comb += [push.kind.eq(KIND_ROW), self.o.valid.eq(1)]
                 with m.If(self.o.ready):
-                    m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1), s_lim.eq(s_lim + 1),
-                                 s_slot.eq(Mux(s_slot == ROWS - 1, 0, s_slot + 1))]
+                    m.d.comb += rows.next_row.eq(1)
                     m.next = "SETTLE"
             with m.State("FRAME_END"):
                 m.d.comb += [push.kind.eq(KIND_FRAME), self.o.valid.eq(1)]
@@ -286,5 +240,169 @@ class Scanner(wiring.Component):
                     m.d.sync += done.eq(1)
                     m.next = "SETTLE"
         with m.If(self.complete):
-            m.d.sync += [s_row.eq(0), s_need.eq(r), s_lim.eq(ROWS), s_slot.eq(0), done.eq(0)]
+            m.d.sync += done.eq(0)
+        return m
+
+
+class CandidateMask(wiring.Component):
+    """The scanner's candidate mask of one left edge (golden/matcher.py step 2).
+
+    Behaviour: bit ``k`` (disparity ``d_min + k``) of ``cand`` is set when ``k <= d_max -
+    d_min``, when ``d_min + k + r`` is at most the left pixel's column (its right window lies
+    inside the image) and, unless ``mode_full``, when a right edge lies within ``widen``
+    columns (3 acts as 2) of right column ``x - d_min - k``: with ``sign_any`` of either Gx
+    sign, else of the left edge's sign ``neg``. ``pos_mask`` / ``neg_mask`` bit ``j`` is the
+    right column ``x - d_min - k`` for ``j = k + MATCHER_WIDEN``.
+
+    The second condition is a thermometer of bits: ``clear`` empties it at a row's start,
+    ``shift`` moves it by one column (for scanner column ``c2``, the left pixel being ``c2 -
+    MATCHER_WIDEN``: a bit enters when ``c2 >= d_min + r + MATCHER_WIDEN - 1``, a column ahead
+    of the pixel it serves). The first is registered in two steps from ``d_min`` / ``d_max``.
+
+    Ports
+    -----
+    pos_mask, neg_mask : In(ND + 2 MATCHER_WIDEN)
+        The right row's positive and negative edges around the candidates (the scanner's
+        shift registers).
+    neg : In(1)
+        The left edge's Gx sign.
+    c2 : In, clear : In(1), shift : In(1)
+        The scanner's stage-2 column; empty the thermometer; shift it (``clear`` wins).
+    d_min, d_max : In(bits_for(max_disparity))
+        The frame's disparity window (static within a frame: the range mask follows two
+        cycles after a change).
+    mode_full, sign_any : In(1), widen : In(range(MATCHER_WIDEN + 1))
+        As the scanner's.
+    cand : Out(ND)
+        The candidate mask (combinational from the inputs and the registered masks).
+
+    Latency: ``cand`` is combinational; the thermometer takes ``shift`` effect the next cycle.
+    """
+
+    def __init__(self, *, max_width=1024, max_disparity=255, window=7):
+        self._window = window
+        self._max_disparity = max_disparity
+        DB = bits_for(max_disparity)
+        ND = min(max_disparity + 1, DISPARITY_SPAN)
+        super().__init__({
+            "pos_mask": In(ND + 2 * MATCHER_WIDEN), "neg_mask": In(ND + 2 * MATCHER_WIDEN),
+            "neg": In(1), "c2": In(bits_for(max_width + MATCHER_WIDEN)),
+            "clear": In(1), "shift": In(1),
+            "d_min": In(DB), "d_max": In(DB), "mode_full": In(1), "sign_any": In(1),
+            "widen": In(range(MATCHER_WIDEN + 1)), "cand": Out(ND),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        r = self._window // 2
+        DB = bits_for(self._max_disparity)
+        ND = len(self.cand)
+        WD = MATCHER_WIDEN
+        # bit k: xl2 >= d_min + k + r (a thermometer, shifted per column)
+        xmask = Signal(ND)
+        # bit k: d_min + k <= d_max. Registered in two steps from the (static) registers.
+        span = Signal(DB + 1)             # d_max - d_min, negative: empty window
+        xmin = Signal(DB + 2)             # d_min + r + WD - 1: column c2 - 1 of that x
+        rng = Signal(ND)
+        m.d.sync += [span.eq(self.d_max - self.d_min), xmin.eq(self.d_min + r + WD - 1),
+                     rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
+        with m.If(self.clear):
+            m.d.sync += xmask.eq(0)
+        with m.Elif(self.shift):
+            m.d.sync += xmask.eq(Cat(self.c2 >= xmin, xmask[:-1]))
+        # the right edges that make candidates: of the left edge's Gx sign, or of either
+        pos_mask, neg_mask = self.pos_mask, self.neg_mask
+        same = Signal(ND + 2 * WD)
+        m.d.comb += same.eq(Mux(self.sign_any, pos_mask | neg_mask,
+                                Mux(self.neg, neg_mask, pos_mask)))
+        # candidate k: right column xl2 - d_min - k (bit k + WD) or, widened by w, any of the
+        # bits k + WD - w .. k + WD + w
+        spread = [same[WD:WD + ND]]
+        for w in range(1, WD + 1):
+            spread.append(spread[-1] | same[WD - w:WD - w + ND] | same[WD + w:WD + w + ND])
+        adaptive = spread[WD]             # widen >= WD: the widest spread
+        for w in reversed(range(WD)):
+            adaptive = Mux(self.widen == w, spread[w], adaptive)
+        m.d.comb += self.cand.eq(rng & xmask & Mux(self.mode_full, (1 << ND) - 1, adaptive))
+        return m
+
+
+class RowReady(wiring.Component):
+    """The scanner's row bookkeeping: which centre row it scans, and whether it may.
+
+    Behaviour: ``row`` (and its line ``slot``) counts the rows the scanner has finished
+    (``next_row``), back to 0 at ``complete``. Registered from the line stores' state each
+    cycle: ``go``, both cameras have the lines ``row + r`` needs (or have ended) and the frame
+    is active; ``end``, a camera has ended without line ``row``, or the two widths differ:
+    the frame ends here; ``inside``, both cameras have the lines and ``row >= r`` (a row whose
+    windows fit); ``doomed``, drop mode's test that the row's flags are being overwritten (an
+    input line above ``row + ROWS``, or a fresh write of that line starting).
+
+    Ports
+    -----
+    left_<name>, right_<name> : In
+        The :class:`~hdl.matcher_store.LineStore` outputs :data:`STORE_VIEW`.
+    done, complete, next_row : In(1)
+        The frame-end item was pushed; the frame is finished; the row is finished.
+    row : Out(YW), slot : Out(SB)
+        The centre row and its line slot.
+    go, end, inside, doomed : Out(1)
+        As above, one cycle after the store state they are computed from.
+
+    Latency: one cycle (all outputs are registers).
+    """
+
+    def __init__(self, *, max_width=1024, max_height=1024, window=7, rows=8):
+        self._window = window
+        self._rows = rows
+        _, XW, YW, SB = LineWidths.of(max_width, max_height, rows)
+        widths = {"open": 1, "ended": 1, "rows": YW, "wrow": YW + 1, "width": XW, "write": 1,
+                  "fresh": 1}
+        ports = {"done": In(1), "complete": In(1), "next_row": In(1),
+                 "row": Out(YW), "slot": Out(SB),
+                 "go": Out(1), "end": Out(1), "inside": Out(1), "doomed": Out(1)}
+        for side in ("left", "right"):
+            for name in STORE_VIEW:
+                ports[f"{side}_{name}"] = In(widths[name])
+        super().__init__(ports)
+
+    def elaborate(self, platform):
+        m = Module()
+        r = self._window // 2
+        ROWS = self._rows
+        L, R = cams = [{name: getattr(self, f"{side}_{name}") for name in STORE_VIEW}
+                       for side in ("left", "right")]
+        s_row, s_slot = self.row, self.slot
+        # Drop-mode doom test for the scanner's own row (its flags are being overwritten):
+        # wrow > s_lim, registered one step ahead from the next wrow (wrow + 1 at a write that
+        # starts a line; the sof's wrow of 1 is never above s_lim). s_lim changes only at
+        # ROW_END and at `complete`, cycles before the scanner is in SCAN again, and the test
+        # matters only in SCAN: there the register equals the test on this cycle's wrow.
+        s_lim = Signal(len(s_row) + 1, init=ROWS)     # s_row + ROWS
+        s_doom = [Signal(name=f"s_doom_{side}") for side in ("left", "right")]
+        m.d.sync += [d.eq((c["wrow"] > s_lim) | (c["write"] & c["fresh"] & (c["wrow"] == s_lim)))
+                     for d, c in zip(s_doom, cams)]
+        m.d.comb += self.doomed.eq(s_doom[0] | s_doom[1])
+
+        s_need = Signal(len(s_row) + 1, init=r)   # s_row + r
+        ok_l = Signal(); ok_r = Signal(); has_l = Signal(); has_r = Signal()
+        m.d.comb += [ok_l.eq(L["open"] & (L["rows"] > s_need)),
+                     ok_r.eq(R["open"] & (R["rows"] > s_need)),
+                     has_l.eq(L["open"] & (L["rows"] > s_row)),
+                     has_r.eq(R["open"] & (R["rows"] > s_row))]
+        lacks = Signal()
+        m.d.comb += lacks.eq((L["ended"] & ~has_l) | (R["ended"] & ~has_r))
+        size_bad = Signal()
+        m.d.comb += size_bad.eq((L["rows"] != 0) & (R["rows"] != 0) & (L["width"] != R["width"]))
+        active = Signal()
+        m.d.comb += active.eq(~self.done & (L["open"] | R["open"]) & ~self.complete)
+        m.d.sync += [self.end.eq(active & (lacks | size_bad)),
+                     self.go.eq(active & (ok_l | L["ended"]) & (ok_r | R["ended"]) &
+                                has_l & has_r),
+                     self.inside.eq(ok_l & ok_r & (s_row >= r))]
+        with m.If(self.next_row):
+            m.d.sync += [s_row.eq(s_row + 1), s_need.eq(s_need + 1), s_lim.eq(s_lim + 1),
+                         s_slot.eq(Mux(s_slot == ROWS - 1, 0, s_slot + 1))]
+        with m.If(self.complete):
+            m.d.sync += [s_row.eq(0), s_need.eq(r), s_lim.eq(ROWS), s_slot.eq(0)]
         return m

@@ -14,8 +14,8 @@ from golden.freespace import free_frame
 from hdl import types
 from sim.streams import Packer, frames_words, words_to_frames
 
-__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "DEPRECATED_UNITS", "unit_name", "pipeline_for", "pixel_mismatches",
-           "records_from_words", "stream_mismatches", "free_streams"]
+__all__ = ["Job", "Unit", "StereoUnit", "UNITS", "DEPRECATED_UNITS", "unit_name", "pipeline_for",
+           "pixel_mismatches", "records_from_words", "stream_mismatches", "free_streams"]
 
 
 @dataclass

@@ -12,7 +12,8 @@ from amaranth.sim import Simulator
 from amaranth.utils import bits_for
 
 from golden.matcher import MatcherParams, candidates
-from hdl.matcher_scan import KIND_FRAME, KIND_JOB, KIND_ROW, Scanner
+from hdl.matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, CandidateMask,
+                              RowReady, Scanner)
 
 MW, MH = 32, 16
 XB = 5                                   # ceil(log2(MW)): the column bits of a flag address
@@ -192,3 +193,109 @@ def test_widths_differ():
     jobs, markers, counts = scan(params, left, right, max_disparity=20, heights=(6, 6),
                                  widths=(20, 18), seed=10, stall=0.2)
     assert (jobs, markers) == ([], 0) and not any(counts.values())
+
+
+def test_candidate_mask_rule():
+    """CandidateMask alone: bit k is set when k <= d_max - d_min, when the thermometer of the
+    pixel's column has bit k (c2 >= d_min + r + MATCHER_WIDEN - 1 at the k-th last shift) and,
+    unless full mode, when an edge of the chosen sign lies within widen (3 acts as 2) bits of
+    bit k + MATCHER_WIDEN; random masks, settings and shifts."""
+    rng = random.Random(7)
+    window, max_disparity = 5, 40
+    r = window // 2
+    dut = CandidateMask(max_width=MW, max_disparity=max_disparity, window=window)
+    ND, WD = len(dut.cand), MATCHER_WIDEN
+
+    async def bench(ctx):
+        therm = []
+        for segment in range(12):
+            d_min = rng.randrange(max_disparity + 1)
+            d_max = rng.randrange(max_disparity + 1)
+            ctx.set(dut.d_min, d_min)
+            ctx.set(dut.d_max, d_max)
+            ctx.set(dut.clear, 1)
+            for _ in range(2):                      # the range mask: two registered steps
+                await ctx.tick()
+            ctx.set(dut.clear, 0)
+            therm = []
+            c2 = rng.randrange(10)
+            for _ in range(60):
+                s = dict(pos=rng.getrandbits(ND + 2 * WD), neg=rng.getrandbits(ND + 2 * WD),
+                         left_neg=rng.randrange(2), full=int(rng.random() < 0.2),
+                         any=rng.randrange(2), widen=rng.randrange(WD + 2) % (WD + 1),
+                         shift=int(rng.random() < 0.7))
+                ctx.set(dut.pos_mask, s["pos"])
+                ctx.set(dut.neg_mask, s["neg"])
+                ctx.set(dut.neg, s["left_neg"])
+                ctx.set(dut.mode_full, s["full"])
+                ctx.set(dut.sign_any, s["any"])
+                ctx.set(dut.widen, s["widen"])
+                ctx.set(dut.shift, s["shift"])
+                ctx.set(dut.c2, c2)
+                _, _, cand = await ctx.tick().sample(dut.cand)
+                same = s["pos"] | s["neg"] if s["any"] else s["neg"] if s["left_neg"] else s["pos"]
+                w = min(s["widen"], WD)
+                want = 0
+                for k in range(ND):
+                    near = any(same >> (k + WD + j) & 1 for j in range(-w, w + 1))
+                    inside = k < len(therm) and therm[-1 - k]
+                    if k <= d_max - d_min and inside and (s["full"] or near):
+                        want |= 1 << k
+                assert cand == want, (segment, s)
+                if s["shift"]:
+                    therm.append(c2 >= d_min + r + WD - 1)
+                    c2 += 1
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+
+
+def test_row_ready_rule():
+    """RowReady alone: its registered go / end / inside / doomed against the rule on random
+    line-store states, and the row and slot counts over next_row and complete."""
+    rng = random.Random(8)
+    window, rows = 3, 4
+    r = window // 2
+    dut = RowReady(max_width=MW, max_height=MH, window=window, rows=rows)
+
+    async def bench(ctx):
+        row, prev = 0, None
+        for t in range(800):
+            st = {side: dict(open=int(rng.random() < 0.8), ended=int(rng.random() < 0.3),
+                             rows=rng.randrange(MH + 1), wrow=rng.randrange(MH + rows + 2),
+                             width=rng.choice([MW, MW, MW - 1]), write=rng.randrange(2),
+                             fresh=rng.randrange(2)) for side in ("left", "right")}
+            done, complete = int(rng.random() < 0.1), int(rng.random() < 0.05)
+            next_row = int(rng.random() < 0.2)
+            for side, v in st.items():
+                for name, value in v.items():
+                    ctx.set(getattr(dut, f"{side}_{name}"), value)
+            ctx.set(dut.done, done)
+            ctx.set(dut.complete, complete)
+            ctx.set(dut.next_row, next_row)
+            _, _, *out = await ctx.tick().sample(dut.row, dut.slot, dut.go, dut.end,
+                                                 dut.inside, dut.doomed)
+            assert out[:2] == [row, row % rows], t
+            if prev is not None:
+                assert out[2:] == prev, t
+            # the registered decisions on this cycle's state and row
+            L, R = st["left"], st["right"]
+            ok = [c["open"] and c["rows"] > row + r for c in (L, R)]
+            has = [c["open"] and c["rows"] > row for c in (L, R)]
+            active = not done and (L["open"] or R["open"]) and not complete
+            lacks = (L["ended"] and not has[0]) or (R["ended"] and not has[1])
+            size_bad = L["rows"] != 0 and R["rows"] != 0 and L["width"] != R["width"]
+            doom = any(c["wrow"] > row + rows or (c["write"] and c["fresh"] and
+                                                  c["wrow"] == row + rows) for c in (L, R))
+            prev = [int(bool(active and (ok[0] or L["ended"]) and (ok[1] or R["ended"])
+                             and has[0] and has[1])),
+                    int(bool(active and (lacks or size_bad))),
+                    int(bool(ok[0] and ok[1] and row >= r)), int(bool(doom))]
+            row = 0 if complete else (row + next_row) % (1 << len(dut.row))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
