@@ -77,25 +77,29 @@ uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_
  * min_support-th largest disparity (0 if fewer matches). Band i covers columns
  * [i*width/n, (i+1)*width/n). Memory: min_support largest disparities per band, kept sorted.
  *
- * Adding a match needs no multiply or divide: radio_summary_init divides once per band to
- * place the band boundaries (start), and radio_summary_add walks them from the band of the
- * previous match. Matches come in raster order, so the walk moves by at most one band per
- * match within a row and by n_bands once per row: a slow CPU without a divider (a RISC-V
- * rv32ic core) drains the result FIFO at a few tens of instructions a match.
+ * Adding a match costs a few instructions and no multiply or divide, so that a slow CPU
+ * without a divider (a RISC-V rv32ic core) keeps up with the result FIFO: radio_summary_init
+ * writes the band of every column into a table (band_of, dividing once per band), and each
+ * band keeps a floor, the disparity a match must exceed to change the band (its
+ * min_support-th largest once it has that many, else 0). Most matches fail that one test.
+ * Columns from width on map to an extra band whose floor is 255, so they, like d = 0, are
+ * ignored by the same test.
  */
+#define RADIO_MAX_WIDTH 1024u   /**< widest image: RESULT.x has 10 bits */
+
 typedef struct {
     uint16_t width;
     uint8_t n_bands;
     uint8_t min_support;
     uint8_t count[RADIO_MAX_BANDS];
     uint8_t top[RADIO_MAX_BANDS][RADIO_MAX_MIN_SUPPORT]; /**< descending */
-    uint16_t start[RADIO_MAX_BANDS + 1u]; /**< first column of each band; start[n_bands] = width */
-    uint8_t band;        /**< band of the last match added: where the next search starts */
+    uint8_t floor[RADIO_MAX_BANDS + 1u];  /**< a match must exceed it to change its band */
+    uint8_t band_of[RADIO_MAX_WIDTH];     /**< band of each column; n_bands from width on */
 } radio_summary_t;
 
 fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_bands,
                                uint8_t min_support);
-/** Add one match; x >= width or d == 0 are ignored. */
+/** Add one match; x >= width or d == 0 are ignored. width at most RADIO_MAX_WIDTH. */
 void radio_summary_add(radio_summary_t *s, uint16_t x, uint8_t d);
 /** Write the n_bands results into bands. */
 void radio_summary_finish(const radio_summary_t *s, uint8_t *bands);

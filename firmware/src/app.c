@@ -105,10 +105,9 @@ uint32_t app_collect(app_t *app)
         }
         misses = 0u;
         total++;
-        if ((r & STEREO_RESULT_EOF_MASK) == 0u) {
-            radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
-                              (uint8_t)STEREO_GET(RESULT, D, r));
-        }
+        /* end-of-frame markers carry x = y = d = 0: the summary ignores them (d = 0) */
+        radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
+                          (uint8_t)STEREO_GET(RESULT, D, r));
     }
     app->results_read += total;
     return total;

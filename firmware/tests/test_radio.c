@@ -101,29 +101,29 @@ static void test_band_of_column(void)
     FWT_CHECK(ok);
 }
 
-static void test_summary_band_walk(void)
+static void test_summary_band_table(void)
 {
-    /* the summary's boundary walk puts every column, visited in any order, in the band
-     * radio_band_of_column gives */
+    /* the summary's column table gives every column the band radio_band_of_column gives,
+     * and the extra band n_bands from the width on */
     static radio_summary_t s;
     static const uint16_t widths[] = { 64, 100, 741, 752, 1024 };
     static const uint8_t ns[] = { 1, 7, 32, 64 };
-    uint32_t w, n, i, seed = 99u;
+    uint32_t w, n, x;
     int ok = 1;
     for (w = 0; w < 5; w++) {
         for (n = 0; n < 4; n++) {
             FWT_CHECK_EQ(radio_summary_init(&s, widths[w], ns[n], 1u), FW_OK);
-            for (i = 0; i < 3u * widths[w]; i++) {
-                uint16_t x = (uint16_t)(i < widths[w] ? i : (seed >> 8) % widths[w]);
-                seed = seed * 1103515245u + 12345u;
-                radio_summary_add(&s, x, 1u);
-                if (s.band != radio_band_of_column(x, widths[w], ns[n])) {
+            for (x = 0; x < RADIO_MAX_WIDTH; x++) {
+                uint32_t want = x < widths[w] ? radio_band_of_column((uint16_t)x, widths[w], ns[n])
+                                              : ns[n];
+                if (s.band_of[x] != want) {
                     ok = 0;
                 }
             }
         }
     }
     FWT_CHECK(ok);
+    FWT_CHECK_EQ(radio_summary_init(&s, 1025, 32, 3), FW_ERR_PARAM);
 }
 
 /* Brute force: the min_support-th largest disparity of the band. */
@@ -208,7 +208,7 @@ void suite_radio(void)
     FWT_RUN(test_payload_bytes);
     FWT_RUN(test_api_frame);
     FWT_RUN(test_band_of_column);
-    FWT_RUN(test_summary_band_walk);
+    FWT_RUN(test_summary_band_table);
     FWT_RUN(test_summary_matches_reference);
     FWT_RUN(test_summary_outliers_and_params);
     FWT_RUN(test_link_budget);

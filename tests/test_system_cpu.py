@@ -1,0 +1,51 @@
+"""``python -m sim system --cpu picorv32``: the cross-compiled firmware on the core inside the
+SoC, under Verilator, from BT.656 cameras to the radio UART's TX pin (sim/system/cpu_run.py)."""
+import json
+
+import pytest
+
+from sim.system.run import main
+
+
+@pytest.fixture(scope="module")
+def mixed(capsys_module=None):
+    import io
+    import contextlib
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["--cpu", "picorv32", "--scene", "mixed", "--frames", "2"])
+    return code, json.loads(buf.getvalue().strip().splitlines()[-1])
+
+
+def test_records_and_packets_are_exact(mixed):
+    code, res = mixed
+    assert code == 0, res
+    assert res["bit_exact"] and res["frames_out"] >= 2
+    assert res["records"] == res["golden_records"] > 0
+    assert res["radio_packets"] >= 1 and res["radio_exact"]
+    assert res["fifo_overflow"] == 0 and res["drops"] == 0
+    # both decoders locked and the video path enabled in the last packet's health
+    assert res["radio_flags"][-1] & 0b111 == 0b111
+
+
+def test_cpu_figures(mixed):
+    _code, res = mixed
+    cpu = res["cpu"]
+    assert cpu["core"] == "picorv32" and not cpu["trapped"]
+    assert 0 < cpu["image_bytes"] <= 8192 - 512
+    assert cpu["instructions"] > 10_000
+    assert 0 < cpu["busy_fraction"] < 1
+
+
+@pytest.mark.parametrize("argv", [
+    ["--cpu", "picorv32", "--width", "64", "--height", "16"],
+    ["--cpu", "picorv32", "--timing", "short"],
+    ["--fault", "iic-nack"],
+    ["--cpu", "picorv32", "--fault", "noise-left"],
+    ["--cpu", "picorv32", "--fault", "camera-lost-left", "--frames", "5"],
+    ["--cpu", "riscv"],
+])
+def test_bad_combinations_are_usage_errors(argv, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:")
