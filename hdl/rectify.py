@@ -66,6 +66,9 @@ class Rectify(FramedUnit):
     o: Out(stream.Signature(GroundPixel))
     lo: In(signed(6))
     enable: In(1)
+    map_addr: In(12)
+    map_data: In(2 * OFFSET_BITS)
+    map_we: In(1)
     errors: Out(16)
     dropped: Out(32)
 
@@ -82,10 +85,10 @@ class Rectify(FramedUnit):
         self.map_depth = rows * self.node_stride
         self.bank_stride = (max_width + 1) // 2
         self.bank_depth = self.slots // 2 * self.bank_stride
+        if self.map_depth > 1 << 12:
+            raise ValueError(f"{max_width}x{max_height} needs {self.map_depth} map words: more "
+                             f"than the 12-bit map address reaches")
         super().__init__(max_width=max_width, max_height=max_height)
-        self.map_addr = Signal(range(self.map_depth))
-        self.map_data = Signal(2 * OFFSET_BITS)
-        self.map_we = Signal()
 
     def node_address(self, j, k):
         return j * self.node_stride + k
@@ -102,7 +105,8 @@ class Rectify(FramedUnit):
                                                    init=[])
         nw = nodes.write_port()
         nr = nodes.read_port()
-        m.d.comb += [nw.addr.eq(self.map_addr), nw.data.eq(self.map_data), nw.en.eq(self.map_we)]
+        m.d.comb += [nw.addr.eq(self.map_addr), nw.data.eq(self.map_data),
+                     nw.en.eq(self.map_we & (self.map_addr < self.map_depth))]
         banks = []
         for b in range(4):
             mem = memory.Memory(shape=9, depth=self.bank_depth, init=[])
