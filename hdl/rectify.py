@@ -188,7 +188,9 @@ class Rectify(FramedUnit):
         blend = []
         for c in range(2):
             b = Signal(signed(cw + 6), name=f"blend{c}")
-            m.d.comb += b.eq((top[c] * (GRID - fv) + words[c] * fv + (GRID // 2)) >> shift)
+            # top (32 - fv) + bottom fv as one multiply
+            m.d.comb += b.eq(((top[c] << shift) + (words[c] - top[c]) * fv + (GRID // 2))
+                             >> shift)
             blend.append(b)
         with m.If(fgo):
             m.d.sync += [fphase.eq(0), fbusy.eq(1)]
@@ -371,8 +373,8 @@ class Rectify(FramedUnit):
         ax, ay = p6["ax"], p6["ay"]
         with m.If(step):
             m.d.sync += [
-                p7["top"].eq(q00[:8] * (16 - ax) + q01[:8] * ax),
-                p7["bot"].eq(q10[:8] * (16 - ax) + q11[:8] * ax),
+                p7["top"].eq((q00[:8] << 4) + (q01[:8] - q00[:8]) * ax),
+                p7["bot"].eq((q10[:8] << 4) + (q11[:8] - q10[:8]) * ax),
                 p7["ground"].eq(Mux(ay[3], Mux(ax[3], q11[8], q10[8]),
                                     Mux(ax[3], q01[8], q00[8]))),
                 p7["ay"].eq(ay), p7["flags"].eq(p6["flags"]),
@@ -385,7 +387,7 @@ class Rectify(FramedUnit):
             m.d.sync += [p6_valid.eq(pv[4]), p7_valid.eq(p6_valid)]
         # output register
         luma = Signal(8)
-        m.d.comb += luma.eq((p7["top"] * (16 - p7["ay"]) + p7["bot"] * p7["ay"] + 128) >> 8)
+        m.d.comb += luma.eq(((p7["top"] << 4) + (p7["bot"] - p7["top"]) * p7["ay"] + 128) >> 8)
         with m.If(step):
             m.d.sync += [self.o.payload.y.eq(luma), self.o.payload.ground.eq(p7["ground"]),
                          self.o.payload.sof.eq(p7["flags"][0]),
