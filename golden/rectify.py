@@ -60,8 +60,9 @@ def grid_shape(width, height, grid=GRID):
     return (height - 1) // grid + 2, (width - 1) // grid + 2
 
 
-def build_map(rig, doffs, width=None, height=None, grid=GRID):
-    """The map of ``rig`` (:func:`golden.rig.right_to_left_map` with ``doffs``) at its nodes,
+def build_map(rig, doffs, width=None, height=None, grid=GRID, focus=None):
+    """The map of ``rig`` (:func:`golden.rig.right_to_left_map` with ``doffs`` and ``focus``)
+    at its nodes,
     rounded to 1/16 px: a (rows, cols) array of :data:`MAP_DTYPE`. ValueError when an offset
     does not fit :data:`OFFSET_BITS` bits."""
     from golden.rig import right_to_left_map
@@ -70,7 +71,7 @@ def build_map(rig, doffs, width=None, height=None, grid=GRID):
     gr, gc = grid_shape(width, height, grid)
     gx, gy = np.meshgrid(np.arange(gc, dtype=np.float64) * grid,
                          np.arange(gr, dtype=np.float64) * grid)
-    sx, sy = right_to_left_map(rig, gx, gy, doffs)
+    sx, sy = right_to_left_map(rig, gx, gy, doffs, focus)
     out = np.zeros((gr, gc), MAP_DTYPE)
     lim = 1 << (OFFSET_BITS - 1)
     for k, d in (("dx", sx - gx), ("dy", sy - gy)):
@@ -169,11 +170,11 @@ def rectify(y, ground, nodes, lo, span, grid=GRID, horizontal="linear"):
     return luma.astype(np.uint8), g.astype(np.uint8)
 
 
-def valid_region(rig, doffs, grid=GRID):
+def valid_region(rig, doffs, grid=GRID, focus=None):
     """``[x, y, w, h]``: a rectangle of the rectified right image whose pixels all have their
     source inside the right image (the largest found by trimming the side with the most
     pixels outside, one line at a time)."""
-    nodes = build_map(rig, doffs, grid=grid)
+    nodes = build_map(rig, doffs, grid=grid, focus=focus)
     sx, sy = source_positions(nodes, rig.width, rig.height, grid)
     bad = ((sx < 0) | (sx > (rig.width - 1) << FRAC) | (sy < 0)
            | (sy > (rig.height - 1) << FRAC))

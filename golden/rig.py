@@ -28,7 +28,9 @@ Two rectifications:
   corners, for near points), and a baseline off the left camera's x axis (right camera centre
   ``C = -R^T T``) by ``C_y / C_x`` of the disparity.
   Points are taken back to the left camera's own frame by :func:`triangulate`, which removes
-  the left lens' distortion.
+  the left lens' distortion. The distortion's vertical parallax is cancelled at one chosen
+  disparity instead of at infinity (``focus``, the middle of the disparity window), which
+  shrinks it over the window.
 
 The rig's fields are floats and tuples so that a rig can be a frozen dataclass and a JSON
 object (:meth:`Rig.to_dict`, :meth:`Rig.from_dict`).
@@ -232,26 +234,42 @@ def bouguet(rig):
     return R1, R2
 
 
-def right_to_left_map(rig, xs, ys, doffs=0.0):
+def _virtual(rig, doffs):
+    return replace(rig.left, cx=rig.left.cx + doffs)
+
+
+def right_to_left_map(rig, xs, ys, doffs=0.0, focus=None):
     """Source pixels in the right image of output pixels ``(xs, ys)`` of the rectified right
     image (the virtual camera of the module text: the left lens, principal point ``doffs``
-    pixels further right, the left camera's orientation, the right camera's centre)."""
-    xn, yn = undistort(replace(rig.left, cx=rig.left.cx + doffs), xs, ys)
+    pixels further right, the left camera's orientation, the right camera's centre).
+
+    ``focus`` (pixels, None: 0) centres the virtual lens' distortion for that disparity: the
+    virtual pixel of a ray ``q`` is ``V(q + e) - f e`` with ``e = (focus + doffs) / fx`` along
+    x, so a point at disparity ``focus`` lands exactly on its left pixel's row, and the
+    distortion's vertical parallax grows with the distance of a disparity from ``focus``
+    instead of from infinity (with distortion-free lenses ``focus`` changes nothing)."""
+    xn, yn = _virtual_rays(rig, xs, ys, doffs, focus)
     rays = np.stack([xn, yn, np.ones_like(xn)], axis=-1) @ rig.Rm.T
     return project(rig.right, rays)
 
 
-def triangulate(rig, x, y, d, doffs=0.0):
+def _virtual_rays(rig, xs, ys, doffs, focus):
+    """Normalised rays (left orientation) of pixels of the rectified right image."""
+    shift = 0.0 if focus is None else focus + doffs
+    xn, yn = undistort(_virtual(rig, doffs), np.asarray(xs, np.float64) + shift, ys)
+    return xn - shift / rig.left.fx, yn
+
+
+def triangulate(rig, x, y, d, doffs=0.0, focus=None):
     """Points (N x 3, metres) in the left camera's frame of matches at left pixel ``(x, y)``
     with disparity ``d`` in the module's geometry (left image as captured, right image from
-    :func:`right_to_left_map` with ``doffs``): both pixels undistorted through the left lens,
-    depth from their horizontal difference over the baseline along x, the point on the left
-    pixel's ray. NaN where the difference is not positive."""
+    :func:`right_to_left_map` with ``doffs`` and ``focus``): both pixels undistorted (the left
+    lens, the virtual camera), depth from their horizontal difference over the baseline along
+    x, the point on the left pixel's ray. NaN where the difference is not positive."""
     x = np.asarray(x, np.float64)
     y = np.asarray(y, np.float64)
     xl, yl = undistort(rig.left, x, y)
-    xr, _ = undistort(replace(rig.left, cx=rig.left.cx + doffs),
-                      x - np.asarray(d, np.float64), y)
+    xr, _ = _virtual_rays(rig, x - np.asarray(d, np.float64), y, doffs, focus)
     dn = xl - xr
     bx = rig.centre[0]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -259,13 +277,13 @@ def triangulate(rig, x, y, d, doffs=0.0):
     return np.stack([xl * z, yl * z, z], axis=-1)
 
 
-def map_vertical_span(rig, doffs=0.0, step=8):
+def map_vertical_span(rig, doffs=0.0, step=8, focus=None):
     """``(lo, hi)``: the least and greatest source-row minus output-row of
     :func:`right_to_left_map` over the image (sampled every ``step`` pixels and on the last
     row and column), the vertical warp a line buffer must hold."""
     xs = np.unique(np.r_[np.arange(0, rig.width, step), rig.width - 1]).astype(np.float64)
     ys = np.unique(np.r_[np.arange(0, rig.height, step), rig.height - 1]).astype(np.float64)
     gx, gy = np.meshgrid(xs, ys)
-    _, sy = right_to_left_map(rig, gx, gy, doffs)
+    _, sy = right_to_left_map(rig, gx, gy, doffs, focus)
     dv = sy - gy
     return float(dv.min()), float(dv.max())

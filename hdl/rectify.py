@@ -66,6 +66,9 @@ class Rectify(FramedUnit):
     o: Out(stream.Signature(GroundPixel))
     lo: In(signed(6))
     enable: In(1)
+    map_addr: In(12)
+    map_data: In(2 * OFFSET_BITS)
+    map_we: In(1)
     errors: Out(16)
     dropped: Out(32)
 
@@ -82,10 +85,10 @@ class Rectify(FramedUnit):
         self.map_depth = rows * self.node_stride
         self.bank_stride = (max_width + 1) // 2
         self.bank_depth = self.slots // 2 * self.bank_stride
+        if self.map_depth > 1 << 12:
+            raise ValueError(f"{max_width}x{max_height} needs {self.map_depth} map words: more "
+                             f"than the 12-bit map address reaches")
         super().__init__(max_width=max_width, max_height=max_height)
-        self.map_addr = Signal(range(self.map_depth))
-        self.map_data = Signal(2 * OFFSET_BITS)
-        self.map_we = Signal()
 
     def node_address(self, j, k):
         return j * self.node_stride + k
@@ -102,7 +105,8 @@ class Rectify(FramedUnit):
                                                    init=[])
         nw = nodes.write_port()
         nr = nodes.read_port()
-        m.d.comb += [nw.addr.eq(self.map_addr), nw.data.eq(self.map_data), nw.en.eq(self.map_we)]
+        m.d.comb += [nw.addr.eq(self.map_addr), nw.data.eq(self.map_data),
+                     nw.en.eq(self.map_we & (self.map_addr < self.map_depth))]
         banks = []
         for b in range(4):
             mem = memory.Memory(shape=9, depth=self.bank_depth, init=[])
@@ -184,7 +188,9 @@ class Rectify(FramedUnit):
         blend = []
         for c in range(2):
             b = Signal(signed(cw + 6), name=f"blend{c}")
-            m.d.comb += b.eq((top[c] * (GRID - fv) + words[c] * fv + (GRID // 2)) >> shift)
+            # top (32 - fv) + bottom fv as one multiply
+            m.d.comb += b.eq(((top[c] << shift) + (words[c] - top[c]) * fv + (GRID // 2))
+                             >> shift)
             blend.append(b)
         with m.If(fgo):
             m.d.sync += [fphase.eq(0), fbusy.eq(1)]
@@ -367,8 +373,8 @@ class Rectify(FramedUnit):
         ax, ay = p6["ax"], p6["ay"]
         with m.If(step):
             m.d.sync += [
-                p7["top"].eq(q00[:8] * (16 - ax) + q01[:8] * ax),
-                p7["bot"].eq(q10[:8] * (16 - ax) + q11[:8] * ax),
+                p7["top"].eq((q00[:8] << 4) + (q01[:8] - q00[:8]) * ax),
+                p7["bot"].eq((q10[:8] << 4) + (q11[:8] - q10[:8]) * ax),
                 p7["ground"].eq(Mux(ay[3], Mux(ax[3], q11[8], q10[8]),
                                     Mux(ax[3], q01[8], q00[8]))),
                 p7["ay"].eq(ay), p7["flags"].eq(p6["flags"]),
@@ -381,7 +387,7 @@ class Rectify(FramedUnit):
             m.d.sync += [p6_valid.eq(pv[4]), p7_valid.eq(p6_valid)]
         # output register
         luma = Signal(8)
-        m.d.comb += luma.eq((p7["top"] * (16 - p7["ay"]) + p7["bot"] * p7["ay"] + 128) >> 8)
+        m.d.comb += luma.eq(((p7["top"] << 4) + (p7["bot"] - p7["top"]) * p7["ay"] + 128) >> 8)
         with m.If(step):
             m.d.sync += [self.o.payload.y.eq(luma), self.o.payload.ground.eq(p7["ground"]),
                          self.o.payload.sof.eq(p7["flags"][0]),

@@ -46,9 +46,10 @@ def test_calibration_recovers_the_rig(boards, tmp_path, capsys):
     assert np.degrees(np.abs(got.Rm - rig.Rm).max()) < 0.15
     # the module's line buffer: the calibrated map's vertical warp is the true one's
     lo, hi = figures["vertical_span_rows"]
-    tlo, thi = map_vertical_span(rig, cam.doffs_px)
+    tlo, thi = map_vertical_span(rig, cam.doffs_px, focus=cam.rig["focus"])
     assert abs(lo - tlo) < 1.5 and abs(hi - thi) < 1.5
     assert cam.rig["window"] == figures["window"] == [0, 63]
+    assert cam.rig["focus"] == 31.5         # the middle of the window
     x, y, w, h = cam.valid
     assert w > 0.9 * rig.width and h > 0.9 * rig.height
 

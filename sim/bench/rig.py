@@ -28,7 +28,7 @@ import numpy as np
 __all__ = ["score", "run_rig", "run", "markdown"]
 
 
-def score(records, gt, camera=None, rig=None, doffs=0.0):
+def score(records, gt, camera=None, rig=None, doffs=0.0, focus=None):
     """``(matches, within2, bad2)`` of records against the original left image's ground
     truth ``gt`` (see the module text; ``rig`` None: unrectified, pixels taken as they are)."""
     from golden.matcher import record_disparity
@@ -37,7 +37,7 @@ def score(records, gt, camera=None, rig=None, doffs=0.0):
     x = records["x"].astype(np.float64)
     y = records["y"].astype(np.float64)
     if rig is not None:
-        p = triangulate(rig, x, y, d, doffs)
+        p = triangulate(rig, x, y, d, doffs, focus)
         z = p[:, 2]
         with np.errstate(invalid="ignore", divide="ignore"):
             x = camera.fx * p[:, 0] / z + camera.cx
@@ -55,7 +55,7 @@ def score(records, gt, camera=None, rig=None, doffs=0.0):
     return len(records), int(within.sum()), (n - int(within.sum())) / n if n else float("nan")
 
 
-def run_rig(name, views=20, span=8, horizontal="linear", grid=32, seed=0, workdir=None):
+def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workdir=None):
     """One rig's row of the table (a dict)."""
     from golden.pipeline import default_params, pipeline_frames
     from golden.rectify import (RectifyParams, build_map, fits, rectified_pipeline_frames,
@@ -73,17 +73,17 @@ def run_rig(name, views=20, span=8, horizontal="linear", grid=32, seed=0, workdi
     t_cal = time.time() - t0
     cam = cal["camera"]
     crig = cam.rectified
-    doffs = cam.rig["doffs"]
+    doffs, focus = cam.rig["doffs"], cam.rig.get("focus")
     l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
     h, w = l2.shape[:2]
     params = default_params(w, h, ground="off")
     unrect = pipeline_frames([l2], [r2], params)[0]
-    nodes = build_map(crig, doffs, grid=grid)
+    nodes = build_map(crig, doffs, grid=grid, focus=focus)
     lo = row_window(nodes, w, h, span, grid)
     rect = RectifyParams(nodes, lo, span, horizontal)
     rectified = rectified_pipeline_frames([l2], [r2], params, rect)[0]
     u = score(unrect.records, gt)
-    r = score(rectified.records, gt, MOTORCYCLE, crig, doffs)
+    r = score(rectified.records, gt, MOTORCYCLE, crig, doffs, focus)
     return {"rig": name, "views": cal["views"], "rms_px": cal["rms_px"],
             "residual_px": cal["residual_px"], "module_residual_px": cal["module_residual_px"],
             "warp_rows": cal["vertical_span_rows"], "lo": lo, "span": span,
@@ -119,7 +119,7 @@ def main(argv=None):
     p.add_argument("--views", type=int, default=20)
     p.add_argument("--span", type=int, default=8)
     p.add_argument("--grid", type=int, default=32)
-    p.add_argument("--horizontal", default="linear", choices=("linear", "nearest"))
+    p.add_argument("--horizontal", default="nearest", choices=("linear", "nearest"))
     p.add_argument("--json", action="store_true", help="one JSON line per rig")
     a = p.parse_args(argv)
     names = a.rigs.split(",") if a.rigs else None

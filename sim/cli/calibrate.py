@@ -2,8 +2,11 @@
 rig's calibration from checkerboard pairs (OpenCV), written as the camera file ``--camera``
 reads.
 
+Lens model: radial distortion ``k1 k2`` only (tangential terms fixed at zero: they trade
+off against the principal point, which the disparities need to well under a pixel).
+
 Steps: the board's inner corners in every pair (``cv2.findChessboardCorners``, refined to
-subpixel by ``cv2.cornerSubPix``); each camera's intrinsics and distortion ``k1 k2 p1 p2``
+subpixel by ``cv2.cornerSubPix``); each camera's intrinsics and distortion ``k1 k2``
 (``cv2.calibrateCamera``); both refined together with the right camera's pose
 (``cv2.stereoCalibrate``); Bouguet's rectification (``cv2.stereoRectify``) for the corners'
 rectified vertical residual; and the module's own rectification
@@ -15,7 +18,8 @@ gives at the board's distance) and the vertical warp its line buffer must hold.
 The file is a :class:`golden.camera.Camera` of the left camera as captured (its ``fx fy cx cy``,
 the baseline along its x axis, ``doffs_px``, the valid region of the rectified right image)
 with the calibration under ``rig`` (:data:`RIG_KEYS`): both lenses, ``R``, ``T``, the image
-size, the rectification's source (``doffs`` and the map grid of :mod:`golden.rectify`), the
+size, the rectification's source (``doffs``, ``focus`` and the map grid of
+:mod:`golden.rectify`), the
 disparity window that fits the rig, and the measured errors.
 """
 from __future__ import annotations
@@ -119,7 +123,7 @@ def calibrate(folder, board, square, near_m=None, grid=32):
                        f"{len(obj)} of {len(pairs)} pairs: calibration needs at least "
                        f"{MIN_VIEWS} (check --board)")
     h, w = size
-    flags = cv2.CALIB_FIX_K3
+    flags = cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
     _, K1, D1, _, _ = cv2.calibrateCamera(obj, pl, (w, h), None, None, flags=flags)
     _, K2, D2, _, _ = cv2.calibrateCamera(obj, pr, (w, h), None, None, flags=flags)
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-9)
@@ -134,22 +138,34 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     yl = cv2.undistortPointsIter(al, K1, D1, R1, P1, crit)[:, 0, 1]
     yr = cv2.undistortPointsIter(ar, K2, D2, R2, P2, crit)[:, 0, 1]
     residual = float(np.median(np.abs(yl - yr)))
-    # the module's rectification: right corners into the left camera's geometry
+    # the module's rectification: right corners into the left camera's geometry, the
+    # distortion centred for the middle of the disparity window
     doffs = float(K2[0, 2] - K1[0, 2])
-    xn, yn = undistort(rig.right, ar[:, 0, 0], ar[:, 0, 1])
-    rays = np.stack([xn, yn, np.ones_like(xn)], -1) @ rig.Rm    # R^T per ray
-    vl = Lens(rig.left.fx, rig.left.fy, rig.left.cx + doffs, rig.left.cy, rig.left.dist)
-    _, vr = project(vl, rays)
-    module_residual = float(np.median(np.abs(vr - al[:, 0, 1])))
-    lo, hi = map_vertical_span(rig, doffs)
     baseline = float(rig.centre[0])
     if baseline <= 0:
         raise CliError("the right camera is not to the right of the left one: swap the "
                        "left_ and right_ images")
     window = _window(rig.left.fx * baseline, doffs, near_m)
     from golden.rectify import valid_region
-    valid = valid_region(rig, doffs, grid)
-    extra = {**rig.to_dict(), "doffs": doffs, "grid": grid, "window": list(window),
+    # the middle of the window, or nearer infinity when the map's offsets would not fit
+    for focus in np.linspace((window[0] + window[1]) / 2, -doffs, 9):
+        try:
+            valid = valid_region(rig, doffs, grid, float(focus))
+            break
+        except ValueError as e:
+            problem = e
+    else:
+        raise CliError(f"the rig's rectification does not fit the module's map: {problem}")
+    focus = round(float(focus), 3)
+    xn, yn = undistort(rig.right, ar[:, 0, 0], ar[:, 0, 1])
+    rays = np.stack([xn, yn, np.ones_like(xn)], -1) @ rig.Rm    # R^T per ray
+    shift = focus + doffs
+    vl = Lens(rig.left.fx, rig.left.fy, rig.left.cx + doffs, rig.left.cy, rig.left.dist)
+    _, vr = project(vl, rays + np.array([shift / rig.left.fx, 0, 0]) * rays[:, 2:3])
+    module_residual = float(np.median(np.abs(vr - al[:, 0, 1])))
+    lo, hi = map_vertical_span(rig, doffs, focus=focus)
+    extra = {**rig.to_dict(), "doffs": doffs, "focus": focus, "grid": grid,
+             "window": list(window),
              "rms_px": round(float(rms), 4), "views": len(obj),
              "residual_px": round(residual, 4), "module_residual_px": round(module_residual, 4),
              "vertical_span_rows": [round(lo, 3), round(hi, 3)]}
