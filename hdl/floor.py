@@ -4,9 +4,11 @@
 A record ``(y, d16)`` is a floor point when ``d16 <= line16(y) + tol16(y)``, with
 ``line16(y) = (slope * y + offset) >> 4`` and ``tol16 = tol + (max(line16, 0) >> tol_shift)``;
 with ``enable`` low no record is. The CPU learns the line from each frame's records
-(:func:`golden.floor.learn_line`) and writes it for the next frame; a frame uses the register
-values of the cycle before its first record (or its ``eof`` record) enters the unit, so a
-write during a frame applies from the next one.
+(:func:`golden.floor.learn_line`) and writes it for the next frame. A frame uses the register
+values of the cycle after the previous frame's ``eof`` record entered the unit (the first
+frame: the cycle after reset), when the input waits one cycle for them; so a write during a
+frame applies from the next one, and one that must apply to frame n + 1 is made before frame
+n's ``eof`` record reaches the unit.
 
 Pipeline (every path one carry chain of at most 16 bits): (1) ``slope * y`` (a multiplier
 block, registered); (2) the low 12 bits of ``+ offset`` and their carry; (3) the high bits
@@ -15,8 +17,8 @@ beyond 2 ** 12 in 1/16 px, so the comparison is unchanged); (4) ``tol16``; (5) t
 ``line16 + tol16``; (6) the comparison, into the output register. The stages advance together
 when the output register is free or taken, and ``i.ready`` is that condition (no skid
 buffer: its payload multiplexer would cost a LUT per record bit, and the unit sits between the
-matcher's output FIFO and the result FIFO, both registered). Latency: 6 cycles; one record a
-cycle.
+matcher's output FIFO and the result FIFO, both registered), except in the one cycle after
+each ``eof`` record. Latency: 6 cycles; one record a cycle.
 """
 from amaranth.hdl import Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
@@ -52,7 +54,8 @@ class FloorFlag(wiring.Component):
     Ports
     -----
     i : In(stream of ``layout``)
-        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``.
+        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``,
+        low in the cycle after an ``eof`` record (the registers are loaded).
     o : Out(stream of :func:`floor_record_layout`)
         The same records with ``floor``, in order, :data:`LATENCY` cycles later without stalls.
     enable, slope, offset, tol, tol_shift : In
@@ -73,18 +76,19 @@ class FloorFlag(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         en = ~self.o.valid | self.o.ready
-        m.d.comb += self.i.ready.eq(en)
-        take = self.i.valid & en
+        # the registers of a frame are loaded in the cycle after the previous frame's eof
+        # record entered (or after reset), while the input waits
+        load = Signal(init=1)
+        m.d.comb += self.i.ready.eq(en & ~load)
+        take = self.i.valid & en & ~load
         rec = self.i.payload
-
-        # the registers of the current frame: followed until its first beat enters
-        first = Signal(init=1)
         live = {n: Signal.like(getattr(self, n), name=f"cur_{n}")
                 for n in ("enable", "slope", "offset", "tol", "tol_shift")}
-        with m.If(take):
-            m.d.sync += first.eq(rec.eof)
-        with m.If(first & ~take):
+        with m.If(load):
             m.d.sync += [live[n].eq(getattr(self, n)) for n in live]
+            m.d.sync += load.eq(0)
+        with m.Elif(take & rec.eof):
+            m.d.sync += load.eq(1)
 
         def stage(k, **values):
             regs = {}
@@ -96,7 +100,7 @@ class FloorFlag(wiring.Component):
             return regs
 
         # (1) slope * y
-        s1 = stage(1, v=self.i.valid, rec=rec, prod=live["slope"] * rec.y,
+        s1 = stage(1, v=take, rec=rec, prod=live["slope"] * rec.y,
                    offset=live["offset"], enable=live["enable"], tol=live["tol"],
                    tol_shift=live["tol_shift"])
         # (2) low bits of the sum and their carry

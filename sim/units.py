@@ -258,3 +258,104 @@ UNITS = {
                            "the whole stereo pipeline",
                            streams=free_streams(free_left="left", free_right="right")),
 }
+
+
+# --- the floor flag after the matcher (hdl/floor.py) ----------------------------------------
+
+def floor_line_for(job):
+    """The floor line and parameters the ``floor`` unit runs with on every frame of ``job``:
+    the line ``golden.floor.learn_line`` learns from the first frame's records (a flat floor of
+    slope 86/256 px a row through row 65 when it learns none), the default tolerances. (The
+    line's learning from frame to frame, with a new line each frame, is exercised by
+    tests/test_floor_rtl.py; a backend holds its register values for a whole run.)"""
+    from golden.floor import FloorLine, FloorParams, learn_line
+    params = FloorParams()
+    rec = job.golden[0].records
+    line = learn_line(rec["y"], rec["d16"], params) or FloorLine(86, -86 * 65)
+    return line, params
+
+
+def _floor_unit(job):
+    from amaranth.hdl import Module
+    from amaranth.lib import stream, wiring
+    from amaranth.lib.wiring import In, Out
+    from hdl.floor import FloorFlag, floor_record_layout
+    line, params = floor_line_for(job)
+    layout = pipeline_for(job).o.payload.shape()
+
+    class FixedFloorFlag(wiring.Component):
+        """:class:`hdl.floor.FloorFlag` with its registers tied to one line."""
+
+        def __init__(self):
+            self.flag = FloorFlag(layout)
+            super().__init__({"i": In(stream.Signature(layout)),
+                              "o": Out(stream.Signature(floor_record_layout(layout)))})
+
+        def elaborate(self, platform):
+            m = Module()
+            m.submodules.flag = f = self.flag
+            wiring.connect(m, wiring.flipped(self.i), f.i)
+            wiring.connect(m, f.o, wiring.flipped(self.o))
+            m.d.comb += [f.enable.eq(1), f.slope.eq(line.slope), f.offset.eq(line.offset),
+                         f.tol.eq(params.tol), f.tol_shift.eq(params.tol_shift)]
+            return m
+
+    return FixedFloorFlag()
+
+
+@dataclass
+class FloorUnit:
+    """The floor flag unit on the golden pipeline's records (``hdl/floor.py``, golden
+    ``golden.floor.floor_flags``), one line for the whole run (:func:`floor_line_for`)."""
+    name: str = "floor"
+    stereo: bool = True
+    doc: str = "floor flag of each match record (v-disparity line)"
+    streams: dict = field(default_factory=dict)
+
+    def make(self, job):
+        return _floor_unit(job)
+
+    def _records(self, job):
+        return [g.records for g in job.golden]
+
+    def words(self, job):
+        layout = pipeline_for(job).o.payload.shape()
+        packer = Packer(layout)
+        words = []
+        for rec in self._records(job):
+            n = len(rec)
+            fields = {name: np.append(np.asarray(rec[name], np.int64), 0)
+                      for name in layout.members if name != "eof" and name in rec.dtype.names}
+            fields["eof"] = np.append(np.zeros(n, np.int64), 1)
+            words += packer.pack(**fields).astype(np.uint64).tolist()
+        return {"i": words}
+
+    def outputs(self, job):
+        return {"o": len(job.left)}
+
+    def expected(self, job):
+        from golden.floor import floor_flags
+        line, params = floor_line_for(job)
+        return [floor_flags(r["y"], r["d16"], line, params) for r in self._records(job)]
+
+    def mismatches(self, job, words, dut):
+        layout = dut.o.payload.shape()
+        got = Packer(layout).unpack(np.array(words["o"], dtype=np.uint64)) if words["o"] else None
+        bad, start = 0, 0
+        want = self.expected(job)
+        ends = np.flatnonzero(got["eof"]) if got is not None else []
+        for k, exp in enumerate(want):
+            if k >= len(ends):
+                bad += len(exp) + 1
+                continue
+            sl = slice(start, ends[k])
+            rec = self._records(job)[k]
+            same = len(exp) == ends[k] - start and np.array_equal(got["floor"][sl], exp) and \
+                all(np.array_equal(got[n][sl], rec[n]) for n in ("x", "y", "d16"))
+            bad += 0 if same else max(1, int(np.sum(got["floor"][sl] != exp))
+                                       if len(exp) == ends[k] - start else len(exp))
+            start = ends[k] + 1
+        return bad
+
+
+UNITS["floor"] = FloorUnit()
