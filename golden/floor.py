@@ -137,9 +137,6 @@ class FloorParams:
     #: support - below_weight * below``.
     row_shift: int = 3
     support_weight: int = 4
-    #: The chosen line's offset moves by the median residual of the records within
-    #: ``refine / 2`` px of it (0: no refinement).
-    refine: int = 0
     #: The line of the first frame (the rig's); None: no line until one is learned.
     initial: FloorLine | None = None
 
@@ -234,12 +231,6 @@ def learn_line(y, d16, params, previous=None, prior=None):
             int(score[si, ji]) <= line_score(y, d16, previous, params) + params.margin:
         return previous
     slope, offset = int(slopes[si]), int(offsets[si, ji])
-    if params.refine:
-        # the median residual of the records near the line (within +-refine/2 px of it)
-        r = (d16 << 4) - slope * y - offset
-        near = np.sort(r[np.abs(r) <= params.refine << (LINE_FRAC - 1)])
-        if near.size:
-            offset = min(max(offset + int(near[near.size // 2]), -lim), lim - 1)
     return FloorLine(slope, offset)
 
 
