@@ -262,32 +262,41 @@ UNITS = {
 
 # --- the floor flag after the matcher (hdl/floor.py) ----------------------------------------
 
-def floor_line_for(job):
-    """The floor line and parameters the ``floor`` unit runs with on every frame of ``job``:
-    the line ``golden.floor.learn_line`` learns from the first frame's records (a flat floor of
-    slope 86/256 px a row through row 65 when it learns none), the default tolerances. (The
-    line's learning from frame to frame, with a new line each frame, is exercised by
-    tests/test_floor_rtl.py; a backend holds its register values for a whole run.)"""
+def floor_lines_for(job):
+    """The floor line of each frame of ``job`` the ``floor`` unit runs with, and the floor
+    parameters: frame 0 a flat floor of slope 86/256 px a row through row 65, frame k + 1 the
+    line ``golden.floor.learn_line`` learns from frame k's records (the CPU's loop), with the
+    default tolerances."""
     from golden.floor import FloorLine, FloorParams, learn_line
     params = FloorParams()
-    rec = job.golden[0].records
-    line = learn_line(rec["y"], rec["d16"], params) or FloorLine(86, -86 * 65)
-    return line, params
+    lines = [FloorLine(86, -86 * 65)]
+    for g in job.golden[:-1]:
+        rec = g.records
+        lines.append(learn_line(rec["y"], rec["d16"], params, lines[-1]))
+    return lines, params
 
 
 def _floor_unit(job):
     from amaranth.hdl import Module
     from amaranth.lib import stream, wiring
     from amaranth.lib.wiring import In, Out
+    from amaranth.hdl import Array, Const, Signal
     from hdl.floor import FloorFlag, floor_record_layout
-    line, params = floor_line_for(job)
+    lines, params = floor_lines_for(job)
     layout = pipeline_for(job).o.payload.shape()
 
     class FixedFloorFlag(wiring.Component):
-        """:class:`hdl.floor.FloorFlag` with its registers tied to one line."""
+        """:class:`hdl.floor.FloorFlag` with its registers written, as the CPU would, from a
+        table of one line per frame: the frame counter steps at each ``eof`` record that
+        enters, and the unit loads the next frame's line in the following cycle."""
 
         def __init__(self):
             self.flag = FloorFlag(layout)
+            # what the Verilog depends on beside hdl/: a cached simulator build is found by
+            # these (sim.backends.verilator.construction_params)
+            self._lines = tuple((l.slope, l.offset) for l in lines)
+            self._tol = (params.tol, params.tol_shift)
+            self._layout = repr(layout)
             super().__init__({"i": In(stream.Signature(layout)),
                               "o": Out(stream.Signature(floor_record_layout(layout)))})
 
@@ -296,7 +305,12 @@ def _floor_unit(job):
             m.submodules.flag = f = self.flag
             wiring.connect(m, wiring.flipped(self.i), f.i)
             wiring.connect(m, f.o, wiring.flipped(self.o))
-            m.d.comb += [f.enable.eq(1), f.slope.eq(line.slope), f.offset.eq(line.offset),
+            frame = Signal(range(len(lines) + 1))
+            with m.If(self.i.valid & self.i.ready & self.i.payload.eof & (frame < len(lines) - 1)):
+                m.d.sync += frame.eq(frame + 1)
+            slopes = Array(Const(l.slope, 10) for l in lines)
+            offsets = Array(Const(l.offset, f.offset.shape()) for l in lines)
+            m.d.comb += [f.enable.eq(1), f.slope.eq(slopes[frame]), f.offset.eq(offsets[frame]),
                          f.tol.eq(params.tol), f.tol_shift.eq(params.tol_shift)]
             return m
 
@@ -306,7 +320,8 @@ def _floor_unit(job):
 @dataclass
 class FloorUnit:
     """The floor flag unit on the golden pipeline's records (``hdl/floor.py``, golden
-    ``golden.floor.floor_flags``), one line for the whole run (:func:`floor_line_for`)."""
+    ``golden.floor.floor_flags``), each frame's line learned from the frame before
+    (:func:`floor_lines_for`)."""
     name: str = "floor"
     stereo: bool = True
     doc: str = "floor flag of each match record (v-disparity line)"
@@ -335,8 +350,9 @@ class FloorUnit:
 
     def expected(self, job):
         from golden.floor import floor_flags
-        line, params = floor_line_for(job)
-        return [floor_flags(r["y"], r["d16"], line, params) for r in self._records(job)]
+        lines, params = floor_lines_for(job)
+        return [floor_flags(r["y"], r["d16"], line, params)
+                for r, line in zip(self._records(job), lines)]
 
     def mismatches(self, job, words, dut):
         layout = dut.o.payload.shape()

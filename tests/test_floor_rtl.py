@@ -144,11 +144,13 @@ def floor_job(frames=3):
 @pytest.mark.parametrize("backend", ["amaranth", "verilator", "icarus"])
 def test_floor_unit_on_every_backend(backend):
     """The unit registry's ``floor`` unit (``python -m sim compare --unit floor``) on the golden
-    pipeline's records of three frames, with stalls, bit-exact on each simulator."""
+    pipeline's records of three frames, each frame's line learned from the frame before and
+    written between frames, with stalls, bit-exact on each simulator."""
     from sim.backends.run import run_unit
-    from sim.units import UNITS
+    from sim.units import UNITS, floor_lines_for
     job = floor_job()
     unit = UNITS["floor"]
+    assert len(set(floor_lines_for(job)[0])) >= 2
     assert sum(f.sum() for f in unit.expected(job)) > 10
     r = run_unit(unit, job, backend=backend, stall_seed=4)
     assert r["mismatches"] == 0
