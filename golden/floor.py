@@ -123,7 +123,7 @@ class FloorParams:
     slope_min: int = 32
     slope_max: int = 160
     slope_step: int = 2
-    band: int = 2
+    band: int = 1
     below_weight: int = 1
     min_support: int = 4
     #: With a rig: how far a learned line may depart from the rig's, in slope (1/256 px per

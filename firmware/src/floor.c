@@ -13,7 +13,7 @@ void floor_default_params(floor_params_t *p)
     p->slope_min = 32;
     p->slope_max = 160;
     p->slope_step = 2;
-    p->band = 2;
+    p->band = 1;
     p->below_weight = 1;
     p->support_weight = 4;
     p->row_shift = 3;
