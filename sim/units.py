@@ -283,7 +283,7 @@ def _floor_unit(job):
     from amaranth.hdl import Array, Const, Signal
     from hdl.floor import FloorFlag, floor_record_layout
     lines, params = floor_lines_for(job)
-    layout = pipeline_for(job).o.payload.shape()
+    layout = _record_layout(job)
 
     class FixedFloorFlag(wiring.Component):
         """:class:`hdl.floor.FloorFlag` with its registers written, as the CPU would, from a
@@ -317,6 +317,14 @@ def _floor_unit(job):
     return FixedFloorFlag()
 
 
+def _record_layout(job):
+    """The pipeline's record layout for ``job`` (without elaborating the pipeline)."""
+    from hdl.matcher import match_record_layout
+    mp = _rtl_matcher(job)
+    return match_record_layout(job.max_width, job.max_height, job.max_disparity, cost=mp.cost,
+                               window=mp.window)
+
+
 @dataclass
 class FloorUnit:
     """The floor flag unit on the golden pipeline's records (``hdl/floor.py``, golden
@@ -326,6 +334,8 @@ class FloorUnit:
     stereo: bool = True
     doc: str = "floor flag of each match record (v-disparity line)"
     streams: dict = field(default_factory=dict)
+    #: no matcher statistics to compare (python -m sim compare)
+    has_stats: bool = False
 
     def make(self, job):
         return _floor_unit(job)
@@ -334,7 +344,7 @@ class FloorUnit:
         return [g.records for g in job.golden]
 
     def words(self, job):
-        layout = pipeline_for(job).o.payload.shape()
+        layout = _record_layout(job)
         packer = Packer(layout)
         words = []
         for rec in self._records(job):

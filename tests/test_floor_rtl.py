@@ -141,7 +141,7 @@ def floor_job(frames=3):
                max_width=256, max_height=128)
 
 
-@pytest.mark.parametrize("backend", ["amaranth", "verilator", "icarus"])
+@pytest.mark.parametrize("backend", ["amaranth", "verilator", "icarus", "ghdl"])
 def test_floor_unit_on_every_backend(backend):
     """The unit registry's ``floor`` unit (``python -m sim compare --unit floor``) on the golden
     pipeline's records of three frames, each frame's line learned from the frame before and
