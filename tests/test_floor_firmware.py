@@ -98,3 +98,20 @@ def test_scene_records_over_frames(lib):
             line_g = learn_line(rec["y"], rec["d16"], p, line_g, prior=rig)
             line_c = c_learn(lib, rec["y"], rec["d16"], p, line_c, rig)
             assert line_c == line_g, name
+
+
+def test_flag(lib):
+    """The firmware's floor flag of a record, the same as golden's (and the RTL's)."""
+    from golden.floor import floor_flags
+    rng = np.random.default_rng(12)
+    lib.floor_flag.restype = C.c_int
+    for _ in range(30):
+        line = FloorLine(int(rng.integers(0, 1024)), int(rng.integers(-(1 << 17), 1 << 17)))
+        tol, shift = int(rng.integers(0, 256)), int(rng.integers(0, 8))
+        y = rng.integers(0, 1024, 200)
+        d16 = rng.integers(0, 4096, 200)
+        want = floor_flags(y, d16, line, FloorParams(tol=tol, tol_shift=shift))
+        ln = Line(line.slope, line.offset)
+        got = [lib.floor_flag(C.c_uint16(int(a)), C.c_uint16(int(b)), C.byref(ln),
+                              C.c_uint8(tol), C.c_uint8(shift)) for a, b in zip(y, d16)]
+        assert got == want.tolist()

@@ -35,4 +35,13 @@ void floor_default_params(floor_params_t *p);
 int floor_learn(const uint16_t *y, const uint16_t *d16, uint32_t n, const floor_params_t *p,
                 const floor_line_t *prior, floor_line_t *line, int has_line, int64_t *work);
 
+/*
+ * The floor flag of one record (golden/floor.py floor_flags, hdl/floor.py): 1 when
+ * d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift), line16(y) = (slope y + offset) >> 4.
+ * The CPU has the line it wrote, so it can flag the records itself where the flag bit does not
+ * reach it.
+ */
+int floor_flag(uint16_t y, uint16_t d16, const floor_line_t *line, uint8_t tol,
+               uint8_t tol_shift);
+
 #endif

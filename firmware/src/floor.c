@@ -164,3 +164,11 @@ int floor_learn(const uint16_t *y, const uint16_t *d16, uint32_t n, const floor_
     *line = cand;
     return 1;
 }
+
+int floor_flag(uint16_t y, uint16_t d16, const floor_line_t *line, uint8_t tol,
+               uint8_t tol_shift)
+{
+    int64_t l16 = asr((int64_t)line->slope * y + line->offset, 4);
+    int64_t t = tol + ((l16 > 0 ? l16 : 0) >> (tol_shift & 7));
+    return d16 <= l16 + t;
+}
