@@ -123,7 +123,7 @@ class FloorParams:
     slope_min: int = 32
     slope_max: int = 160
     slope_step: int = 2
-    band: int = 2
+    band: int = 1
     below_weight: int = 1
     min_support: int = 4
     #: With a rig: how far a learned line may depart from the rig's, in slope (1/256 px per
@@ -230,7 +230,8 @@ def learn_line(y, d16, params, previous=None, prior=None):
     if previous is not None and \
             int(score[si, ji]) <= line_score(y, d16, previous, params) + params.margin:
         return previous
-    return FloorLine(int(slopes[si]), int(offsets[si, ji]))
+    slope, offset = int(slopes[si]), int(offsets[si, ji])
+    return FloorLine(slope, offset)
 
 
 def line_score(y, d16, line, params):

@@ -18,7 +18,8 @@ import numpy as np
 
 from .ground import FREE_BANDS, FREE_NONE, FREE_BAND_W, FREE_RUN_R, free_space
 
-__all__ = ["FreeSpaceParams", "FREE_BANDS", "FREE_NONE", "free_space", "free_frame"]
+__all__ = ["FreeSpaceParams", "FREE_BANDS", "FREE_NONE", "free_space", "free_frame",
+           "free_space_points"]
 
 
 @dataclass(frozen=True)
@@ -54,3 +55,24 @@ def free_frame(rows):
     """The unit's output frame for one frame's rows: fields ``band`` and ``row``, 1 x 16."""
     rows = np.asarray(rows, dtype=np.int64).reshape(1, FREE_BANDS)
     return dict(band=np.arange(FREE_BANDS, dtype=np.int64)[None, :], row=rows)
+
+
+def free_space_points(records, floor, height, band_w=FREE_BAND_W, run_r=FREE_RUN_R):
+    """Free space per column band from the matches and the floor decision
+    (``golden/floor.py``), so that the bands and the points agree: a row of a band is an
+    obstacle row when the band has a match in it that is not a floor point (``floor`` 0); then
+    the rule of :func:`free_space` (the lowest run of at least ``run_r`` obstacle rows, as its
+    bottom row; FREE_NONE without one, or for a band past the image). A floor point never sets a
+    band's row; ``records`` need ``x`` and ``y``; ``height`` is the frame's."""
+    x = np.asarray(records["x"], dtype=np.int64)
+    y = np.asarray(records["y"], dtype=np.int64)
+    keep = np.asarray(floor) == 0
+    width = FREE_BANDS * band_w
+    mask = np.ones((height, width), dtype=np.uint8)          # 1: not obstacle
+    sel = keep & (x < width)
+    band = x[sel] // band_w
+    # a whole band row marked obstacle where it has a point: the majority test then passes
+    rows = np.zeros((height, FREE_BANDS), dtype=bool)
+    rows[y[sel], band] = True
+    mask[np.repeat(rows, band_w, axis=1)] = 0
+    return free_space(mask, band_w, run_r)

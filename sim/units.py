@@ -272,3 +272,129 @@ def unit_name(name):
     import sys
     print(f"warning: {name!r} is a deprecated name of {new!r}; use {new!r}", file=sys.stderr)
     return new
+
+# --- the floor flag after the matcher (hdl/floor.py) ----------------------------------------
+
+def floor_lines_for(job):
+    """The floor line of each frame of ``job`` the ``floor`` unit runs with, and the floor
+    parameters: frame 0 a flat floor of slope 86/256 px a row through row 65, frame k + 1 the
+    line ``golden.floor.learn_line`` learns from frame k's records (the CPU's loop), with the
+    default tolerances."""
+    from golden.floor import FloorLine, FloorParams, learn_line
+    params = FloorParams()
+    lines = [FloorLine(86, -86 * 65)]
+    for g in job.golden[:-1]:
+        rec = g.records
+        lines.append(learn_line(rec["y"], rec["d16"], params, lines[-1]))
+    return lines, params
+
+
+def _floor_unit(job):
+    from amaranth.hdl import Module
+    from amaranth.lib import stream, wiring
+    from amaranth.lib.wiring import In, Out
+    from amaranth.hdl import Array, Const, Signal
+    from hdl.floor import FloorFlag, floor_record_layout
+    lines, params = floor_lines_for(job)
+    layout = _record_layout(job)
+
+    class FixedFloorFlag(wiring.Component):
+        """:class:`hdl.floor.FloorFlag` with its registers written, as the CPU would, from a
+        table of one line per frame: the frame counter steps at each ``eof`` record that
+        enters, and the unit loads the next frame's line in the following cycle."""
+
+        def __init__(self):
+            self.flag = FloorFlag(layout)
+            # what the Verilog depends on beside hdl/: a cached simulator build is found by
+            # these (sim.backends.verilator.construction_params)
+            self._lines = tuple((l.slope, l.offset) for l in lines)
+            self._tol = (params.tol, params.tol_shift)
+            self._layout = repr(layout)
+            super().__init__({"i": In(stream.Signature(layout)),
+                              "o": Out(stream.Signature(floor_record_layout(layout)))})
+
+        def elaborate(self, platform):
+            m = Module()
+            m.submodules.flag = f = self.flag
+            wiring.connect(m, wiring.flipped(self.i), f.i)
+            wiring.connect(m, f.o, wiring.flipped(self.o))
+            frame = Signal(range(len(lines) + 1))
+            with m.If(self.i.valid & self.i.ready & self.i.payload.eof & (frame < len(lines) - 1)):
+                m.d.sync += frame.eq(frame + 1)
+            slopes = Array(Const(l.slope, 10) for l in lines)
+            offsets = Array(Const(l.offset, f.offset.shape()) for l in lines)
+            m.d.comb += [f.enable.eq(1), f.slope.eq(slopes[frame]), f.offset.eq(offsets[frame]),
+                         f.tol.eq(params.tol), f.tol_shift.eq(params.tol_shift)]
+            return m
+
+    return FixedFloorFlag()
+
+
+def _record_layout(job):
+    """The pipeline's record layout for ``job`` (without elaborating the pipeline)."""
+    from hdl.matcher import match_record_layout
+    mp = _rtl_matcher(job)
+    return match_record_layout(job.max_width, job.max_height, job.max_disparity, cost=mp.cost,
+                               window=mp.window)
+
+
+@dataclass
+class FloorUnit:
+    """The floor flag unit on the golden pipeline's records (``hdl/floor.py``, golden
+    ``golden.floor.floor_flags``), each frame's line learned from the frame before
+    (:func:`floor_lines_for`)."""
+    name: str = "floor"
+    stereo: bool = True
+    doc: str = "floor flag of each match record (v-disparity line)"
+    streams: dict = field(default_factory=dict)
+    #: no matcher statistics to compare (python -m sim compare)
+    has_stats: bool = False
+
+    def make(self, job):
+        return _floor_unit(job)
+
+    def _records(self, job):
+        return [g.records for g in job.golden]
+
+    def words(self, job):
+        layout = _record_layout(job)
+        packer = Packer(layout)
+        words = []
+        for rec in self._records(job):
+            n = len(rec)
+            fields = {name: np.append(np.asarray(rec[name], np.int64), 0)
+                      for name in layout.members if name != "eof" and name in rec.dtype.names}
+            fields["eof"] = np.append(np.zeros(n, np.int64), 1)
+            words += packer.pack(**fields).astype(np.uint64).tolist()
+        return {"i": words}
+
+    def outputs(self, job):
+        return {"o": len(job.left)}
+
+    def expected(self, job):
+        from golden.floor import floor_flags
+        lines, params = floor_lines_for(job)
+        return [floor_flags(r["y"], r["d16"], line, params)
+                for r, line in zip(self._records(job), lines)]
+
+    def mismatches(self, job, words, dut):
+        layout = dut.o.payload.shape()
+        got = Packer(layout).unpack(np.array(words["o"], dtype=np.uint64)) if words["o"] else None
+        bad, start = 0, 0
+        want = self.expected(job)
+        ends = np.flatnonzero(got["eof"]) if got is not None else []
+        for k, exp in enumerate(want):
+            if k >= len(ends):
+                bad += len(exp) + 1
+                continue
+            sl = slice(start, ends[k])
+            rec = self._records(job)[k]
+            same = len(exp) == ends[k] - start and np.array_equal(got["floor"][sl], exp) and \
+                all(np.array_equal(got[n][sl], rec[n]) for n in ("x", "y", "d16"))
+            bad += 0 if same else max(1, int(np.sum(got["floor"][sl] != exp))
+                                       if len(exp) == ends[k] - start else len(exp))
+            start = ends[k] + 1
+        return bad
+
+
+UNITS["floor"] = FloorUnit()

@@ -54,3 +54,19 @@ def test_robust_motorcycle_truth():
     assert floor[h - 20:, 30:].all()
     one_pass, _ = motorcycle_truth(gt, refits=0)
     assert one_pass[h - 20:, 30:].sum() < floor[h - 20:, 30:].sum()
+
+
+def test_floor_bench_one_scene(tmp_path, capsys):
+    """The floor bench's figures on one scene, its must-hold check and its exit status."""
+    import sim.bench.floor as bf
+    rep = bf.run(["planks"])
+    r = rep["scenes"]["planks"]
+    assert set(bf.MODES) <= set(r) and r["off"]["good_ratio"] == 1.0
+    assert r["geometry"]["floor_done"] > 0.8 and r["geometry"]["good_ratio"] > 0.95
+    assert r["off"]["floor_matches"] > 50 and r["off"]["floor_done"] == 0.0
+    assert r["appearance"]["work_saved"] > 0 and r["geometry"]["work_saved"] == 0.0
+    bad = {"scenes": {"x": {bf.DEFAULT_MODE: dict(good_ratio=0.5, floor_done=0.5)},
+                      "motorcycle": {bf.DEFAULT_MODE: dict(good_ratio=1.0, floor_done=0.7)}}}
+    assert len(bf.check(bad)) == 3
+    assert bf.main(["--out", str(tmp_path), "--scene", "nowhere"]) == 2
+    assert capsys.readouterr().err.startswith("error: unknown scene")

@@ -238,6 +238,40 @@ def build_params(args, flags, width, height, grey, ground_default):
     return params
 
 
+def floor_params(args, camera):
+    """The floor decision's parameters of the command line (``golden.floor.FloorParams``):
+    none when ``--ground off`` is given (no floor decision at all); CliError for ``--floor rig``
+    without a camera height."""
+    from golden.floor import FloorLine, FloorParams
+    if getattr(args, "param__frontend__ground__mode", None) == GroundMode.OFF:
+        if args.floor != "learn":
+            raise CliError("--ground off means no floor decision; --floor needs another --ground")
+        return FloorParams(mode="off")
+    line = FloorLine.from_camera(camera) if args.floor != "off" else None
+    if args.floor == "rig" and line is None:
+        raise CliError("--floor rig needs a camera with height_m and tilt_deg (--camera)")
+    try:
+        return FloorParams(mode=args.floor, tol=args.floor_tol, tol_shift=args.floor_tol_shift,
+                           initial=line).validate()
+    except ValueError as e:
+        raise CliError(str(e)) from None
+
+
+def floor_decision(args, camera, frames):
+    """The floor flags of the last frame's records (the line learned over the frames before it,
+    as the CPU does) and the summary's ``floor`` entry."""
+    from golden.floor import FloorModel
+    params = floor_params(args, camera)
+    model = FloorModel(params)
+    for f in frames:
+        flags = model.step(f.records)
+    line = model.used
+    return (flags if params.mode != "off" else None), {
+        "mode": params.mode, "tol": params.tol, "tol_shift": params.tol_shift,
+        "line": None if line is None else {"slope": line.slope, "offset": line.offset},
+        "floor_points": int(flags.sum()), "points": int(len(flags))}
+
+
 def make_dut(unit, job):
     """Elaborate-time checks of the RTL (window, maximum disparity, sizes) before simulating."""
     try:
@@ -338,7 +372,7 @@ def cmd_compare(args, flags):
         return EXIT_MISMATCH
     report.update(mismatches=result["mismatches"], cycles=result["cycles"])
     exact = result["mismatches"] == 0
-    if unit.stereo:
+    if unit.stereo and getattr(unit, "has_stats", True):
         stats_ok, rtl = stats_verdict(result["status"], job.golden[-1].stats)
         report.update(stats_match=stats_ok, stats={k: int(v) for k, v in job.golden[-1].stats.items()})
         if not stats_ok:
@@ -454,6 +488,7 @@ def cmd_run(args, flags):
              for k, g in enumerate(golden)]
     summary["views_show"] = "RTL records" if len(rtl_frames) >= len(golden) else \
         f"golden records from frame {len(rtl_frames)} on (the RTL delivered {len(rtl_frames)})"
+    floor_flags, summary["floor"] = floor_decision(args, camera, shown)
     if truth is not None:
         summary["depth_error"] = depth_error(camera, shown[-1].records, truth)
     run = SimpleNamespace(args=args, params=params, job=job, golden=golden, frames=shown,
@@ -461,7 +496,7 @@ def cmd_run(args, flags):
     progress(f"writing views to {args.out}")
     paths = write_outputs(args.out, run.frames, job.left, job.right, camera=camera,
                           params=params, summary=summary, obstacles=obstacles,
-                          camera_views=camera_views)
+                          camera_views=camera_views, floor=floor_flags)
     # Further outputs of a run hook in here: they get ``run`` (the last frame's golden data in
     # run.golden[-1], the RTL's in run.result) and write into args.out.
     paths.update(write_raw_outputs(args.out, run.golden[-1], free=_rtl_free_space(result),
@@ -524,6 +559,12 @@ def _print_run(summary, last, failure, paths, args):
     near, far = cam["depth_range_m"]
     print(f"  measurable depth {near:.3g} m to {far:.3g} m (disparity {cam['disparity_range_px'][1]}"
           f" to {cam['far_disparity_px']} px; camera: {cam['source']})")
+    fl = summary.get("floor")
+    if fl and fl["mode"] != "off":
+        where = "no line yet" if fl["line"] is None else \
+            f"line slope {fl['line']['slope']}/256 px per row, offset {fl['line']['offset']}/256 px"
+        print(f"  floor ({fl['mode']}): {fl['floor_points']} of {fl['points']} matches flagged "
+              f"(matches.csv column floor; {where})")
     e = summary.get("depth_error")
     if e and e["points"]:
         print(f"  depth vs the pair's ground truth: median relative error {100 * e['median_rel_contour']:.1f}% "
@@ -555,6 +596,20 @@ def _add_pair_options(p, *, run):
         p.add_argument("--left", required=True, help="left image (PNG or any format Pillow "
                                                      "reads, 8 bits per sample)")
         p.add_argument("--right", help="right image (needed by stereo units)")
+    if run:
+        fl = p.add_argument_group("floor decision (golden/floor.py, hdl/floor.py): the "
+                                  "v-disparity floor line flags the matches on the floor")
+        fl.add_argument("--floor", choices=("learn", "rig", "off"), default="learn",
+                        help="the floor line: learned from each frame's matches and used on the "
+                             "next (starting from the camera's height and tilt when it has "
+                             "them), the camera's (rig) or none; --ground off means none "
+                             "[default: learn]")
+        fl.add_argument("--floor-tol", dest="floor_tol", type=_bounded_int(0, 255), default=4,
+                        help="tolerance above the line [unit: 1/16 px; range: 0..255; "
+                             "default: 4]")
+        fl.add_argument("--floor-tol-shift", dest="floor_tol_shift", type=_bounded_int(0, 7),
+                        default=6, help="the tolerance grows by the line's disparity >> this "
+                                        "[range: 0..7; default: 6]")
     p.add_argument("--crop", metavar="WxH+X+Y", help="window of both images")
     p.add_argument("--backend", default="verilator" if run else "amaranth",
                    choices=("verilator", "amaranth") if run else BACKENDS,

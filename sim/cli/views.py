@@ -14,7 +14,8 @@ pixel per screen pixel, undimmed, with a colour bar or legend beside it:
 - ``topview.png``: bird's-eye map in metres, robot at the bottom, the matched points, the
   field of view and the blind zone nearer than the largest disparity reaches;
 - ``frames.png`` (runs of several frames): a contact sheet, one panel per frame;
-- ``matches.csv``: ``x, y, d, cost, z_m, x_m, forward_m, valid``; ``summary.json``.
+- ``matches.csv``: ``x, y, d, cost, z_m, x_m, forward_m, valid`` (and ``floor``, 1 = on the
+  floor, with a floor decision); ``summary.json``.
 """
 import csv
 import json
@@ -371,14 +372,16 @@ def _draw_all(jobs):
 
 
 def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstacles=(),
-                  camera_views=None):
+                  camera_views=None, floor=None):
     """Write the views of the last of ``frames`` (:class:`golden.pipeline.PipelineFrame`, their
     records may come from the RTL; ``lefts`` / ``rights`` the RGB images), a contact sheet
     when there are several, ``matches.csv`` and ``summary.json`` into ``out``; returns the
     paths written by name. ``obstacles``: a synthetic scene's :class:`sim.scenes.rendered.Box` and
     :class:`sim.scenes.rendered.Cylinder` objects (robot at the origin), drawn in the top view.
     ``camera_views``: the paths :func:`write_camera_views` already wrote for this frame (else
-    they are drawn here)."""
+    they are drawn here). ``floor``: the floor flag of each record of the last frame
+    (``golden/floor.py``), written as ``matches.csv``'s last column ``floor``; None: no
+    column (no floor decision)."""
     os.makedirs(out, exist_ok=True)
     frame, left, right = frames[-1], lefts[-1], rights[-1]
     rec = frame.records
@@ -412,12 +415,14 @@ def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstac
     with open(paths["matches"], "w", newline="") as f:
         w = csv.writer(f)
         v2 = "conf" in rec.dtype.names
-        w.writerow(MATCH_COLUMNS_V2 if v2 else MATCH_COLUMNS)
+        w.writerow((MATCH_COLUMNS_V2 if v2 else MATCH_COLUMNS)
+                   + (("floor",) if floor is not None else ()))
         d = [f"{v:.4f}" for v in disparity(rec).tolist()] if v2 else rec["d"].tolist()
         metres = [[_metres(v) for v in table[c].tolist()] for c in ("z_m", "x_m", "forward_m")]
         w.writerows(zip(rec["x"].tolist(), rec["y"].tolist(), d, rec["cost"].tolist(),
                         *([rec["conf"].tolist()] if v2 else []), *metres,
-                        table["valid"].astype(int).tolist()))
+                        table["valid"].astype(int).tolist(),
+                        *([np.asarray(floor).astype(int).tolist()] if floor is not None else [])))
     paths["summary"] = p("summary.json")
     with open(paths["summary"], "w") as f:
         json.dump(summary, f, indent=2)
