@@ -10,8 +10,8 @@ drain per record.
 
 Structure: one block RAM holds both halves of band words (``slots`` bytes, descending) and
 the column table (:func:`golden.bands.column_table`: per bucket of ``2**shift`` columns the
-base band, whether a band starts inside it and where). Port A reads for the records and
-writes the table; port B writes the records' words and reads for the CPU. Three
+base band, whether a band starts inside it and where). Port A reads for the records;
+port B fills the table, writes the records' words and reads for the CPU. Three
 stages, ``i.ready`` always 1:
 
 - stage 1: read the record's table entry (port A);
@@ -35,7 +35,7 @@ geometries.
 
 Registers (byte offsets in the window at ``base``; ``hdl.regmap.BANDS_REGS``); whole-word
 access, byte enables ignored; reads answer one cycle after the strobe, TOP reads three cycles
-after (four when a record writes meanwhile):
+after (four when a record writes meanwhile; while the table fills, after the fill):
 
 - CFG (rw): width bits 10..0 (columns, ``n_bands..max_width``), n_bands bits 22..16
   (``1..max_bands``). Reset: 720 and 32 (limited to the elaboration's maxima).
@@ -58,7 +58,7 @@ shares the block RAM (its spare rows) at the price of the one-in-two-cycles rate
 distributed RAM it would cost more LUTs than the rest of the unit. The valid bits
 (``2 * max_bands`` flip-flops) spare a clearing pass that would stall the stream.
 """
-from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal, signed
+from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -162,14 +162,14 @@ class BandSummary(wiring.Component):
         ab = max(bb + 1, tb) + 1
         entry = data.StructLayout({"base": bb, "has": 1, "start": lb})
         width_bits = max(8 * slots, entry.size)
-        m.submodules.ram = ram = Memory(shape=width_bits, depth=1 << ab, init=[])
-        # port A: table reads (stage 1), word reads (stage 2), table writes (the fill)
+        m.submodules.ram = ram = Memory(shape=width_bits, depth=1 << ab, init=[0] * (1 << ab))
+        # port A: table reads (stage 1), word reads (stage 2)
         addr_a = Signal(ab)
-        rd_a, wr_a = ram.read_port(), ram.write_port()
-        # port B: word writes (stage 3), the CPU's reads
+        rd_a = ram.read_port()
+        # port B: table writes (the fill), word writes (stage 3), the CPU's reads
         addr_b = Signal(ab)
         rd_b, wr_b = ram.read_port(), ram.write_port()
-        m.d.comb += [rd_a.addr.eq(addr_a), wr_a.addr.eq(addr_a), rd_a.en.eq(1),
+        m.d.comb += [rd_a.addr.eq(addr_a), rd_a.en.eq(1),
                      rd_b.addr.eq(addr_b), wr_b.addr.eq(addr_b), rd_b.en.eq(1)]
 
         def word_addr(band, half):
@@ -184,8 +184,8 @@ class BandSummary(wiring.Component):
         cfg_n = Signal(_CFG_BANDS_BITS, init=min(32, max_bands, init_w))
         load = Signal(init=1)               # CFG changed: derive and fill the table
         cfg_ok = Signal()
-        shift = Signal(range(smax + 1))
-        n_minus_w = Signal(signed(wb + 1))
+        shift = Signal(max(2, smax.bit_length()))   # 2 bits at least: a 1-bit Switch trips GHDL
+        w_minus_n = Signal(wb)
         building = Signal()
         usable = Signal()
         m.d.comb += usable.eq(cfg_ok & ~building & ~load)
@@ -194,8 +194,8 @@ class BandSummary(wiring.Component):
         # the walk: r = (x + 1) n - 1 - band * width, in 0..width - 1
         wx, wband, wr, stepped = Signal(wb), Signal(bb), Signal(wb), Signal()
         last_x = Signal(wb)
-        t = Signal(signed(wb + 2))
-        m.d.comb += t.eq(wr + n_minus_w)                # r + n - width
+        t = Signal(wb + 1)                  # r - (width - n): bit wb is the borrow
+        m.d.comb += t.eq(wr - w_minus_n)
         bucket, low = Signal(tb), Signal(lb)
         self._split(m, shift, smax, tb, wx, bucket, low)
         first = low == 0
@@ -204,22 +204,21 @@ class BandSummary(wiring.Component):
             fill.base.eq(Mux(first, wband, wband - 1)),
             fill.has.eq(~first),
             fill.start.eq(Mux(first, 0, low)),
-            wr_a.data.eq(fill.as_value()),
-            wr_a.en.eq(building & (first | stepped)),
         ]
+        fill_en = building & (first | stepped)
         with m.If(load):
             m.d.sync += [
                 load.eq(0), cfg_ok.eq(valid_cfg), building.eq(valid_cfg),
                 shift.eq(sum((cfg_w > (1 << (k + tb))).as_unsigned() for k in range(smax))
                          if smax else 0),
-                n_minus_w.eq(cfg_n - cfg_w), last_x.eq(cfg_w - 1),
+                w_minus_n.eq(cfg_w - cfg_n), last_x.eq(cfg_w - 1),
                 wx.eq(0), wband.eq(0), wr.eq(cfg_n - 1), stepped.eq(0),
             ]
         with m.Elif(building):
-            step = t >= 0
+            step = ~t[wb]                   # r + n >= width
             m.d.sync += [
                 wx.eq(wx + 1),
-                wr.eq(Mux(step, t, wr + cfg_n)),
+                wr.eq(Mux(step, t[:wb], wr + cfg_n)),
                 wband.eq(wband + step),
                 stepped.eq(step),
                 building.eq(wx != last_x),
@@ -257,50 +256,67 @@ class BandSummary(wiring.Component):
         acc_valid = Signal(1 << bb)         # bands written in the accumulating frame
         pub_valid = Signal(1 << bb)         # bands written in the published frame
         match3, mark3, abort3, lost3 = Signal(), Signal(), Signal(), Signal()
+        # (a marker publishes in stage 3; stage 4 below still writes the frame it ends)
         band3, d3 = Signal(bb), Signal(8)
         publish = mark3 & ~abort3
-        with m.If(building):
-            m.d.comb += addr_a.eq(table_addr(bucket))
-        with m.Elif(v1):
+        with m.If(v1):
             m.d.comb += addr_a.eq(table_addr(c1))
         with m.Else():                      # a marker in stage 3 publishes: the next half
             m.d.comb += addr_a.eq(word_addr(band2, Mux(publish, ~acc, acc)))
         m.d.sync += [match3.eq(match2), mark3.eq(mark2), abort3.eq(abort2), lost3.eq(lost2),
                      band3.eq(band2), d3.eq(d2)]
 
-        # stage 3: insert and write back; a band's first word of a frame starts from zeros
+        # stage 3: insert; a band's first word of a frame starts from zeros, a word written in
+        # the cycle of its read comes from the bypass (fwd3)
+        match4, band4, new4 = Signal(), Signal(bb), Signal(8 * slots)
+        fwd3, fwd_word3 = Signal(), Signal(8 * slots)
+        m.d.sync += [fwd3.eq(match4 & (band4 == band2) & ~mark3), fwd_word3.eq(new4)]
+        vbit3 = Signal()
+        m.d.comb += vbit3.eq((acc_valid >> band3)[0])
         old = Signal(8 * slots)
-        m.d.comb += old.eq(Mux(acc_valid.bit_select(band3, 1), rd_a.data[:8 * slots], 0))
+        m.d.comb += old.eq(Mux(fwd3, fwd_word3, rd_a.data[:8 * slots]))
         top = [old[8 * j:8 * j + 8] for j in range(slots)]
         ge = [top[j] >= d3 for j in range(slots)]
-        new = Signal(8 * slots)
+        inserted = Signal(8 * slots)
         for j in range(slots):
             moved = d3 if j == 0 else Mux(ge[j - 1], d3, top[j - 1])
-            m.d.comb += new[8 * j:8 * j + 8].eq(Mux(ge[j], top[j], moved))
-        m.d.comb += [wr_b.data.eq(new), wr_b.en.eq(match3)]
+            m.d.comb += inserted[8 * j:8 * j + 8].eq(Mux(ge[j], top[j], moved))
+        new = Signal(8 * slots)             # the band's first match of the frame: d alone
+        m.d.comb += new.eq(Mux(fwd3 | vbit3, inserted, d3))
+
+        # stage 4: write back (port B)
+        m.d.sync += [match4.eq(match3), band4.eq(band3), new4.eq(new)]
+        m.d.comb += [wr_b.data.eq(Mux(building, fill.as_value(), new4)),
+                     wr_b.en.eq(fill_en | match4)]
+        written = Signal(1 << bb)           # acc_valid with stage 4's band
+        for k in range(1 << bb):
+            m.d.comb += written[k].eq(acc_valid[k] | (match4 & (band4 == k)))
 
         frames, aborted = Signal(16), Signal(16)
         lost_acc, lost_pub = Signal(), Signal()
+        m.d.sync += acc_valid.eq(written)
         with m.If(mark3):
             m.d.sync += [acc_valid.eq(0), lost_acc.eq(0)]
             with m.If(abort3):
                 m.d.sync += aborted.eq(aborted + 1)
             with m.Else():
-                m.d.sync += [acc.eq(~acc), pub_valid.eq(acc_valid), frames.eq(frames + 1),
+                m.d.sync += [acc.eq(~acc), pub_valid.eq(written), frames.eq(frames + 1),
                              lost_pub.eq(lost_acc)]
-        with m.Else():
-            with m.If(match3):
-                m.d.sync += acc_valid.bit_select(band3, 1).eq(1)
-            with m.If(lost3):
-                m.d.sync += lost_acc.eq(1)
+        with m.Elif(lost3):
+            m.d.sync += lost_acc.eq(1)
         m.d.comb += [self.frames.eq(frames), self.dropped.eq(dropped), self.aborted.eq(aborted)]
 
         # the CPU's TOP reads take port B when no record writes
         cpu_pending = Signal()
         cpu_band = Signal(bb)
         cpu_half = Signal(max(1, pb))
-        cpu_issue = cpu_pending & ~match3
-        m.d.comb += addr_b.eq(Mux(match3, word_addr(band3, acc), word_addr(cpu_band, ~acc)))
+        cpu_issue = cpu_pending & ~match4 & ~building
+        with m.If(building):
+            m.d.comb += addr_b.eq(table_addr(bucket))
+        with m.Elif(match4):
+            m.d.comb += addr_b.eq(word_addr(band4, acc))
+        with m.Else():
+            m.d.comb += addr_b.eq(word_addr(cpu_band, ~acc))
 
         # ---- the bus ------------------------------------------------------------------------
         bus = self.bus
@@ -334,7 +350,7 @@ class BandSummary(wiring.Component):
         answer, answer_valid, answer_half = Signal(), Signal(), Signal(max(1, pb))
         m.d.sync += answer.eq(cpu_issue)
         with m.If(cpu_issue):
-            m.d.sync += [cpu_pending.eq(0), answer_valid.eq(pub_valid.bit_select(cpu_band, 1)),
+            m.d.sync += [cpu_pending.eq(0), answer_valid.eq((pub_valid >> cpu_band)[0]),
                          answer_half.eq(cpu_half)]
         with m.If(answer):
             half = Signal(32)
@@ -350,7 +366,8 @@ class BandSummaryStream(wiring.Component):
     included.
 
     After reset the reader writes CFG (``width``, ``n_bands``) and waits for the table (input
-    held); then records pass to the unit (``i.ready`` follows it) until a marker without
+    held); then records pass to the unit, one every two cycles as the SoC's result FIFO takes
+    them, until a marker without
     ``abort``, whose frame the reader takes (STATUS.frames changes), reading ``ceil(slots/4)``
     TOP words per band and sending one beat per band (:func:`summary_layout`, 1 x n_bands, band
     0 first), input held meanwhile.
@@ -386,10 +403,13 @@ class BandSummaryStream(wiring.Component):
                      self.aborted.eq(unit.aborted)]
 
         running = Signal()
+        took = Signal()                     # a transfer last cycle: one every two, as the FIFO
+        ready = running & ~took
+        m.d.sync += took.eq(self.i.valid & ready)
         m.d.comb += [
-            unit.i.valid.eq(self.i.valid & running),
+            unit.i.valid.eq(self.i.valid & ready),
             unit.i.payload.eq(self.i.payload),
-            self.i.ready.eq(running & unit.i.ready),
+            self.i.ready.eq(ready),
         ]
         seen = Signal(16)
         band = Signal(range(n))
@@ -423,7 +443,7 @@ class BandSummaryStream(wiring.Component):
                         m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += running.eq(1)
-                with m.If(self.i.valid & self.i.payload.eof & ~self.i.payload.abort):
+                with m.If(self.i.valid & ready & self.i.payload.eof & ~self.i.payload.abort):
                     m.next = "POLL"
             with m.State("POLL"):
                 access(regs["STATUS"])
