@@ -11,22 +11,25 @@ drain per record.
 Structure: one block RAM holds both halves of band words (``slots`` bytes, descending) and
 the column table (:func:`golden.bands.column_table`: per bucket of ``2**shift`` columns the
 base band, whether a band starts inside it and where). Port A reads for the records;
-port B fills the table, writes the records' words and reads for the CPU. Three
-stages, ``i.ready`` always 1:
+port B fills the table, writes the records' words and reads for the CPU. Four stages,
+``i.ready`` always 1:
 
 - stage 1: read the record's table entry (port A);
 - stage 2: its band (one compare and an increment, no divide); read the band's word from the
   accumulating half (port A);
-- stage 3: insert the disparity (``slots`` parallel compares, a shift by one slot) and write
-  the word back (port B). A band's first write of a frame starts from zeros: a valid bit per
-  band and half, so nothing is cleared between frames.
+- stage 3: insert the disparity (``slots`` parallel compares, a shift by one slot); a word
+  written in the cycle of this record's read comes from a bypass register, and a band's first
+  match of a frame is written alone (a valid bit per band and half, so nothing is cleared
+  between frames);
+- stage 4: write the word back (port B).
 
 A record takes port A in two consecutive cycles, so the unit takes one record every two
 cycles, what the SoC's result FIFO takes at most: a record in the cycle right after a record
 is dropped. The CPU's TOP reads use port B in the cycles without a write.
 
-An ``eof`` marker reaching stage 3 swaps the halves (the frame is published: STATUS.frames
-counts, the CPU window shows it); ``eof`` with ``abort`` (the frame was cut by a restart of the
+An ``eof`` marker reaching stage 3 swaps the halves (stage 4's write, the frame's last, lands
+in the same cycle): the frame is published, STATUS.frames counts it and the CPU window shows
+it. ``eof`` with ``abort`` (the frame was cut by a restart of the
 video path) discards the accumulating frame. The table is filled after reset and after each
 CFG write, one column a cycle (width cycles, :func:`golden.bands.table_walk`); records that
 arrive meanwhile, or while CFG is invalid, are dropped and counted (DROPS.records) and flag
