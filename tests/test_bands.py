@@ -347,3 +347,39 @@ def test_unit_synthesis_levels_and_size(tmp_path):
     c = synthesize_component("bands", BandSummary(), tmp_path)
     assert c["levels"] <= MAX_LEVELS and c["carry_bits"] <= MAX_CARRY, c
     assert c["RAMB16"] == 1 and c["LUTRAM"] == 0 and c["LUT4"] < 750, c
+
+
+# ---- the firmware's reader (firmware/src/bands_hw.c) ---------------------------------------
+
+FW = __import__("pathlib").Path(__file__).resolve().parent.parent / "firmware"
+
+
+def test_firmware_reader_host_test(tmp_path):
+    """firmware/tests/test_bands_hw.c: the reader merges frames into the report radio_summary_add
+    gives from their records; built here with the firmware's host flags (not yet in the
+    firmware's own runner), and the target build compiles."""
+    import shutil
+    import subprocess
+    cc = shutil.which("gcc")
+    assert cc, "gcc is needed for the firmware host tests"
+    flags = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2",
+             f"-I{FW / 'include'}", f"-I{FW / 'tests'}"]
+    exe = tmp_path / "test_bands_hw"
+    subprocess.run([cc, *flags, "-DBANDS_HW_TEST_MAIN", str(FW / "tests/test_bands_hw.c"),
+                    str(FW / "tests/fwtest.c"), str(FW / "src/bands_hw.c"),
+                    str(FW / "src/radio.c"), str(FW / "src/hal.c"), "-o", str(exe)], check=True)
+    r = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.strip().endswith("2 passed, 0 failed"), r.stdout
+    subprocess.run([cc, *flags, "-Os", "-DHAL_TARGET", "-c", str(FW / "src/bands_hw.c"),
+                    "-o", str(tmp_path / "bands_hw.o")], check=True)
+
+
+def test_firmware_header_matches_regmap():
+    import re
+    text = (FW / "include/bands_hw.h").read_text()
+    defs = {k: int(v, 0) for k, v in re.findall(r"#define (BANDS_HW_\w+)\s+\(?(0x[0-9A-Fa-f]+|\d+)u",
+                                                text)}
+    assert defs["BANDS_HW_BASEADDR"] == regmap.BANDS_BASEADDR
+    for name, offset in REGS.items():
+        assert defs[f"BANDS_HW_{name}_OFFSET"] == offset
+    assert defs["BANDS_HW_SLOTS"] == SLOTS and defs["BANDS_HW_MAX_WIDTH"] == 1024
