@@ -426,3 +426,18 @@ def encode_params(ground=None, sobel=None, matcher=None, *, right_threshold=None
             v |= x << f.lsb
         values[reg.name] = v
     return values
+
+
+# Per-band obstacle summary (hdl/bands.py, golden/bands.py): a peripheral of its own on the I/O
+# bus, beside the register block (whose window is full), the IIC master (0xC0010000), the UART
+# (0xC0020000), the CPU's timer (0xC0030000) and the motion controller's mailbox (0xC0040000).
+BANDS_BASEADDR = 0xC005_0000
+BANDS_WINDOW = 0x400          #: bytes decoded by the band summary
+#: Byte offsets in the band summary's window (meanings: hdl/bands.py).
+#: CFG (rw): width bits 10..0 (reset 720), n_bands bits 22..16 (reset 32).
+#: STATUS (ro): frames bits 15..0 (published frames, wraps), built bit 16 (the band table
+#: matches CFG and CFG is valid), bad_cfg bit 17, lost bit 18 (the published frame lost records).
+#: DROPS (ro): records dropped bits 15..0 (saturating), aborted frames bits 31..16 (wraps).
+#: TOP (ro): from 0x100, ceil(slots / 4) words per band, band 0 first: the published frame's
+#: largest disparities of the band, the largest in bits 7..0, then 15..8, 23..16, 31..24.
+BANDS_REGS = {"CFG": 0x000, "STATUS": 0x004, "DROPS": 0x008, "TOP": 0x100}

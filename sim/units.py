@@ -12,6 +12,8 @@ from golden.pipeline import PipelineParams, pipeline_frames
 from golden.frontend import frontend_frames
 from golden.freespace import free_frame
 from hdl import types
+from hdl.bands import summary_layout
+from hdl.regs import ResultLayout
 from sim.streams import Packer, frames_words, words_to_frames
 
 __all__ = ["Job", "Unit", "StereoUnit", "UNITS", "DEPRECATED_UNITS", "unit_name", "pipeline_for",
@@ -226,6 +228,46 @@ def _freespace(job):
     return FreeSpace(**_size(job))
 
 
+def _bands(job):
+    """The band summary with its bus reader, for the job's frame width (the firmware's 32 bands,
+    fewer on narrower frames; a job without frames: the ADV7180 field's 720 columns)."""
+    from golden.bands import MAX_BANDS
+    from hdl.bands import BandSummaryStream
+    width = job.left[0].shape[1] if job.left else min(720, job.max_width)
+    return BandSummaryStream(width=width, n_bands=min(32, MAX_BANDS, width),
+                             max_width=min(job.max_width, 1024))
+
+
+@dataclass
+class RecordUnit(Unit):
+    """A unit fed with the result FIFO's stream (:data:`hdl.regs.ResultLayout`): the golden
+    pipeline's records of each frame, then an end-of-frame marker. Its expected output comes
+    from the elaborated unit (``expected(job, dut)``). No matcher statistics."""
+    has_stats: bool = False
+
+    def words(self, job):
+        pk = Packer(ResultLayout)
+        words = []
+        for g in job.golden:
+            r = g.records
+            words += pk.pack(x=r["x"], y=r["y"], d=r["d"], d16=16 * r["d"]).tolist()
+            words.append(pk.pack_int(eof=1))
+        return {"i": words}
+
+    def mismatches(self, job, words, dut):
+        return pixel_mismatches(Packer(self.out_layout), words["o"], self.expected(job, dut))
+
+
+def _bands_expected(job, dut):
+    """One summary frame per job frame (golden.bands.frame_top), 1 x n_bands, d0 .. d{slots-1}."""
+    from golden.bands import frame_top
+    out = []
+    for g in job.golden:
+        top = frame_top(g.records["x"], g.records["d"], dut._width, dut._n_bands, dut._slots)
+        out.append({f"d{j}": top[:, j].astype(np.int64)[None, :] for j in range(dut._slots)})
+    return out
+
+
 def _ground_out(job):
     return [dict(y=g.left.y, ground=g.left.ground) for g in job.golden]
 
@@ -257,6 +299,9 @@ UNITS = {
                            lambda job, side: [rgb(f) for f in getattr(job, side)],
                            "the whole stereo pipeline",
                            streams=free_streams(free_left="left", free_right="right")),
+    "bands": RecordUnit("bands", True, _bands, ResultLayout, summary_layout(), None, _bands_expected,
+                        "per-band obstacle summary of the pipeline's records (golden.bands), "
+                        "read over its bus"),
 }
 
 #: Former unit (and design) names still accepted, with a warning: old name -> current name.

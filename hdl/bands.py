@@ -1,0 +1,481 @@
+"""Per-band obstacle summary of the result records, for the CPU's radio report
+(``golden/bands.py``, the rule; register window ``hdl/regmap.py`` BANDS_*).
+
+:class:`BandSummary` watches the records the result FIFO gets and keeps, per frame and column
+band, the ``slots`` largest disparities (:func:`golden.bands.frame_top`). An end-of-frame
+marker publishes the frame: the CPU reads the last complete frame from a register window
+while the next one accumulates (double buffering in one block RAM), and merges the frames of
+its report period (:func:`golden.bands.merge_tops`), a few dozen reads a frame instead of one
+drain per record.
+
+Structure: one block RAM holds both halves of band words (``slots`` bytes, descending) and
+the column table (:func:`golden.bands.column_table`: per bucket of ``2**shift`` columns the
+base band, whether a band starts inside it and where). Port A reads for the records;
+port B fills the table, writes the records' words and reads for the CPU. Four stages,
+``i.ready`` always 1:
+
+- stage 1: read the record's table entry (port A);
+- stage 2: its band (one compare and an increment, no divide); read the band's word from the
+  accumulating half (port A);
+- stage 3: insert the disparity (``slots`` parallel compares, a shift by one slot); a word
+  written in the cycle of this record's read comes from a bypass register, and a band's first
+  match of a frame is written alone (a valid bit per band and half, so nothing is cleared
+  between frames);
+- stage 4: write the word back (port B).
+
+A record takes port A in two consecutive cycles, so the unit takes one record every two
+cycles, what the SoC's result FIFO takes at most: a record in the cycle right after a record
+is dropped. The CPU's TOP reads use port B in the cycles without a write.
+
+An ``eof`` marker reaching stage 3 swaps the halves (stage 4's write, the frame's last, lands
+in the same cycle): the frame is published, STATUS.frames counts it and the CPU window shows
+it. ``eof`` with ``abort`` (the frame was cut by a restart of the
+video path) discards the accumulating frame. The table is filled after reset and after each
+CFG write, one column a cycle (width cycles, :func:`golden.bands.table_walk`); records that
+arrive meanwhile, or while CFG is invalid, are dropped and counted (DROPS.records) and flag
+their frame (STATUS.lost). Write CFG between frames: the frame in progress would mix two band
+geometries.
+
+Registers (byte offsets in the window at ``base``; ``hdl.regmap.BANDS_REGS``); whole-word
+access, byte enables ignored; reads answer one cycle after the strobe, TOP reads three cycles
+after (four when a record writes meanwhile; while the table fills, after the fill):
+
+- CFG (rw): width bits 10..0 (columns, ``n_bands..max_width``), n_bands bits 22..16
+  (``1..max_bands``). Reset: 720 and 32 (limited to the elaboration's maxima).
+- STATUS (ro): frames bits 15..0 (frames published, wraps), built bit 16, bad_cfg bit 17,
+  lost bit 18 (the published frame lost records).
+- DROPS (ro): records dropped bits 15..0 (saturating), aborted frames bits 31..16 (wraps).
+- TOP (ro), from 0x100: ``ceil(slots / 4)`` words per band, band 0 first
+  (:func:`golden.bands.summary_words`) of the published frame.
+
+Reading a consistent frame: read STATUS, the TOP words, STATUS again; the frame is whole when
+both frame counts are equal (a publish in between changes the count). STATUS.built is 0
+while the table fills (CFG.width cycles after reset or a CFG write).
+
+Latency: a marker publishes its frame 3 cycles after it is taken (STATUS shows it on the
+next read).
+
+Trade-offs: ``slots`` bytes per band word: 4 fit one RAMB16 port (36 bits); up to 8 take a
+second RAMB16 for the wider word (reports then exact for ``min_support`` up to 8). The table
+shares the block RAM (its spare rows) at the price of the one-in-two-cycles rate; in
+distributed RAM it would cost more LUTs than the rest of the unit. The valid bits
+(``2 * max_bands`` flip-flops) spare a clearing pass that would stall the stream.
+"""
+from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from golden.bands import MAX_BANDS, MAX_WIDTH, SLOTS, check_config, table_shift
+from . import regmap
+from .regs import BusWindow, IOBusSignature, ResultLayout, check_window_base
+from .types import frame_layout
+
+__all__ = ["BandSummary", "BandSummaryStream", "table_bits", "summary_layout", "LATENCY"]
+
+#: Cycles from taking an end-of-frame marker to publishing its frame.
+LATENCY = 3
+
+_CFG_WIDTH_BITS = 11
+_CFG_BANDS_LSB, _CFG_BANDS_BITS = 16, 7
+_TOP = regmap.BANDS_REGS["TOP"]
+
+
+def table_bits(max_bands):
+    """log2 of the column table's buckets: ``2**(table_bits - 1) >= max_bands`` keeps every
+    bucket within the narrowest band for every width (golden/bands.py)."""
+    return (max_bands - 1).bit_length() + 1
+
+
+def summary_layout(slots=SLOTS):
+    """One band of a published frame as :class:`BandSummaryStream` sends it: ``d0`` (largest)
+    .. ``d{slots-1}``, 8 bits each, with the framing flags (a frame is 1 x n_bands)."""
+    return frame_layout(**{f"d{j}": 8 for j in range(slots)})
+
+
+def _check(unit, max_width, max_bands, slots, base):
+    words = -(-slots // 4)
+    problems = []
+    if not isinstance(max_width, int) or not 1 <= max_width <= MAX_WIDTH:
+        problems.append(f"max_width must be 1..{MAX_WIDTH}, not {max_width!r}")
+    if not isinstance(max_bands, int) or not 1 <= max_bands <= (1 << _CFG_BANDS_BITS) - 1:
+        problems.append(f"max_bands must be 1..127, not {max_bands!r}")
+    elif isinstance(slots, int) and (max_bands * words * 4 > regmap.BANDS_WINDOW - _TOP):
+        problems.append(f"{max_bands} bands of {slots} slots do not fit the register window")
+    if not isinstance(slots, int) or not 1 <= slots <= 8:
+        problems.append(f"slots must be 1..8, not {slots!r}")
+    if problems:
+        unit._MustUse__silence = True
+        raise ValueError("; ".join(problems))
+    check_window_base(unit, base, regmap.BANDS_WINDOW)
+
+
+class BandSummary(wiring.Component):
+    """Per-band summary of the record stream, read by the CPU on the I/O bus.
+
+    Ports
+    -----
+    i : In(stream of :data:`hdl.regs.ResultLayout`)
+        The records the result FIFO takes (its input transfers: ``valid & ready`` there), one
+        every two cycles at most (a record right behind a record is dropped and counted);
+        ``ready`` is always 1. Uses ``x``, ``d``, ``eof`` and ``abort``.
+    bus : In(IOBusSignature)
+        Answers in ``[base, base + BANDS_WINDOW)``; ``read_data`` 0 and ``ready`` low otherwise
+        (the SoC ORs the answers).
+    frames, dropped, aborted : Out(16)
+        STATUS.frames, DROPS.records and DROPS.aborted.
+
+    Elaboration parameters: ``max_width`` (widest CFG.width), ``max_bands`` (most CFG.n_bands),
+    ``slots`` (disparities kept per band), ``base`` (bus address).
+    """
+
+    def __init__(self, *, max_width=MAX_WIDTH, max_bands=MAX_BANDS, slots=SLOTS,
+                 base=regmap.BANDS_BASEADDR):
+        _check(self, max_width, max_bands, slots, base)
+        self._max_width, self._max_bands, self._slots, self._base = max_width, max_bands, slots, base
+        super().__init__({
+            "i": In(stream.Signature(ResultLayout)),
+            "bus": In(IOBusSignature()),
+            "frames": Out(16), "dropped": Out(16), "aborted": Out(16),
+        })
+
+    @staticmethod
+    def _split(m, shift, smax, tb, x, bucket, low):
+        """``bucket`` = x >> shift (its low ``tb`` bits) and ``low`` = x mod 2**shift."""
+        with m.Switch(shift):
+            for s in range(smax + 1):
+                with m.Case(s):
+                    m.d.comb += bucket.eq(x[s:s + tb])
+                    if s:
+                        m.d.comb += low.eq(x[:s])
+
+    def elaborate(self, platform):
+        m = Module()
+        max_width, max_bands, slots = self._max_width, self._max_bands, self._slots
+        per = -(-slots // 4)                            # words per band
+        pb = (per - 1).bit_length()
+        bb = max(1, (max_bands - 1).bit_length())       # band index
+        tb = table_bits(max_bands)
+        smax = table_shift(max_width, table_bits=tb)
+        lb = max(1, smax)                               # column offset in a bucket
+        xb = Shape.cast(ResultLayout["x"].shape).width
+        wb = _CFG_WIDTH_BITS
+
+        # ---- one block RAM: the two halves of band words, then the column table ------------
+        ab = max(bb + 1, tb) + 1
+        entry = data.StructLayout({"base": bb, "has": 1, "start": lb})
+        width_bits = max(8 * slots, entry.size)
+        m.submodules.ram = ram = Memory(shape=width_bits, depth=1 << ab, init=[0] * (1 << ab))
+        # port A: table reads (stage 1), word reads (stage 2)
+        addr_a = Signal(ab)
+        rd_a = ram.read_port()
+        # port B: table writes (the fill), word writes (stage 3), the CPU's reads
+        addr_b = Signal(ab)
+        rd_b, wr_b = ram.read_port(), ram.write_port()
+        m.d.comb += [rd_a.addr.eq(addr_a), rd_a.en.eq(1),
+                     rd_b.addr.eq(addr_b), wr_b.addr.eq(addr_b), rd_b.en.eq(1)]
+
+        def word_addr(band, half):
+            return Cat(band, half, Const(0, ab - bb - 1))
+
+        def table_addr(bucket):
+            return Cat(bucket, Const(0, ab - 1 - tb), Const(1, 1))
+
+        # ---- configuration and the table fill ---------------------------------------------
+        init_w = min(720, max_width)
+        cfg_w = Signal(wb, init=init_w)
+        cfg_n = Signal(_CFG_BANDS_BITS, init=min(32, max_bands, init_w))
+        load = Signal(init=1)               # CFG changed: derive and fill the table
+        cfg_ok = Signal()
+        shift = Signal(max(2, smax.bit_length()))   # 2 bits at least: a 1-bit Switch trips GHDL
+        w_minus_n = Signal(wb)
+        building = Signal()
+        usable = Signal()
+        m.d.comb += usable.eq(cfg_ok & ~building & ~load)
+        valid_cfg = (cfg_n >= 1) & (cfg_n <= max_bands) & (cfg_w >= cfg_n) & (cfg_w <= max_width)
+
+        # the walk: r = (x + 1) n - 1 - band * width, in 0..width - 1
+        wx, wband, wr, stepped = Signal(wb), Signal(bb), Signal(wb), Signal()
+        last_x = Signal(wb)
+        t = Signal(wb + 1)                  # r - (width - n): bit wb is the borrow
+        m.d.comb += t.eq(wr - w_minus_n)
+        bucket, low = Signal(tb), Signal(lb)
+        self._split(m, shift, smax, tb, wx, bucket, low)
+        first = low == 0
+        fill = Signal(entry)
+        m.d.comb += [
+            fill.base.eq(Mux(first, wband, wband - 1)),
+            fill.has.eq(~first),
+            fill.start.eq(Mux(first, 0, low)),
+        ]
+        fill_en = building & (first | stepped)
+        with m.If(load):
+            m.d.sync += [
+                load.eq(0), cfg_ok.eq(valid_cfg), building.eq(valid_cfg),
+                shift.eq(sum((cfg_w > (1 << (k + tb))).as_unsigned() for k in range(smax))
+                         if smax else 0),
+                w_minus_n.eq(cfg_w - cfg_n), last_x.eq(cfg_w - 1),
+                wx.eq(0), wband.eq(0), wr.eq(cfg_n - 1), stepped.eq(0),
+            ]
+        with m.Elif(building):
+            step = ~t[wb]                   # r + n >= width
+            m.d.sync += [
+                wx.eq(wx + 1),
+                wr.eq(Mux(step, t[:wb], wr + cfg_n)),
+                wband.eq(wband + step),
+                stepped.eq(step),
+                building.eq(wx != last_x),
+            ]
+
+        # ---- the record pipeline ----------------------------------------------------------
+        p = self.i.payload
+        m.d.comb += self.i.ready.eq(1)
+        take = self.i.valid
+        v1 = Signal()                       # a record in stage 1
+        # a record right behind another would meet it at port A: dropped, as while unusable
+        drop = take & ~p.eof & (~usable | v1)
+        dropped = Signal(16)
+        with m.If(drop & (dropped != 0xFFFF)):
+            m.d.sync += dropped.eq(dropped + 1)
+
+        # stage 1: read the record's table entry
+        mark1, abort1, lost1 = Signal(), Signal(), Signal()
+        x1, d1 = Signal(xb), Signal(8)
+        m.d.sync += [v1.eq(take & ~p.eof & ~drop), mark1.eq(take & p.eof), abort1.eq(p.abort),
+                     lost1.eq(drop), x1.eq(p.x), d1.eq(p.d)]
+        c1, low1 = Signal(tb), Signal(lb)
+        self._split(m, shift, smax, tb, x1, c1, low1)
+
+        # stage 2: its band; read the band's word
+        match2, mark2, abort2, lost2 = Signal(), Signal(), Signal(), Signal()
+        low2, d2 = Signal(lb), Signal(8)
+        m.d.sync += [match2.eq(v1 & (x1 < cfg_w) & (d1 != 0)), mark2.eq(mark1),
+                     abort2.eq(abort1), lost2.eq(lost1), low2.eq(low1), d2.eq(d1)]
+        ent = data.View(entry, rd_a.data[:entry.size])
+        band2 = Signal(bb)
+        m.d.comb += band2.eq(ent.base + (ent.has & (low2 >= ent.start)))
+
+        acc = Signal()                      # the accumulating half; the published one is ~acc
+        acc_valid = Signal(1 << bb)         # bands written in the accumulating frame
+        pub_valid = Signal(1 << bb)         # bands written in the published frame
+        match3, mark3, abort3, lost3 = Signal(), Signal(), Signal(), Signal()
+        # (a marker publishes in stage 3; stage 4 below still writes the frame it ends)
+        band3, d3 = Signal(bb), Signal(8)
+        publish = mark3 & ~abort3
+        with m.If(v1):
+            m.d.comb += addr_a.eq(table_addr(c1))
+        with m.Else():                      # a marker in stage 3 publishes: the next half
+            m.d.comb += addr_a.eq(word_addr(band2, Mux(publish, ~acc, acc)))
+        m.d.sync += [match3.eq(match2), mark3.eq(mark2), abort3.eq(abort2), lost3.eq(lost2),
+                     band3.eq(band2), d3.eq(d2)]
+
+        # stage 3: insert; a band's first word of a frame starts from zeros, a word written in
+        # the cycle of its read comes from the bypass (fwd3)
+        match4, band4, new4 = Signal(), Signal(bb), Signal(8 * slots)
+        fwd3, fwd_word3 = Signal(), Signal(8 * slots)
+        m.d.sync += [fwd3.eq(match4 & (band4 == band2) & ~mark3), fwd_word3.eq(new4)]
+        vbit3 = Signal()
+        m.d.comb += vbit3.eq((acc_valid >> band3)[0])
+        old = Signal(8 * slots)
+        m.d.comb += old.eq(Mux(fwd3, fwd_word3, rd_a.data[:8 * slots]))
+        top = [old[8 * j:8 * j + 8] for j in range(slots)]
+        ge = [top[j] >= d3 for j in range(slots)]
+        inserted = Signal(8 * slots)
+        for j in range(slots):
+            moved = d3 if j == 0 else Mux(ge[j - 1], d3, top[j - 1])
+            m.d.comb += inserted[8 * j:8 * j + 8].eq(Mux(ge[j], top[j], moved))
+        new = Signal(8 * slots)             # the band's first match of the frame: d alone
+        m.d.comb += new.eq(Mux(fwd3 | vbit3, inserted, d3))
+
+        # stage 4: write back (port B)
+        m.d.sync += [match4.eq(match3), band4.eq(band3), new4.eq(new)]
+        m.d.comb += [wr_b.data.eq(Mux(building, fill.as_value(), new4)),
+                     wr_b.en.eq(fill_en | match4)]
+        written = Signal(1 << bb)           # acc_valid with stage 4's band
+        for k in range(1 << bb):
+            m.d.comb += written[k].eq(acc_valid[k] | (match4 & (band4 == k)))
+
+        frames, aborted = Signal(16), Signal(16)
+        lost_acc, lost_pub = Signal(), Signal()
+        m.d.sync += acc_valid.eq(written)
+        with m.If(mark3):
+            m.d.sync += [acc_valid.eq(0), lost_acc.eq(0)]
+            with m.If(abort3):
+                m.d.sync += aborted.eq(aborted + 1)
+            with m.Else():
+                m.d.sync += [acc.eq(~acc), pub_valid.eq(written), frames.eq(frames + 1),
+                             lost_pub.eq(lost_acc)]
+        with m.Elif(lost3):
+            m.d.sync += lost_acc.eq(1)
+        m.d.comb += [self.frames.eq(frames), self.dropped.eq(dropped), self.aborted.eq(aborted)]
+
+        # the CPU's TOP reads take port B when no record writes
+        cpu_pending = Signal()
+        cpu_band = Signal(bb)
+        cpu_half = Signal(max(1, pb))
+        cpu_issue = cpu_pending & ~match4 & ~building
+        with m.If(building):
+            m.d.comb += addr_b.eq(table_addr(bucket))
+        with m.Elif(match4):
+            m.d.comb += addr_b.eq(word_addr(band4, acc))
+        with m.Else():
+            m.d.comb += addr_b.eq(word_addr(cpu_band, ~acc))
+
+        # ---- the bus ------------------------------------------------------------------------
+        bus = self.bus
+        window = BusWindow(m, bus, self._base, regmap.BANDS_WINDOW)
+        regs = regmap.BANDS_REGS
+        word_index = Signal(range(regmap.BANDS_WINDOW // 4))
+        m.d.comb += word_index.eq(window.offset[2:] - (_TOP >> 2))
+        top_read = window.read & (window.offset >= _TOP) & (word_index < max_bands * per)
+        value = Signal(32)
+        with m.Switch(window.offset):
+            with m.Case(regs["CFG"]):
+                m.d.comb += value.eq(Cat(cfg_w, Const(0, _CFG_BANDS_LSB - wb), cfg_n))
+            with m.Case(regs["STATUS"]):
+                m.d.comb += value.eq(Cat(frames, usable, ~cfg_ok & ~load, lost_pub))
+            with m.Case(regs["DROPS"]):
+                m.d.comb += value.eq(Cat(dropped, aborted))
+        ready, read_data = Signal(), Signal(32)
+        m.d.comb += [bus.ready.eq(ready), bus.read_data.eq(read_data)]
+        m.d.sync += [ready.eq(0), read_data.eq(0)]
+        with m.If(window.hit & (bus.read_strobe | bus.write_strobe)):
+            with m.If(top_read):
+                m.d.sync += [cpu_pending.eq(1), cpu_band.eq(word_index >> pb)]
+                if pb:
+                    m.d.sync += cpu_half.eq(word_index[:pb])
+            with m.Else():
+                m.d.sync += [ready.eq(1), read_data.eq(Mux(window.read, value, 0))]
+            with m.If(window.write & (window.offset == regs["CFG"])):
+                m.d.sync += [cfg_w.eq(bus.write_data[:wb]),
+                             cfg_n.eq(bus.write_data[_CFG_BANDS_LSB:_CFG_BANDS_LSB + _CFG_BANDS_BITS]),
+                             load.eq(1)]
+        answer, answer_valid, answer_half = Signal(), Signal(), Signal(max(1, pb))
+        m.d.sync += answer.eq(cpu_issue)
+        with m.If(cpu_issue):
+            m.d.sync += [cpu_pending.eq(0), answer_valid.eq((pub_valid >> cpu_band)[0]),
+                         answer_half.eq(cpu_half)]
+        with m.If(answer):
+            half = Signal(32)
+            padded = Cat(rd_b.data[:8 * slots], Const(0, 32 * per - 8 * slots))
+            m.d.comb += half.eq(padded.word_select(answer_half, 32) if per > 1 else padded)
+            m.d.sync += [ready.eq(1), read_data.eq(Mux(answer_valid, half, 0))]
+        return m
+
+
+class BandSummaryStream(wiring.Component):
+    """:class:`BandSummary` with a reader on its bus that sends each published frame as a
+    stream: the unit as the simulators run it (``sim/units.py``), every register path
+    included.
+
+    After reset the reader writes CFG (``width``, ``n_bands``) and waits for the table (input
+    held); then records pass to the unit, one every two cycles as the SoC's result FIFO takes
+    them, until a marker without
+    ``abort``, whose frame the reader takes (STATUS.frames changes), reading ``ceil(slots/4)``
+    TOP words per band and sending one beat per band (:func:`summary_layout`, 1 x n_bands, band
+    0 first), input held meanwhile.
+
+    Ports: ``i`` (records), ``o`` (summaries), ``frames``, ``dropped``, ``aborted`` (the unit's).
+    """
+
+    def __init__(self, *, width, n_bands, max_width=MAX_WIDTH, max_bands=MAX_BANDS,
+                 slots=SLOTS):
+        try:
+            check_config(width, n_bands, max_width=max_width, max_bands=max_bands)
+        except ValueError:
+            self._MustUse__silence = True
+            raise
+        self._width, self._n_bands = width, n_bands
+        self._unit = dict(max_width=max_width, max_bands=max_bands, slots=slots)
+        self._slots = slots
+        super().__init__({
+            "i": In(stream.Signature(ResultLayout)),
+            "o": Out(stream.Signature(summary_layout(slots))),
+            "frames": Out(16), "dropped": Out(16), "aborted": Out(16),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.unit = unit = BandSummary(**self._unit)
+        base = regmap.BANDS_BASEADDR
+        regs = regmap.BANDS_REGS
+        slots, n = self._slots, self._n_bands
+        per = -(-slots // 4)
+        bus = unit.bus
+        m.d.comb += [self.frames.eq(unit.frames), self.dropped.eq(unit.dropped),
+                     self.aborted.eq(unit.aborted)]
+
+        running = Signal()
+        took = Signal()                     # a transfer last cycle: one every two, as the FIFO
+        ready = running & ~took
+        m.d.sync += took.eq(self.i.valid & ready)
+        m.d.comb += [
+            unit.i.valid.eq(self.i.valid & ready),
+            unit.i.payload.eq(self.i.payload),
+            self.i.ready.eq(ready),
+        ]
+        seen = Signal(16)
+        band = Signal(range(n))
+        word = Signal(range(per))
+        held = Signal(32 * per)
+        for j in range(slots):
+            m.d.comb += self.o.payload[f"d{j}"].eq(held[8 * j:8 * j + 8])
+        m.d.comb += [self.o.payload.sof.eq(band == 0), self.o.payload.eol.eq(band == n - 1),
+                     self.o.payload.eof.eq(band == n - 1)]
+
+        def access(addr, write=False, data=0):
+            m.d.comb += [bus.addr_strobe.eq(1), bus.address.eq(base + addr),
+                         bus.read_strobe.eq(int(not write)), bus.write_strobe.eq(int(write)),
+                         bus.write_data.eq(data), bus.byte_enable.eq(0b1111)]
+
+        with m.FSM():
+            with m.State("CFG"):
+                access(regs["CFG"], write=True, data=self._width | self._n_bands << _CFG_BANDS_LSB)
+                m.next = "CFG_WAIT"
+            with m.State("CFG_WAIT"):
+                with m.If(bus.ready):
+                    m.next = "BUILT"
+            with m.State("BUILT"):
+                access(regs["STATUS"])
+                m.next = "BUILT_WAIT"
+            with m.State("BUILT_WAIT"):
+                with m.If(bus.ready):
+                    m.d.sync += seen.eq(bus.read_data[:16])
+                    m.next = "BUILT"
+                    with m.If(bus.read_data[16]):
+                        m.next = "RUN"
+            with m.State("RUN"):
+                m.d.comb += running.eq(1)
+                with m.If(self.i.valid & ready & self.i.payload.eof & ~self.i.payload.abort):
+                    m.next = "POLL"
+            with m.State("POLL"):
+                access(regs["STATUS"])
+                m.next = "POLL_WAIT"
+            with m.State("POLL_WAIT"):
+                with m.If(bus.ready):
+                    with m.If(bus.read_data[:16] != seen):
+                        m.d.sync += [seen.eq(bus.read_data[:16]), band.eq(0), word.eq(0)]
+                        m.next = "READ"
+                    with m.Else():
+                        m.next = "POLL"
+            with m.State("READ"):
+                access(regs["TOP"] + 4 * (band * per + word))
+                m.next = "READ_WAIT"
+            with m.State("READ_WAIT"):
+                with m.If(bus.ready):
+                    m.d.sync += held.word_select(word, 32).eq(bus.read_data)
+                    with m.If(word == per - 1):
+                        m.next = "EMIT"
+                    with m.Else():
+                        m.d.sync += word.eq(word + 1)
+                        m.next = "READ"
+            with m.State("EMIT"):
+                m.d.comb += self.o.valid.eq(1)
+                with m.If(self.o.ready):
+                    m.d.sync += word.eq(0)
+                    with m.If(band == n - 1):
+                        m.next = "RUN"
+                    with m.Else():
+                        m.d.sync += band.eq(band + 1)
+                        m.next = "READ"
+        return m
