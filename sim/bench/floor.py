@@ -115,7 +115,7 @@ def score(records, stats, flags, gt, floor):
             "good_obstacle": int((obstacle & good).sum()),
             "floor_matches": int(on_floor.sum()),
             "floor_unflagged": int((on_floor & ~flagged).sum()),
-            "evaluations": int(stats["sad_evaluations"]),
+            "evaluations": int(stats["evaluations"]),
             "edge_pixels": int(stats["edge_pixels"])}
 
 
