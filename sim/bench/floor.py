@@ -13,9 +13,10 @@ truth the robust plane of :func:`sim.bench.ground.motorcycle_truth`. The golden 
   frame to frame, starting from the rig's line where the scene has a rig);
 * ``both``: the ground model and the floor flag.
 
-Figures per scene and mode (records of the last frame): obstacle points (records off the floor
-truth, not flagged) and those within 2 px of the true disparity (``d16 / 16``), as a share of
-``off``'s; floor matches (records on the floor truth) and the share of ``off``'s floor matches
+Figures per scene and mode (records of the last frame; each record's truth is the nearer
+surface among its row neighbours, :func:`contour_truth`, as the project scores depth at edges):
+obstacle points (records off the floor truth, not flagged) and those within 2 px of the true
+disparity (``d16 / 16``), as a share of ``off``'s; floor matches (records on the floor truth) and the share of ``off``'s floor matches
 that the mode removed or flagged (the rest reach the radio summary as obstacles); census window
 evaluations and their saving against ``off``; the free-space bands from the points and the
 flag (:func:`golden.freespace.free_space_points`): the mean distance in rows from the bands of
@@ -93,14 +94,29 @@ def run_mode(lefts, rights, ground, floor_params):
     return f.records, f.stats, flags
 
 
+def contour_truth(gt, floor, records):
+    """(true disparity, on the floor) of each record: those of the nearer surface among the
+    row neighbours x - 1 .. x + 1 (a vertical edge lies on the occluding contour of the nearer
+    surface and Sobel marks the pixel on either side of it, as in
+    :func:`sim.scenes.camera.contour_depth`); unknown disparities (inf) are skipped, NaN where
+    all three are unknown."""
+    known = np.where(np.isfinite(gt), gt, -1.0)
+    padded = np.pad(known, ((0, 0), (1, 1)), constant_values=-1.0)
+    fpad = np.pad(floor, ((0, 0), (1, 1)), constant_values=False)
+    y, x = records["y"], records["x"]
+    near = np.stack([padded[y, x + k] for k in range(3)])
+    pick = np.argmax(near, axis=0)
+    g = near[pick, np.arange(len(y))]
+    on_floor = np.stack([fpad[y, x + k] for k in range(3)])[pick, np.arange(len(y))]
+    return np.where(g >= 0, g, np.nan), on_floor & (g >= 0)
+
+
 def score(records, stats, flags, gt, floor):
     """The figures of one mode's last frame (see the module docstring)."""
-    x, y = records["x"], records["y"]
-    g = gt[y, x]
-    on_floor = floor[y, x]
+    g, on_floor = contour_truth(gt, floor, records)
     flagged = flags.astype(bool)
     known = np.isfinite(g)
-    good = known & (np.abs(records["d16"] / 16.0 - g) <= 2.0)
+    good = known & (np.abs(records["d16"] / 16.0 - np.nan_to_num(g)) <= 2.0)
     obstacle = ~on_floor & ~flagged
     from golden.freespace import FREE_NONE, FreeSpaceParams, free_space, free_space_points
     h, w = floor.shape
