@@ -32,18 +32,24 @@ ramp) or tilts does. Without a line no record is a floor point.
 (all of them, floor points included). For each slope ``s`` of ``slope_min, slope_min +
 slope_step, .. slope_max`` every record gives ``u = 16 d16 - s y`` (1/256 px), binned by
 ``u >> BIN_SHIFT`` (1/2 px bins). A candidate line ``(s, k)`` has offset ``k << BIN_SHIFT``
-plus half a bin; its support is the number of records in bins ``k - band .. k + band`` and its
-count below the number of records in bins ``< k - band``. Its score is ``support - below_weight
-* below``: the floor is the lowest line with many points on it, so a line through the
-obstacles (which have points below it, on the floor and on the obstacles' lower parts) scores
-less than the floor itself. The best score wins (ties: the smaller slope, then the smaller
-offset); with a support under ``min_support`` the previous line is kept. Over the rows the
-slopes cover (``slope_max`` 1/256 px a row: 0.62 px a row, a camera 0.2 m above the floor with
-a 0.12 m baseline) a constant-disparity band (a wall, the far background) cannot be the floor.
+plus half a bin; its support is the number of row bands (``y >> row_shift``) holding a record
+in bins ``k - band .. k + band``, its count below the number of records in bins ``< k -
+band``, and its score ``support_weight * support - below_weight * below``. The floor is the
+lowest line with points over many rows: a wall's foot supports a line over a few rows only,
+and a line through the obstacles has the floor's points below it. The best score with a
+support of at least ``min_support`` wins (ties: the smaller slope, then the smaller offset:
+the lower line, which costs floor points rather than obstacle points). It replaces the current
+line only when it scores more than ``margin`` above it (:func:`line_score`), so a frame with
+few floor matches keeps the line. With a ``prior`` (the rig's line) only lines within
+``prior_slope`` of its slope and ``prior_px`` px of it at the lowest record's row are
+candidates. Without one the slopes (``slope_min`` .. ``slope_max``, 0.125 .. 0.62 px a row:
+cameras about 1 m to 0.2 m above the floor with a 0.12 m baseline) keep a constant-disparity
+band (a wall, the far background) from being taken for the floor.
 
-The record stage of the pipeline (``hdl/floor.py``) computes the flag from a line held in
-registers; the CPU learns the line from each frame's records, as :func:`learn_line` does, and
-writes it for the next frame (:class:`FloorModel` is that loop).
+The record stage (``hdl/floor.py``) or the CPU (``firmware/src/floor.c`` ``floor_flag``)
+computes the flag from the line; the CPU learns the line from each frame's records
+(``floor_learn``, bit-exact with :func:`learn_line`) and uses it for the next frame
+(:class:`FloorModel` is that loop).
 """
 from dataclasses import dataclass
 

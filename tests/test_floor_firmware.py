@@ -115,3 +115,28 @@ def test_flag(lib):
         got = [lib.floor_flag(C.c_uint16(int(a)), C.c_uint16(int(b)), C.byref(ln),
                               C.c_uint8(tol), C.c_uint8(shift)) for a, b in zip(y, d16)]
         assert got == want.tolist()
+
+
+def test_free_space(lib):
+    """The firmware's free-space bands from the records and the flags, the same as golden's."""
+    from golden.freespace import free_space_points
+    rng = np.random.default_rng(13)
+    lib.floor_free_space.restype = C.c_int
+    blocked = 0
+    for trial in range(20):
+        h, band_w, run_r = int(rng.integers(5, 120)), int(rng.integers(1, 20)), int(rng.integers(1, 6))
+        n = int(rng.integers(0, 600))
+        # vertical runs of points, as edges give, and scattered ones
+        x = rng.integers(0, 16 * band_w + 10, n)
+        y = np.where(rng.random(n) < 0.5, rng.integers(0, h, n),
+                     (x * 7 + np.arange(n) // 8) % h)
+        floor = (rng.random(n) < 0.3).astype(np.uint8)
+        want = free_space_points({"x": x, "y": y}, floor, h, band_w, run_r)
+        out = (C.c_uint16 * 16)()
+        rows = (C.c_uint16 * h)()
+        arr = lambda t, v: (t * max(n, 1))(*map(int, v))
+        rc = lib.floor_free_space(arr(C.c_uint16, x), arr(C.c_uint16, y), arr(C.c_uint8, floor),
+                                  n, h, band_w, run_r, out, rows)
+        assert rc == 0 and list(out) == want.tolist(), trial
+        blocked += int((want != 0xFFFF).sum())
+    assert blocked > 20

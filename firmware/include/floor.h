@@ -44,4 +44,17 @@ int floor_learn(const uint16_t *y, const uint16_t *d16, uint32_t n, const floor_
 int floor_flag(uint16_t y, uint16_t d16, const floor_line_t *line, uint8_t tol,
                uint8_t tol_shift);
 
+/*
+ * Free space per column band from the records and their floor flags (golden/freespace.py
+ * free_space_points): a row of band b (columns b band_w .. (b + 1) band_w - 1) is an obstacle row
+ * when the band has a record in it that is not a floor point; out[b] is the bottom row of the
+ * lowest run of at least run_r obstacle rows, 0xFFFF without one. rows: height words of work.
+ * Returns -1 on bad arguments (run_r 0, band_w 0, a row >= height), else 0.
+ */
+#define FLOOR_FREE_BANDS 16
+#define FLOOR_FREE_NONE 0xFFFFu
+int floor_free_space(const uint16_t *x, const uint16_t *y, const uint8_t *floor, uint32_t n,
+                     uint16_t height, uint16_t band_w, uint8_t run_r,
+                     uint16_t out[FLOOR_FREE_BANDS], uint16_t *rows);
+
 #endif

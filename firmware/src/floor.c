@@ -172,3 +172,30 @@ int floor_flag(uint16_t y, uint16_t d16, const floor_line_t *line, uint8_t tol,
     int64_t t = tol + ((l16 > 0 ? l16 : 0) >> (tol_shift & 7));
     return d16 <= l16 + t;
 }
+
+int floor_free_space(const uint16_t *x, const uint16_t *y, const uint8_t *floor, uint32_t n,
+                     uint16_t height, uint16_t band_w, uint8_t run_r,
+                     uint16_t out[FLOOR_FREE_BANDS], uint16_t *rows)
+{
+    if (!out || !rows || (n && (!x || !y || !floor)) || band_w == 0 || run_r == 0)
+        return -1;
+    for (uint16_t r = 0; r < height; r++)
+        rows[r] = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t band = x[i] / band_w;
+        if (y[i] >= height)
+            return -1;
+        if (!floor[i] && band < FLOOR_FREE_BANDS)
+            rows[y[i]] |= (uint16_t)(1u << band);
+    }
+    for (unsigned b = 0; b < FLOOR_FREE_BANDS; b++) {
+        unsigned run = 0;
+        out[b] = FLOOR_FREE_NONE;
+        for (uint16_t r = 0; r < height; r++) {
+            run = (rows[r] >> b) & 1u ? (run < run_r ? run + 1 : run) : 0;
+            if (run >= run_r)
+                out[b] = r;
+        }
+    }
+    return 0;
+}
