@@ -597,7 +597,7 @@ def make_parser():
                        description="Run one unit on the given images with a backend, compare with "
                                    "golden, print one JSON line.", epilog=EXAMPLES,
                        formatter_class=fmt)
-    c.add_argument("--unit", required=True, help="color, ground, sobel, frontend, sad, pipeline")
+    c.add_argument("--unit", required=True, help="color, ground, sobel, freespace, frontend, sad, pipeline, bands")
     _add_pair_options(c, run=False)
     r = sub.add_parser("run", help="the stereo pipeline on a pair (default: the embedded pair)",
                        description="The whole pipeline RTL on a stereo pair, checked against "
