@@ -52,8 +52,8 @@ Reading a consistent frame: read STATUS, the TOP words, STATUS again; the frame 
 both frame counts are equal (a publish in between changes the count). STATUS.built is 0
 while the table fills (CFG.width cycles after reset or a CFG write).
 
-Latency: a marker publishes its frame 3 cycles after it is taken (STATUS shows it on the
-next read).
+Latency: the frame of a marker transferred in cycle 0 is published (``frames``, STATUS.frames,
+the TOP words) from cycle 4 on (:data:`LATENCY`).
 
 Trade-offs: ``slots`` bytes per band word: 4 fit one RAMB16 port (36 bits); up to 8 take a
 second RAMB16 for the wider word (reports then exact for ``min_support`` up to 8). The table
@@ -73,8 +73,9 @@ from .types import frame_layout
 
 __all__ = ["BandSummary", "BandSummaryStream", "table_bits", "summary_layout", "LATENCY"]
 
-#: Cycles from taking an end-of-frame marker to publishing its frame.
-LATENCY = 3
+#: Cycles from an end-of-frame marker's transfer to the first cycle ``frames`` (STATUS) counts
+#: its frame.
+LATENCY = 4
 
 _CFG_WIDTH_BITS = 11
 _CFG_BANDS_LSB, _CFG_BANDS_BITS = 16, 7
