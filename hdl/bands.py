@@ -11,23 +11,23 @@ drain per record.
 Structure: one block RAM holds both halves of band words (``slots`` bytes, descending) and
 the column table (:func:`golden.bands.column_table`: per bucket of ``2**shift`` columns the
 base band, whether a band starts inside it and where). Port A reads for the records;
-port B fills the table, writes the records' words and reads for the CPU. Four stages,
+port B fills the table, writes the records' words and reads for the CPU. Five stages,
 ``i.ready`` always 1:
 
 - stage 1: read the record's table entry (port A);
-- stage 2: its band (one compare and an increment, no divide); read the band's word from the
-  accumulating half (port A);
-- stage 3: insert the disparity (``slots`` parallel compares, a shift by one slot); a word
-  written in the cycle of this record's read comes from a bypass register, and a band's first
-  match of a frame is written alone (a valid bit per band and half, so nothing is cleared
-  between frames);
-- stage 4: write the word back (port B).
+- stage 2: its band (one compare and a choice of two, no divide); read the band's word from
+  the accumulating half (port A);
+- stage 3: register the word;
+- stage 4: insert the disparity (``slots`` parallel compares, a shift by one slot); a word
+  written since the read comes from a bypass register, and a band's first match of a frame is
+  written alone (a valid bit per band and half, so nothing is cleared between frames);
+- stage 5: write the word back (port B).
 
 A record takes port A in two consecutive cycles, so the unit takes one record every two
 cycles, what the SoC's result FIFO takes at most: a record in the cycle right after a record
 is dropped. The CPU's TOP reads use port B in the cycles without a write.
 
-An ``eof`` marker reaching stage 3 swaps the halves (stage 4's write, the frame's last, lands
+An ``eof`` marker reaching stage 4 swaps the halves (stage 5's write, the frame's last, lands
 in the same cycle): the frame is published, STATUS.frames counts it and the CPU window shows
 it. ``eof`` with ``abort`` (the frame was cut by a restart of the
 video path) discards the accumulating frame. The table is filled after reset and after each
@@ -52,8 +52,8 @@ Reading a consistent frame: read STATUS, the TOP words, STATUS again; the frame 
 both frame counts are equal (a publish in between changes the count). STATUS.built is 0
 while the table fills (CFG.width cycles after reset or a CFG write).
 
-Latency: a marker publishes its frame 3 cycles after it is taken (STATUS shows it on the
-next read).
+Latency: the frame of a marker transferred in cycle 0 is published (``frames``, STATUS.frames,
+the TOP words) from cycle 5 on (:data:`LATENCY`).
 
 Trade-offs: ``slots`` bytes per band word: 4 fit one RAMB16 port (36 bits); up to 8 take a
 second RAMB16 for the wider word (reports then exact for ``min_support`` up to 8). The table
@@ -73,8 +73,9 @@ from .types import frame_layout
 
 __all__ = ["BandSummary", "BandSummaryStream", "table_bits", "summary_layout", "LATENCY"]
 
-#: Cycles from taking an end-of-frame marker to publishing its frame.
-LATENCY = 3
+#: Cycles from an end-of-frame marker's transfer to the first cycle ``frames`` (STATUS) counts
+#: its frame.
+LATENCY = 5
 
 _CFG_WIDTH_BITS = 11
 _CFG_BANDS_LSB, _CFG_BANDS_BITS = 16, 7
@@ -163,7 +164,9 @@ class BandSummary(wiring.Component):
 
         # ---- one block RAM: the two halves of band words, then the column table ------------
         ab = max(bb + 1, tb) + 1
-        entry = data.StructLayout({"base": bb, "has": 1, "start": lb})
+        # the table entry: base band, and the band after a start inside the bucket (no adder
+        # between the table read and the word read)
+        entry = data.StructLayout({"base": bb, "next": bb, "has": 1, "start": lb})
         width_bits = max(8 * slots, entry.size)
         m.submodules.ram = ram = Memory(shape=width_bits, depth=1 << ab, init=[0] * (1 << ab))
         # port A: table reads (stage 1), word reads (stage 2)
@@ -205,6 +208,7 @@ class BandSummary(wiring.Component):
         fill = Signal(entry)
         m.d.comb += [
             fill.base.eq(Mux(first, wband, wband - 1)),
+            fill.next.eq(wband),
             fill.has.eq(~first),
             fill.start.eq(Mux(first, 0, low)),
         ]
@@ -253,59 +257,72 @@ class BandSummary(wiring.Component):
                      abort2.eq(abort1), lost2.eq(lost1), low2.eq(low1), d2.eq(d1)]
         ent = data.View(entry, rd_a.data[:entry.size])
         band2 = Signal(bb)
-        m.d.comb += band2.eq(ent.base + (ent.has & (low2 >= ent.start)))
+        m.d.comb += band2.eq(Mux(ent.has & (low2 >= ent.start), ent.next, ent.base))
 
         acc = Signal()                      # the accumulating half; the published one is ~acc
         acc_valid = Signal(1 << bb)         # bands written in the accumulating frame
         pub_valid = Signal(1 << bb)         # bands written in the published frame
         match3, mark3, abort3, lost3 = Signal(), Signal(), Signal(), Signal()
-        # (a marker publishes in stage 3; stage 4 below still writes the frame it ends)
         band3, d3 = Signal(bb), Signal(8)
-        publish = mark3 & ~abort3
+        match4, mark4, abort4, lost4 = Signal(), Signal(), Signal(), Signal()
+        band4, d4, raw4 = Signal(bb), Signal(8), Signal(8 * slots)
+        # a marker publishes in stage 4 (stage 5 still writes the last word of its frame); a
+        # record behind a marker in stage 3 or 4 reads the half that will be accumulating
         with m.If(v1):
             m.d.comb += addr_a.eq(table_addr(c1))
-        with m.Else():                      # a marker in stage 3 publishes: the next half
-            m.d.comb += addr_a.eq(word_addr(band2, Mux(publish, ~acc, acc)))
+        with m.Else():
+            m.d.comb += addr_a.eq(word_addr(band2, acc ^ (mark3 & ~abort3) ^ (mark4 & ~abort4)))
         m.d.sync += [match3.eq(match2), mark3.eq(mark2), abort3.eq(abort2), lost3.eq(lost2),
                      band3.eq(band2), d3.eq(d2)]
+        # stage 3: the word, registered
+        m.d.sync += [match4.eq(match3), mark4.eq(mark3), abort4.eq(abort3), lost4.eq(lost3),
+                     band4.eq(band3), d4.eq(d3), raw4.eq(rd_a.data[:8 * slots])]
 
-        # stage 3: insert; a band's first word of a frame starts from zeros, a word written in
-        # the cycle of its read comes from the bypass (fwd3)
-        match4, band4, new4 = Signal(), Signal(bb), Signal(8 * slots)
-        fwd3, fwd_word3 = Signal(), Signal(8 * slots)
-        m.d.sync += [fwd3.eq(match4 & (band4 == band2) & ~mark3), fwd_word3.eq(new4)]
-        vbit3 = Signal()
-        m.d.comb += vbit3.eq((acc_valid >> band3)[0])
+        # stage 4: insert; a band's first match of a frame is written alone (valid bits); a
+        # word written since this record's read (the last write, at most 2 cycles ago) comes
+        # from the bypass
+        match5, band5, new5 = Signal(), Signal(bb), Signal(8 * slots)
+        lw_band, lw_word, lw_age = Signal(bb), Signal(8 * slots), Signal(2)
+        fwd4 = Signal()
+        m.d.comb += fwd4.eq((lw_age != 0) & (lw_band == band4))
+        vbit4 = Signal()
+        m.d.comb += vbit4.eq((acc_valid >> band4)[0])
         old = Signal(8 * slots)
-        m.d.comb += old.eq(Mux(fwd3, fwd_word3, rd_a.data[:8 * slots]))
+        m.d.comb += old.eq(Mux(fwd4, lw_word, raw4))
         top = [old[8 * j:8 * j + 8] for j in range(slots)]
-        ge = [top[j] >= d3 for j in range(slots)]
+        ge = [top[j] >= d4 for j in range(slots)]
         inserted = Signal(8 * slots)
         for j in range(slots):
-            moved = d3 if j == 0 else Mux(ge[j - 1], d3, top[j - 1])
+            moved = d4 if j == 0 else Mux(ge[j - 1], d4, top[j - 1])
             m.d.comb += inserted[8 * j:8 * j + 8].eq(Mux(ge[j], top[j], moved))
-        new = Signal(8 * slots)             # the band's first match of the frame: d alone
-        m.d.comb += new.eq(Mux(fwd3 | vbit3, inserted, d3))
+        new = Signal(8 * slots)
+        m.d.comb += new.eq(Mux(fwd4 | vbit4, inserted, d4))
 
-        # stage 4: write back (port B)
-        m.d.sync += [match4.eq(match3), band4.eq(band3), new4.eq(new)]
-        m.d.comb += [wr_b.data.eq(Mux(building, fill.as_value(), new4)),
-                     wr_b.en.eq(fill_en | match4)]
-        written = Signal(1 << bb)           # acc_valid with stage 4's band
+        # stage 5: write back (port B)
+        m.d.sync += [match5.eq(match4), band5.eq(band4), new5.eq(new)]
+        m.d.comb += [wr_b.data.eq(Mux(building, fill.as_value(), new5)),
+                     wr_b.en.eq(fill_en | match5)]
+        with m.If(mark4):                   # the bypass never crosses a frame's end
+            m.d.sync += lw_age.eq(0)
+        with m.Elif(match5):
+            m.d.sync += [lw_age.eq(0b01), lw_band.eq(band5), lw_word.eq(new5)]
+        with m.Else():
+            m.d.sync += lw_age.eq(lw_age << 1)
+        written = Signal(1 << bb)           # acc_valid with stage 5's band
         for k in range(1 << bb):
-            m.d.comb += written[k].eq(acc_valid[k] | (match4 & (band4 == k)))
+            m.d.comb += written[k].eq(acc_valid[k] | (match5 & (band5 == k)))
 
         frames, aborted = Signal(16), Signal(16)
         lost_acc, lost_pub = Signal(), Signal()
         m.d.sync += acc_valid.eq(written)
-        with m.If(mark3):
+        with m.If(mark4):
             m.d.sync += [acc_valid.eq(0), lost_acc.eq(0)]
-            with m.If(abort3):
+            with m.If(abort4):
                 m.d.sync += aborted.eq(aborted + 1)
             with m.Else():
                 m.d.sync += [acc.eq(~acc), pub_valid.eq(written), frames.eq(frames + 1),
                              lost_pub.eq(lost_acc)]
-        with m.Elif(lost3):
+        with m.Elif(lost4):
             m.d.sync += lost_acc.eq(1)
         m.d.comb += [self.frames.eq(frames), self.dropped.eq(dropped), self.aborted.eq(aborted)]
 
@@ -313,11 +330,11 @@ class BandSummary(wiring.Component):
         cpu_pending = Signal()
         cpu_band = Signal(bb)
         cpu_half = Signal(max(1, pb))
-        cpu_issue = cpu_pending & ~match4 & ~building
+        cpu_issue = cpu_pending & ~match5 & ~building
         with m.If(building):
             m.d.comb += addr_b.eq(table_addr(bucket))
-        with m.Elif(match4):
-            m.d.comb += addr_b.eq(word_addr(band4, acc))
+        with m.Elif(match5):
+            m.d.comb += addr_b.eq(word_addr(band5, acc))
         with m.Else():
             m.d.comb += addr_b.eq(word_addr(cpu_band, ~acc))
 

@@ -383,3 +383,45 @@ def test_firmware_header_matches_regmap():
     for name, offset in REGS.items():
         assert defs[f"BANDS_HW_{name}_OFFSET"] == offset
     assert defs["BANDS_HW_SLOTS"] == SLOTS and defs["BANDS_HW_MAX_WIDTH"] == 1024
+
+
+def test_rtl_latency_and_bad_configuration():
+    """A marker publishes its frame LATENCY cycles after it is taken; an invalid CFG sets
+    STATUS.bad_cfg and drops every record (counted) until a valid CFG is built."""
+    from hdl.bands import LATENCY
+    dut = BandSummary()
+    seen = {}
+
+    async def bench(ctx):
+        bus = dut.bus
+        await bus_access(ctx, bus, REGS["CFG"], write=64 | 8 << 16)
+        while not ((await bus_access(ctx, bus, REGS["STATUS"]))[0] >> 16) & 1:
+            pass
+        ctx.set(dut.i.valid, 1)
+        ctx.set(dut.i.payload.as_value(), REC.pack_int(eof=1))
+        await ctx.tick()
+        ctx.set(dut.i.valid, 0)
+        n = 1
+        while ctx.get(dut.frames) == 0:
+            await ctx.tick()
+            n += 1
+        seen["latency"] = n
+        await bus_access(ctx, bus, REGS["CFG"], write=64 | 0 << 16)       # n_bands 0
+        await ctx.tick().repeat(3)
+        seen["status"] = (await bus_access(ctx, bus, REGS["STATUS"]))[0]
+        for x in range(4):
+            ctx.set(dut.i.valid, 1)
+            ctx.set(dut.i.payload.as_value(), REC.pack_int(x=x, d=5))
+            await ctx.tick()
+            ctx.set(dut.i.valid, 0)
+            await ctx.tick()
+        seen["drops"] = (await bus_access(ctx, bus, REGS["DROPS"]))[0]
+        seen["cfg"] = (await bus_access(ctx, bus, REGS["CFG"]))[0]
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    run_simulation(sim, name="bands_cfg")
+    assert seen["latency"] == LATENCY
+    assert (seen["status"] >> 16) & 3 == 0b10           # not built, bad_cfg
+    assert seen["drops"] & 0xFFFF == 4 and seen["cfg"] == 64

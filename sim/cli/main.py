@@ -655,7 +655,7 @@ def make_parser():
                                    "golden, print one JSON line.", epilog=EXAMPLES,
                        formatter_class=fmt)
     c.add_argument("--unit", required=True,
-                   help="color, ground, sobel, freespace, frontend, matcher, pipeline (sad: "
+                   help="color, ground, sobel, freespace, frontend, matcher, pipeline, bands (sad: "
                         "deprecated alias of matcher)")
     _add_pair_options(c, run=False)
     r = sub.add_parser("run", help="the stereo pipeline on a pair (default: the embedded pair)",
