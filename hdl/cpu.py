@@ -44,7 +44,8 @@ trap : Out(1)
     The core stopped on an illegal instruction (stays until reset).
 
 Conversion: :func:`verilog_text` is the core's Verilog, which every flow that converts a design
-with this component must read beside Amaranth's output. The core's instruction
+with this component must read beside Amaranth's output; a platform build (``platform.build``:
+the ECP5 bitstream, the ISE tree) gets it as the file ``picorv32.v`` from :meth:`elaborate`. The core's instruction
 counter is ``count_instr`` inside the ``picorv32`` instance (a simulator may expose it).
 """
 from pathlib import Path
@@ -140,6 +141,8 @@ class RiscvCPU(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        if platform is not None:        # a vendor build reads the core's Verilog beside ours
+            platform.add_file("picorv32.v", verilog_text())
         words = self._ram_bytes // 4
         abits = (words - 1).bit_length()
 

@@ -198,9 +198,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     out_frames, current, aborted = [], [], 0
     total_records = 0
     stream_ps = max(len(ldata), len(rdata)) * CAM_PS
-    # start-up (the XBee, the decoders; up to 6 s without a radio module) + the streams + two
-    # report periods
-    startup_ps = 7 * 10**12 if fault == "no-radio-module" else REPORT_PS
+    # start-up (the XBee, the decoders: two report periods more when one does not answer, up to
+    # 6 s without a radio module) + the streams + two report periods
+    startup_ps = {"no-radio-module": 7 * 10**12, "iic-nack": 3 * REPORT_PS}.get(fault, REPORT_PS)
     end_ps = startup_ps + stream_ps + 2 * REPORT_PS
     last_frame_cycle = None
     cyc = (C.c_uint64 * 65536)()
