@@ -43,8 +43,9 @@ idle : Out(1)
 trap : Out(1)
     The core stopped on an illegal instruction (stays until reset).
 
-Simulation: :func:`verilog_sources` lists the core's Verilog, which every flow that converts
-a design with this component must read beside Amaranth's output. The core's instruction
+Conversion: :func:`verilog_text` is the core's Verilog, which every flow that converts a design
+with this component must read beside Amaranth's output; a platform build (``platform.build``:
+the ECP5 bitstream, the ISE tree) gets it as the file ``picorv32.v`` from :meth:`elaborate`. The core's instruction
 counter is ``count_instr`` inside the ``picorv32`` instance (a simulator may expose it).
 """
 from pathlib import Path
@@ -56,7 +57,7 @@ from amaranth.lib.wiring import Out
 
 from .regs import IOBusSignature
 
-__all__ = ["RiscvCPU", "TIMER_BASEADDR", "TIMER_REGS", "verilog_sources", "CORE_PARAMETERS"]
+__all__ = ["RiscvCPU", "TIMER_BASEADDR", "TIMER_REGS", "verilog_text", "CORE_PARAMETERS"]
 
 #: Bus address of the timer (firmware/include/hal.h HAL_TIMER_BASEADDR).
 TIMER_BASEADDR = 0xC003_0000
@@ -73,10 +74,20 @@ CORE_PARAMETERS = {
 }
 
 
-def verilog_sources():
-    """Paths of the Verilog files the core needs (``picorv32.v``)."""
+#: The core's register file (32 x 32 bits, two reads and a write a cycle) goes to distributed
+#: RAM, not to two block RAMs: the CPU's four RAMB16 hold its 8 KB memory.
+_REGFILE = "reg [31:0] cpuregs [0:regfile_size-1];"
+
+
+def verilog_text():
+    """The core's Verilog (``picorv32.v`` of the ``pythondata-cpu-picorv32`` package), its
+    register file marked ``ram_style = "distributed"``: every flow that converts a design with
+    this component reads it beside Amaranth's output."""
     import pythondata_cpu_picorv32
-    return [Path(pythondata_cpu_picorv32.data_location) / "picorv32.v"]
+    text = (Path(pythondata_cpu_picorv32.data_location) / "picorv32.v").read_text()
+    if text.count(_REGFILE) != 1:
+        raise RuntimeError("picorv32.v: the register file declaration was not found")
+    return text.replace(_REGFILE, f'(* ram_style = "distributed" *) {_REGFILE}')
 
 
 def _split_counter(m, name, *, load=None, value=None, down=False):
@@ -130,6 +141,8 @@ class RiscvCPU(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        if platform is not None:        # a vendor build reads the core's Verilog beside ours
+            platform.add_file("picorv32.v", verilog_text())
         words = self._ram_bytes // 4
         abits = (words - 1).bit_length()
 

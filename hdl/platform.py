@@ -82,6 +82,10 @@ class BoardTop(Elaboratable):
     """:class:`hdl.soc.SystemSoC` on board pins (module docstring), the CPU bus driven by the
     UART register bridge.
 
+    With a CPU inside the SoC (``soc`` with ``cpu``, :class:`hdl.cpu.RiscvCPU`: its RAM
+    initialised with ``image``) there is no bridge: the CPU drives the bus, and the bridge's
+    UART is left unused.
+
     Parameters: ``soc`` (keyword arguments of SystemSoC), ``radio_uart``, ``bridge_uart``
     (indices of the UART resources of the radio and of the bridge), ``baud`` (both UARTs),
     ``core_hz``,
@@ -104,8 +108,11 @@ class BoardTop(Elaboratable):
         if self._core_clock is not None:
             self._core_clock(m, platform)
         m.submodules.soc = soc = SystemSoC(**self._soc)
-        m.submodules.bridge = bridge = UartBridge(divisor=self._divisor)
-        wiring.connect(m, bridge.bus, soc.bus)
+        uarts = [(self._radio_uart, (soc.uart_tx, soc.uart_rx))]
+        if self._soc.get("cpu") is None:
+            m.submodules.bridge = bridge = UartBridge(divisor=self._divisor)
+            wiring.connect(m, bridge.bus, soc.bus)
+            uarts.append((self._bridge_uart, (bridge.tx, bridge.rx)))
 
         for k in range(2):
             pins = platform.request("bt656", k, dir="-")
@@ -121,8 +128,7 @@ class BoardTop(Elaboratable):
             m.submodules[f"i2c_{name}"] = buf = io.Buffer("io", getattr(i2c, name))
             m.d.comb += [buf.o.eq(0), buf.oe.eq(oe), i.eq(buf.i)]     # open drain
 
-        for n, (tx, rx) in ((self._radio_uart, (soc.uart_tx, soc.uart_rx)),
-                            (self._bridge_uart, (bridge.tx, bridge.rx))):
+        for n, (tx, rx) in uarts:
             uart = platform.request("uart", n, dir="-")
             m.submodules[f"uart{n}_tx"] = txb = io.Buffer("o", uart.tx)
             m.submodules[f"uart{n}_rx"] = rxb = io.Buffer("i", uart.rx)

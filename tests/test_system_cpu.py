@@ -1,5 +1,7 @@
 """``python -m sim system --cpu picorv32``: the cross-compiled firmware on the core inside the
 SoC, under Verilator, from BT.656 cameras to the radio UART's TX pin (sim/system/cpu_run.py)."""
+import contextlib
+import io
 import json
 
 import pytest
@@ -8,9 +10,7 @@ from sim.system.run import main
 
 
 @pytest.fixture(scope="module")
-def mixed(capsys_module=None):
-    import io
-    import contextlib
+def mixed():
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         code = main(["--cpu", "picorv32", "--scene", "mixed", "--frames", "2"])

@@ -57,6 +57,13 @@ uint32_t app_collect(app_t *app);
 uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint32_t pose_ms,
                     const radio_health_t *health, uint8_t *buf, uint32_t cap);
 
+/** app_report without the sending: the API frame in buf (the sequence number advances);
+ *  returns its length, 0 on error. For a caller that sends it a byte at a time
+ *  (hal_uart_put) while it goes on draining the result FIFO. */
+uint32_t app_build_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta,
+                          uint32_t pose_ms, const radio_health_t *health, uint8_t *buf,
+                          uint32_t cap);
+
 /** Read each decoder's lock (ADV7180 STATUS1: IN_LOCK and FSC_LOCK) over IIC. Returns
  *  FW_OK when both are locked, FW_ERR_NO_LOCK when one is not, or the IIC error. */
 fw_status_t app_check_lock(app_t *app);

@@ -42,6 +42,10 @@ uint32_t hal_ticks(void);
  *  FW_ERR_TIMEOUT (the rest is not sent) when the transmitter never frees. */
 int32_t hal_uart_write(const uint8_t *data, uint32_t len);
 
+/** Offer one byte to the radio UART without waiting: returns 1 when it was taken, 0 when
+ *  the transmitter is busy (try again later). Host: always taken (the bus hook's UART). */
+int32_t hal_uart_put(uint8_t byte);
+
 #ifndef HAL_UART_BASEADDR
 #define HAL_UART_BASEADDR 0xC0020000u /**< hdl/soc.py UART_BASEADDR */
 #endif

@@ -78,14 +78,18 @@ uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_
  * [i*width/n, (i+1)*width/n). Memory: min_support largest disparities per band, kept sorted.
  *
  * Adding a match costs a few instructions and no multiply or divide, so that a slow CPU
- * without a divider (a RISC-V rv32ic core) keeps up with the result FIFO: radio_summary_init
- * writes the band of every column into a table (band_of, dividing once per band), and each
- * band keeps a floor, the disparity a match must exceed to change the band (its
- * min_support-th largest once it has that many, else 0). Most matches fail that one test.
- * Columns from width on map to an extra band whose floor is 255, so they, like d = 0, are
- * ignored by the same test.
+ * without a divider (a RISC-V rv32ic core) keeps up with the result FIFO: every column has a
+ * floor, the disparity a match must exceed to change its band (the band's min_support-th
+ * largest once it has that many, else 0), and most matches fail that one test. Only a match
+ * that passes finds its band, walking the band boundaries (start, placed by
+ * radio_summary_init with one divide per band) from the band of the previous one, and
+ * raises the floor of the band's columns when the band's min_support-th largest rises.
+ * Columns from width on have the floor 255, so they, like d = 0, are ignored by the same test.
  */
-#define RADIO_MAX_WIDTH 1024u   /**< widest image: RESULT.x has 10 bits */
+#define RADIO_MAX_WIDTH 1024u       /**< widest image: RESULT.x has 10 bits */
+/** Columns with a floor byte: an NTSC field is 720 wide, a WVGA sensor's 752; the matches of
+ *  wider images' last columns take the slower path (their band's list decides). */
+#define RADIO_FLOOR_COLUMNS 768u
 
 typedef struct {
     uint16_t width;
@@ -93,12 +97,15 @@ typedef struct {
     uint8_t min_support;
     uint8_t count[RADIO_MAX_BANDS];
     uint8_t top[RADIO_MAX_BANDS][RADIO_MAX_MIN_SUPPORT]; /**< descending */
-    uint8_t floor[RADIO_MAX_BANDS + 1u];  /**< a match must exceed it to change its band */
-    uint8_t band_of[RADIO_MAX_WIDTH];     /**< band of each column; n_bands from width on */
+    uint16_t start[RADIO_MAX_BANDS + 1u]; /**< first column of each band; start[n_bands] = width */
+    uint8_t band;                         /**< band of the last match kept: where a walk starts */
+    uint8_t floor[RADIO_FLOOR_COLUMNS];   /**< per column: a match must exceed it to count */
 } radio_summary_t;
 
 fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_bands,
                                uint8_t min_support);
+/** Start again with no match, keeping the geometry radio_summary_init set (no divide). */
+void radio_summary_clear(radio_summary_t *s);
 /** Add one match; x >= width or d == 0 are ignored. width at most RADIO_MAX_WIDTH. */
 void radio_summary_add(radio_summary_t *s, uint16_t x, uint8_t d);
 /** Write the n_bands results into bands. */

@@ -66,8 +66,16 @@ fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base)
 static fw_status_t app_open_summary(app_t *app)
 {
     fw_status_t st = FW_OK;
+    radio_summary_t *s = &app->summary;
     if (!app->summary_open) {
-        st = radio_summary_init(&app->summary, app->width, app->n_bands, app->min_support);
+        /* the band boundaries take a divide each: placed again only when they change */
+        if (s->width == app->width && s->n_bands == app->n_bands &&
+            s->min_support == app->min_support && s->n_bands != 0u &&
+            s->start[s->n_bands] == s->width) {
+            radio_summary_clear(s);
+        } else {
+            st = radio_summary_init(s, app->width, app->n_bands, app->min_support);
+        }
         app->summary_open = (uint8_t)(st == FW_OK);
         app->results_read = 0u;
     }
@@ -96,18 +104,15 @@ uint32_t app_collect(app_t *app)
     }
     while (total < level) {
         uint32_t r = STEREO_ReadReg(base, STEREO_RESULT_OFFSET);
-        if ((r & STEREO_RESULT_VALID_MASK) == 0u) {
+        if ((r & STEREO_RESULT_VALID_MASK) != 0u) {
+            total++;
+            /* end-of-frame markers carry x = y = d = 0: the summary ignores them (d = 0) */
+            radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
+                              (uint8_t)STEREO_GET(RESULT, D, r));
+        } else if (++misses > 1u) {
             /* a read in the cycle right after a RESULT read finds no whole record: once more */
-            if (++misses > 1u) {
-                break;
-            }
-            continue;
+            break;
         }
-        misses = 0u;
-        total++;
-        /* end-of-frame markers carry x = y = d = 0: the summary ignores them (d = 0) */
-        radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
-                          (uint8_t)STEREO_GET(RESULT, D, r));
     }
     app->results_read += total;
     return total;
@@ -115,6 +120,17 @@ uint32_t app_collect(app_t *app)
 
 uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint32_t pose_ms,
                     const radio_health_t *health, uint8_t *buf, uint32_t cap)
+{
+    uint32_t len = app_build_report(app, x_mm, y_mm, theta, pose_ms, health, buf, cap);
+    if (len == 0u) {
+        return 0u;
+    }
+    return hal_uart_write(buf, len) == FW_OK ? len : 0u;
+}
+
+uint32_t app_build_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta,
+                          uint32_t pose_ms, const radio_health_t *health, uint8_t *buf,
+                          uint32_t cap)
 {
     radio_packet_t pkt;
     uint8_t rf[RADIO_MAX_RF_DATA];
@@ -140,9 +156,6 @@ uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint
     rf_len = radio_encode_payload(&pkt, health, rf, sizeof rf);
     len = radio_encode_api_frame(rf, rf_len, APP_RADIO_DEST, (uint8_t)(app->seq % 255u + 1u), buf, cap);
     if (rf_len == 0u || len == 0u) {
-        return 0u;
-    }
-    if (hal_uart_write(buf, len) != FW_OK) {
         return 0u;
     }
     app->seq = (uint8_t)(app->seq + 1u);

@@ -52,6 +52,15 @@ int32_t hal_uart_write(const uint8_t *data, uint32_t len)
     return FW_OK;
 }
 
+int32_t hal_uart_put(uint8_t byte)
+{
+    if ((Xil_In32(HAL_UART_BASEADDR + HAL_UART_STATUS_OFFSET) & HAL_UART_STATUS_TX_READY) == 0u) {
+        return 0;
+    }
+    Xil_Out32(HAL_UART_BASEADDR + HAL_UART_DATA_OFFSET, byte);
+    return 1;
+}
+
 #else /* host build */
 
 static hal_read32_fn hook_rd;
@@ -103,6 +112,14 @@ int32_t hal_uart_write(const uint8_t *data, uint32_t len)
         hook_uart(hook_ctx, data, len);
     }
     return FW_OK;
+}
+
+int32_t hal_uart_put(uint8_t byte)
+{
+    if (hook_uart != NULL) {
+        hook_uart(hook_ctx, &byte, 1u);
+    }
+    return 1;
 }
 
 #endif

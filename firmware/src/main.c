@@ -21,51 +21,97 @@
  *  records: far more than the pipeline's average rate fills in that sleep, so the records of
  *  a busy row wait in it while the CPU works through them. The period is measured with the
  *  timer, so a slow CPU keeps the 100 ms. */
-#define COLLECT_SLEEP_US 100u
-#define COLLECT_FEW 16u
-#define LOCK_POLLS 40u           /**< app_start_video: 40 x 50 us, about 2 fields */
+#define COLLECT_SLEEP_US 25u
+#define PERIOD_CYCLES (REPORT_PERIOD_US * (HAL_CPU_HZ / 1000000u))
+/** A field lasts 16.7 ms: the report waits at most that much for the end of a frame. */
+#define FRAME_WAIT_CYCLES (17000u * (HAL_CPU_HZ / 1000000u))
+#define COLLECT_FEW 4u
+/** app_start_video checks the lock once: it is checked again every period, and meanwhile
+ *  the records of the frames that do come are drained. */
+#define LOCK_POLLS 0u
+#define DECODER_TRIES 2u
 
 static app_t app;
 static pose_t pose;
 static uint8_t frame_buf[RADIO_MAX_FRAME];
 static radio_health_t health;
+static uint32_t tx_len;         /**< the report being sent: frame_buf[tx_pos..tx_len) waits */
+static uint32_t tx_pos;
+
+/** One step of the period: the next byte of the report being sent, a drain of the result
+ *  FIFO, and a short sleep when it held few records. */
+static void step(void)
+{
+    /* the report goes out a byte at a time between drains: the UART takes a byte every
+     * 87 us, far longer than the FIFO could wait */
+    if (tx_pos < tx_len && hal_uart_put(frame_buf[tx_pos]) != 0) {
+        tx_pos++;
+    }
+    if (app_collect(&app) < COLLECT_FEW) {
+        hal_delay_us(COLLECT_SLEEP_US);
+    }
+}
 
 int main(void)
 {
     static const xbee_config_t radio_cfg = { XBEE_ROBOT_ADDR, XBEE_STATION_ADDR, XBEE_PAN_ID };
     xbee_io_t radio_io;
     fw_status_t st_dec, st_pipe, st_video = FW_ERR_NO_LOCK;
+    uint8_t decoders_locked = 0u;
+    uint8_t decoder_tries = 0u;
+    uint32_t start;
     /* the radio module: API mode 2 at 115200 baud (a failure leaves the reports unheard but
      * the pipeline running) */
     xbee_uart_io(&radio_io);
     (void)xbee_configure(&radio_io, &radio_cfg, NULL);
     st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
     st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);
+    (void)app_collect(&app);        /* the summary's band boundaries, before any record */
+    start = hal_ticks();
     for (;;) {
-        uint32_t start;
+        uint32_t frame;
         if (st_pipe != FW_OK) {
             st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);      /* wrong bitstream? */
         } else if (st_video != FW_OK) {
-            if (st_dec != FW_OK) {
-                st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
+            if (!decoders_locked) {
+                if (st_dec != FW_OK) {
+                    st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
+                }
+                /* ADV7180 STATUS1, over IIC: once, then the streams' lock (HEALTH_STATUS). A
+                 * decoder that does not answer is retried DECODER_TRIES periods, then the
+                 * video path starts without it (it runs on its power-up defaults, or its
+                 * stream never locks: the health flags show which) */
+                decoders_locked = (uint8_t)((st_dec == FW_OK && app_check_lock(&app) == FW_OK) ||
+                                            ++decoder_tries >= DECODER_TRIES);
             }
-            if (st_dec == FW_OK && app_check_lock(&app) == FW_OK) {  /* ADV7180 STATUS1 */
+            if (decoders_locked) {
                 st_video = app_start_video(&app, LOCK_POLLS);
             }
         }
-        start = hal_ticks();
         do {
-            if (app_collect(&app) < COLLECT_FEW) {
-                hal_delay_us(COLLECT_SLEEP_US);
-            }
-        } while ((uint32_t)(hal_ticks() - start) < REPORT_PERIOD_US * (HAL_CPU_HZ / 1000000u));
+            step();
+        } while ((uint32_t)(hal_ticks() - start) < PERIOD_CYCLES);
+        start += PERIOD_CYCLES;
+        /* the report's work in the vertical blanking, when no records come: after the end
+         * of the frame in progress (FRAME_COUNT steps), at most FRAME_WAIT_US later */
+        frame = STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET);
+        while (STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET) == frame &&
+               (uint32_t)(hal_ticks() - start) < FRAME_WAIT_CYCLES) {
+            step();
+        }
         /* flags 0 (not locked, not enabled) when the register block does not answer */
         if (app_read_health(&app, &health) != FW_OK) {
             health.flags = 0u;
         }
         /* the motion controller's pose (pose.h); the last good one if it is being updated */
         (void)pose_read(POSE_BASEADDR, &pose);
-        (void)app_report(&app, pose.x_mm, pose.y_mm, pose.theta, pose.t_ms, &health, frame_buf,
-                         sizeof frame_buf);
+        if (tx_pos >= tx_len) {         /* the last report is out */
+            tx_len = app_build_report(&app, pose.x_mm, pose.y_mm, pose.theta, pose.t_ms,
+                                      &health, frame_buf, sizeof frame_buf);
+            tx_pos = 0u;
+        }
+        if ((uint32_t)(hal_ticks() - start) >= PERIOD_CYCLES) {
+            start = hal_ticks();        /* fell a period behind: start afresh */
+        }
     }
 }

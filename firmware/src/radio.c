@@ -159,7 +159,6 @@ fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_ban
                                uint8_t min_support)
 {
     uint32_t i;
-    uint32_t x;
     if (s == NULL || n_bands == 0u || n_bands > RADIO_MAX_BANDS || width < n_bands ||
         width > RADIO_MAX_WIDTH || min_support == 0u || min_support > RADIO_MAX_MIN_SUPPORT) {
         return FW_ERR_PARAM;
@@ -167,33 +166,53 @@ fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_ban
     s->width = width;
     s->n_bands = n_bands;
     s->min_support = min_support;
+    s->band = 0u;
     for (i = 0u; i < RADIO_MAX_BANDS; i++) {
         s->count[i] = 0u;
-        s->floor[i] = 0u;
     }
-    s->floor[n_bands] = 0xFFu;
     /* band i: columns [i*width/n, (i+1)*width/n), as radio_band_of_column */
-    x = 0u;
-    for (i = 0u; i < n_bands; i++) {
-        uint32_t end = (i + 1u) * width / n_bands;
-        for (; x < end; x++) {
-            s->band_of[x] = (uint8_t)i;
-        }
+    for (i = 0u; i <= n_bands; i++) {
+        s->start[i] = (uint16_t)(i * width / n_bands);
     }
-    for (; x < RADIO_MAX_WIDTH; x++) {
-        s->band_of[x] = n_bands;
+    for (i = 0u; i < RADIO_FLOOR_COLUMNS; i++) {
+        s->floor[i] = i < width ? 0u : 0xFFu;
     }
     return FW_OK;
 }
 
-/* Insert d into band b's descending list (d above the band's floor). */
-static void summary_insert(radio_summary_t *s, uint32_t b, uint8_t d)
+void radio_summary_clear(radio_summary_t *s)
 {
-    uint8_t *top = s->top[b];
+    uint32_t i;
+    for (i = 0u; i < s->n_bands; i++) {
+        s->count[i] = 0u;
+    }
+    for (i = 0u; i < s->width && i < RADIO_FLOOR_COLUMNS; i++) {
+        s->floor[i] = 0u;
+    }
+}
+
+/* Insert d (above its column's floor) into the descending list of the band of column x. */
+static void summary_insert(radio_summary_t *s, uint32_t x, uint8_t d)
+{
+    uint32_t b = s->band;
     uint32_t k = s->min_support;
-    uint32_t n = s->count[b];
+    uint8_t *top;
+    uint32_t n;
     uint32_t j;
+    /* start[0] = 0 <= x < width = start[n_bands]: both walks stop inside the bands */
+    while (x >= s->start[b + 1u]) {
+        b++;
+    }
+    while (x < s->start[b]) {
+        b--;
+    }
+    s->band = (uint8_t)b;
+    top = s->top[b];
+    n = s->count[b];
     if (n == k) {
+        if (d <= top[k - 1u]) {
+            return;                 /* not among the min_support largest */
+        }
         n--;                        /* drop the smallest kept */
     }
     j = n;
@@ -204,20 +223,21 @@ static void summary_insert(radio_summary_t *s, uint32_t b, uint8_t d)
     top[j] = d;
     n++;
     s->count[b] = (uint8_t)n;
-    if (n == k) {
-        s->floor[b] = top[k - 1u];
+    if (n == k) {                   /* the band's floor: its min_support-th largest */
+        for (j = s->start[b]; j < s->start[b + 1u] && j < RADIO_FLOOR_COLUMNS; j++) {
+            s->floor[j] = top[k - 1u];
+        }
     }
 }
 
 void radio_summary_add(radio_summary_t *s, uint16_t x, uint8_t d)
 {
-    uint32_t b;
-    if (x >= RADIO_MAX_WIDTH) {
-        return;
-    }
-    b = s->band_of[x];
-    if (d > s->floor[b]) {          /* never for d = 0 or x >= width (floor 255) */
-        summary_insert(s, b, d);
+    if (x < RADIO_FLOOR_COLUMNS) {
+        if (d > s->floor[x]) {      /* never for d = 0 or x >= width */
+            summary_insert(s, x, d);
+        }
+    } else if (x < s->width && d != 0u) {
+        summary_insert(s, x, d);
     }
 }
 

@@ -101,29 +101,33 @@ static void test_band_of_column(void)
     FWT_CHECK(ok);
 }
 
-static void test_summary_band_table(void)
+static void test_summary_bands_and_floors(void)
 {
-    /* the summary's column table gives every column the band radio_band_of_column gives,
-     * and the extra band n_bands from the width on */
+    /* band boundaries as radio_band_of_column; every column's floor is its band's
+     * min_support-th largest (0 before), 255 from the width on */
     static radio_summary_t s;
-    static const uint16_t widths[] = { 64, 100, 741, 752, 1024 };
+    static const uint16_t widths[] = { 64, 100, 741, 752, RADIO_MAX_WIDTH };
     static const uint8_t ns[] = { 1, 7, 32, 64 };
-    uint32_t w, n, x;
+    uint32_t w, n, x, seed = 7u;
     int ok = 1;
     for (w = 0; w < 5; w++) {
         for (n = 0; n < 4; n++) {
-            FWT_CHECK_EQ(radio_summary_init(&s, widths[w], ns[n], 1u), FW_OK);
-            for (x = 0; x < RADIO_MAX_WIDTH; x++) {
-                uint32_t want = x < widths[w] ? radio_band_of_column((uint16_t)x, widths[w], ns[n])
-                                              : ns[n];
-                if (s.band_of[x] != want) {
+            FWT_CHECK_EQ(radio_summary_init(&s, widths[w], ns[n], 2u), FW_OK);
+            for (x = 0; x < 4u * widths[w]; x++) {
+                seed = seed * 1103515245u + 12345u;
+                radio_summary_add(&s, (uint16_t)((seed >> 8) % widths[w]), (uint8_t)(seed >> 24));
+            }
+            for (x = 0; x < RADIO_FLOOR_COLUMNS; x++) {
+                uint32_t b = x < widths[w] ? radio_band_of_column((uint16_t)x, widths[w], ns[n]) : 0u;
+                uint32_t want = x >= widths[w] ? 0xFFu : (s.count[b] == 2u ? s.top[b][1] : 0u);
+                if (s.floor[x] != want) {
                     ok = 0;
                 }
             }
         }
     }
     FWT_CHECK(ok);
-    FWT_CHECK_EQ(radio_summary_init(&s, 1025, 32, 3), FW_ERR_PARAM);
+    FWT_CHECK_EQ(radio_summary_init(&s, RADIO_MAX_WIDTH + 1u, 32, 3), FW_ERR_PARAM);
 }
 
 /* Brute force: the min_support-th largest disparity of the band. */
@@ -208,7 +212,7 @@ void suite_radio(void)
     FWT_RUN(test_payload_bytes);
     FWT_RUN(test_api_frame);
     FWT_RUN(test_band_of_column);
-    FWT_RUN(test_summary_band_table);
+    FWT_RUN(test_summary_bands_and_floors);
     FWT_RUN(test_summary_matches_reference);
     FWT_RUN(test_summary_outliers_and_params);
     FWT_RUN(test_link_budget);

@@ -28,8 +28,8 @@ Checks (the JSON line):
 Health (``frames``, ``drops``, ``fifo_overflow``, ...) is the sum of the packets' health fields:
 what the firmware reported. The run goes on after the last frame until a packet has covered it.
 
-Faults: ``camera-lost-left`` (the left camera's bytes stop for :data:`LOST_FIELDS` fields from
-field 1, then resume), ``iic-nack`` (the right decoder never answers), ``no-radio-module``
+Faults: ``camera-lost-left`` (the left decoder sends nothing for :data:`LOST_FIELDS` fields
+from field 1, whose bytes are lost, then its stream goes on), ``iic-nack`` (the right decoder never answers), ``no-radio-module``
 (nothing answers the XBee queries).
 """
 from __future__ import annotations
@@ -62,7 +62,7 @@ def build_cpu_system(soc_params):
     """``build/system/cpu-<hash>/libcpusystem.so`` for SystemSoC(cpu="picorv32", monitor=True,
     **soc_params) with an empty RAM (the harness loads the image: the model does not depend on
     the firmware); returns (path, build seconds)."""
-    from hdl.cpu import verilog_sources
+    from hdl.cpu import verilog_text
     from hdl.soc import SystemSoC
     from sim.backends.verilator import VERILATOR_FLAGS, verilator_env
     from sim.designs import silenced
@@ -72,7 +72,7 @@ def build_cpu_system(soc_params):
     harness_path = HARNESS.parent / "cpu_system.cpp"
     soc = silenced(SystemSoC(cpu="picorv32", monitor=True, **soc_params))
     verilog = verilog_source("soc", soc, soc_params, passes=SIMULATION_PASSES)
-    core = [p.read_text() for p in verilog_sources()]
+    core = [verilog_text()]
     harness = harness_path.read_text()
     vlt = ('`verilator_config\npublic_flat_rd -module "picorv32" -var "count_instr"\n'
            'public_flat_rw -module "soc.cpu" -var "ram"\n')
@@ -198,11 +198,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     out_frames, current, aborted = [], [], 0
     total_records = 0
     stream_ps = max(len(ldata), len(rdata)) * CAM_PS
-    if fault == "camera-lost-left":
-        stream_ps += int(LOST_FIELDS * 1716 * 262.5) * CAM_PS
-    # start-up (the XBee, the decoders; up to 6 s without a radio module) + the streams + two
-    # report periods
-    startup_ps = 7 * 10**12 if fault == "no-radio-module" else REPORT_PS
+    # start-up (the XBee, the decoders: two report periods more when one does not answer, up to
+    # 6 s without a radio module) + the streams + two report periods
+    startup_ps = {"no-radio-module": 7 * 10**12, "iic-nack": 3 * REPORT_PS}.get(fault, REPORT_PS)
     end_ps = startup_ps + stream_ps + 2 * REPORT_PS
     last_frame_cycle = None
     cyc = (C.c_uint64 * 65536)()

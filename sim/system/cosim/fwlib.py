@@ -48,7 +48,8 @@ class RadioSummaryC(C.Structure):
     _fields_ = [("width", C.c_uint16), ("n_bands", C.c_uint8), ("min_support", C.c_uint8),
                 ("count", C.c_uint8 * RADIO_MAX_BANDS),
                 ("top", (C.c_uint8 * 8) * RADIO_MAX_BANDS),
-                ("floor", C.c_uint8 * (RADIO_MAX_BANDS + 1)), ("band_of", C.c_uint8 * 1024)]
+                ("start", C.c_uint16 * (RADIO_MAX_BANDS + 1)), ("band", C.c_uint8),
+                ("floor", C.c_uint8 * 768)]         # RADIO_FLOOR_COLUMNS
 
 
 class IicDevC(C.Structure):

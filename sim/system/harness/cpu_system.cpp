@@ -177,7 +177,9 @@ void present(int k) {
         cam_stop_pos[k] = -1;
     }
     if (now_ps < cam_stop_until[k]) {
-        // the decoder has stopped: no byte comes (valid low) until it returns
+        // the decoder has lost its camera: no byte comes (valid low) until it returns, and
+        // the fields of that time are lost (the stream goes on without it)
+        if (c.pos < c.bytes.size()) c.pos++;
         if (k == 0) top->cam0___05Fvalid = 0; else top->cam1___05Fvalid = 0;
         return;
     }
@@ -321,7 +323,7 @@ void sys_start() {
 }
 
 // Camera k stops when its stream reaches byte `pos`, for `ps` picoseconds (the decoder loses
-// its input), then goes on from there.
+// its input: the bytes of that time are lost), then goes on.
 void sys_camera_stop(int k, int64_t pos, int64_t ps) {
     cam_stop_pos[k] = pos;
     cam_stop_ps[k] = ps;
