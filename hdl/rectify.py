@@ -45,7 +45,11 @@ errors, dropped : Out(16), Out(32): the frame tracker's counts (:mod:`hdl.framin
 abandoned by the tracker ends the output frame where it is (no ``eof``).
 
 Keyword-only parameters: ``max_width``, ``max_height``; ``span`` (even, at least 2): the
-buffer's readable rows less one, the largest vertical warp the map may have across the image.
+buffer's readable rows less one, the largest vertical warp the map may have across the image;
+``horizontal``: ``"linear"`` (bilinear) or ``"nearest"`` (the nearest column of both rows, as
+golden's; the same memories, no horizontal blend); ``nodes`` (optional, a
+:data:`golden.rectify.MAP_DTYPE` array): the map memory's initial contents, a map in the
+bitstream.
 """
 from amaranth.hdl import Module, Signal, Mux, Cat, Const, signed, Array
 from amaranth.lib import stream, memory
@@ -72,7 +76,12 @@ class Rectify(FramedUnit):
     errors: Out(16)
     dropped: Out(32)
 
-    def __init__(self, *, max_width=1024, max_height=1024, span=8):
+    def __init__(self, *, max_width=1024, max_height=1024, span=8, horizontal="linear",
+                 nodes=None):
+        if horizontal not in ("linear", "nearest"):
+            raise ValueError(f"horizontal must be 'linear' or 'nearest', not {horizontal!r}")
+        self.horizontal = horizontal
+        self._nodes = nodes
         if not isinstance(span, int) or span < 2 or span % 2:
             raise ValueError(f"span must be an even integer of at least 2, not {span!r}")
         if span > 30:
@@ -101,8 +110,13 @@ class Rectify(FramedUnit):
         m.d.comb += [self.errors.eq(tr.errors), self.dropped.eq(tr.dropped)]
 
         # ---- memories --------------------------------------------------------------------
+        init = [0] * self.map_depth
+        if self._nodes is not None:
+            from golden.rectify import node_words
+            for addr, word in node_words(self._nodes, self.node_stride):
+                init[addr] = word
         m.submodules.nodes = nodes = memory.Memory(shape=2 * OFFSET_BITS, depth=self.map_depth,
-                                                   init=[])
+                                                   init=init)
         nw = nodes.write_port()
         nr = nodes.read_port()
         m.d.comb += [nw.addr.eq(self.map_addr), nw.data.eq(self.map_data),
@@ -326,8 +340,13 @@ class Rectify(FramedUnit):
             # p4: clamps
             lastc = Signal(signed(bits_for(W) + 2))
             m.d.comb += lastc.eq(last_x)
+            x0 = Signal(signed(bits_for(W) + 2))
             x1 = Signal(signed(bits_for(W) + 2))
-            m.d.comb += x1.eq(p3["x0"] + 1)
+            ax3 = Signal(4)
+            if self.horizontal == "nearest":       # both columns the nearest one, no blend
+                m.d.comb += [x0.eq(p3["x0"] + p3["ax"][3]), x1.eq(x0), ax3.eq(0)]
+            else:
+                m.d.comb += [x0.eq(p3["x0"]), x1.eq(p3["x0"] + 1), ax3.eq(p3["ax"])]
 
             def clampc(x):
                 return Mux(x < 0, 0, Mux(x > lastc, lastc, x))[:len(p4["c0"])]
@@ -339,9 +358,9 @@ class Rectify(FramedUnit):
                 kc = Mux(k < kmin, kmin, Mux(k > kmax, kmax, k))
                 return (kc - lo_r)[:len(p4["r0"])]
 
-            m.d.sync += [p4["c0"].eq(clampc(p3["x0"])), p4["c1"].eq(clampc(x1)),
+            m.d.sync += [p4["c0"].eq(clampc(x0)), p4["c1"].eq(clampc(x1)),
                          p4["r0"].eq(clampr(p3["k0"])), p4["r1"].eq(clampr(k1)),
-                         p4["ax"].eq(p3["ax"]), p4["ay"].eq(p3["ay"]),
+                         p4["ax"].eq(ax3), p4["ay"].eq(p3["ay"]),
                          p4["flags"].eq(p3["flags"])]
             # p5: slots
 
