@@ -142,7 +142,7 @@ class Rectify(FramedUnit):
         block = Signal()
         m.d.comb += [
             block.eq((in_done & out_busy)
-                     | (tr.in_frame & ~in_done & (rows_in > need_gate + 1))),
+                     | (tr.in_frame & ~in_done & (rows_in > (need_gate + 1).as_unsigned()))),
             self.i.ready.eq(~block),
             tr.beat.eq(self.i.valid & self.i.ready),
             tr.sof.eq(self.i.payload.sof), tr.eol.eq(self.i.payload.eol),
@@ -177,9 +177,15 @@ class Rectify(FramedUnit):
         u = Signal(range(W))
         slot_lo = Signal(range(N))            # (v + lo) mod N
         slot_run = Signal(range(N))           # slot_lo of the row in the pipeline
+        nlo = Signal(range(span + 1))         # -lo
+        lsp = Signal(range(span + 1))         # lo + span
+        lob = Signal(7)                       # lo + KB
+        below = Signal(range(H))              # last row - v
         need = Signal(signed(bits_for(H) + 2))   # v + lo + span
-        kmin = Signal(signed(bits_for(H) + 2))
-        kmax = Signal(signed(bits_for(H) + 2))
+        # the row window relative to the output row, biased by KB (unsigned comparisons only)
+        KB = 64
+        kmin = Signal(7)
+        kmax = Signal(7)
         cw = OFFSET_BITS + 1
         cA = [Signal(signed(cw), name=f"cA{c}") for c in "xy"]
         cB = [Signal(signed(cw), name=f"cB{c}") for c in "xy"]
@@ -238,12 +244,14 @@ class Rectify(FramedUnit):
         at_eof = Signal()
         m.d.comb += [at_eol.eq(u == last_x), at_eof.eq(at_eol & in_done & (v == last_row))]
         ready_rows = Signal()
-        m.d.comb += ready_rows.eq((rows_in != 0) & (in_done | (rows_in > need)))
+        m.d.comb += [nlo.eq(-lo_r), lsp.eq(lo_r + span), lob.eq(lo_r + KB),
+                     below.eq(Mux(in_done, last_row, H - 1) - v)]
+        m.d.comb += ready_rows.eq((rows_in != 0) & (in_done | (rows_in > need.as_unsigned())))
         fetch_n = Signal(2)            # node columns fetched for this row's preparation
 
         def begin():
             m.d.sync += [v.eq(0), lo_r.eq(self.lo), v_gate.eq(0),
-                         slot_lo.eq(Mux(self.lo < 0, self.lo + N, self.lo)),
+                         slot_lo.eq(Mux(self.lo[-1], self.lo + N, self.lo)),
                          need.eq(self.lo + span), fetch_n.eq(0), out_busy.eq(1)]
             m.next = "PREP"
 
@@ -262,11 +270,10 @@ class Rectify(FramedUnit):
                         m.d.comb += fgo.eq(1)
                         m.d.sync += [fk.eq(fetch_n), ftgt.eq(fetch_n), fetch_n.eq(fetch_n + 1)]
                     with m.Elif(drained & ready_rows):
-                        last_v = Mux(in_done, last_row, H - 1)
                         m.d.sync += [
                             v_gate.eq(v), u.eq(0), slot_run.eq(slot_lo),
-                            kmin.eq(Mux(lo_r > -v, lo_r, -v)),
-                            kmax.eq(Mux(lo_r + span < last_v - v, lo_r + span, last_v - v)),
+                            kmin.eq(KB - Mux(v < nlo, v, nlo)),
+                            kmax.eq(KB + Mux(lsp < below, lsp, below)),
                         ]
                         for c in range(2):
                             m.d.sync += [acc[c].eq(cA[c] << shift), delta[c].eq(cB[c] - cA[c])]
@@ -338,8 +345,6 @@ class Rectify(FramedUnit):
                          p3["k0"].eq(p2["off"][1] >> 4), p3["ay"].eq(p2["off"][1][:4]),
                          p3["flags"].eq(p2["flags"])]
             # p4: clamps
-            lastc = Signal(signed(bits_for(W) + 2))
-            m.d.comb += lastc.eq(last_x)
             x0 = Signal(signed(bits_for(W) + 2))
             x1 = Signal(signed(bits_for(W) + 2))
             ax3 = Signal(4)
@@ -349,17 +354,18 @@ class Rectify(FramedUnit):
                 m.d.comb += [x0.eq(p3["x0"]), x1.eq(p3["x0"] + 1), ax3.eq(p3["ax"])]
 
             def clampc(x):
-                return Mux(x < 0, 0, Mux(x > lastc, lastc, x))[:len(p4["c0"])]
+                return Mux(x[-1], 0, Mux(x.as_unsigned() > last_x, last_x, x))[:len(p4["c0"])]
 
-            k1 = Signal(signed(9))
-            m.d.comb += k1.eq(p3["k0"] + 1)
+            k0b = Signal(7)
+            k1b = Signal(7)
+            m.d.comb += [k0b.eq(p3["k0"] + KB), k1b.eq(k0b + 1)]
 
-            def clampr(k):
-                kc = Mux(k < kmin, kmin, Mux(k > kmax, kmax, k))
-                return (kc - lo_r)[:len(p4["r0"])]
+            def clampr(kb):
+                kc = Mux(kb < kmin, kmin, Mux(kb > kmax, kmax, kb))
+                return (kc - lob)[:len(p4["r0"])]
 
             m.d.sync += [p4["c0"].eq(clampc(x0)), p4["c1"].eq(clampc(x1)),
-                         p4["r0"].eq(clampr(p3["k0"])), p4["r1"].eq(clampr(k1)),
+                         p4["r0"].eq(clampr(k0b)), p4["r1"].eq(clampr(k1b)),
                          p4["ax"].eq(ax3), p4["ay"].eq(p3["ay"]),
                          p4["flags"].eq(p3["flags"])]
             # p5: slots
