@@ -18,18 +18,19 @@ registers below can change), and the map's node columns 0, 1 and 2 are blended d
 cell (``c_k``, one multiply each; the map memory is read twice per node column). Along the row
 it only adds: the offset accumulator starts at ``32 c_0`` and adds ``c_(i+1) - c_i`` each
 pixel; at every cell boundary the node columns move on and the next one but one is fetched
-(it takes four cycles of the 32 the cell lasts). Then, one stage each: the offsets rounded to
+(it takes six cycles of the 32 the cell lasts). Then, one stage each: the offsets rounded to
 1/16 px; the source column and the source row relative to ``v`` with their fractions; both
 clamped (columns to the image, rows to ``max(lo, -v) .. min(lo + span, last - v)``, the
-buffer's window cut by the image); the rows' slots; the four memory reads; the horizontal
-blends; the vertical blend and the ground bit, into the output register.
+buffer's window cut by the image); the rows' slots; the four memory reads; the four pixels
+routed; the horizontal blends; the vertical blend and the ground bit, into the output
+register.
 
 Flow control. The input may write row ``r`` while output row ``v`` (the one being issued)
 reads only rows ``v + lo .. v + lo + span``, so the input waits at row ``v + lo + span + 2``;
 the output waits for rows as said. After the input's ``eof`` the input waits until the output
 has sent its own ``eof`` (the next frame's rows would overwrite the last ones). So the output is
 the input delayed by ``lo + span`` rows plus a few pixels, each output row starts after about
-ten cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
+twenty cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
 
 Registers: ``lo`` (signed, ``-span .. 0``: the first buffered row relative to the output row;
 sampled at each frame's start) and ``enable`` (0: a zero map, the image passes unchanged),
@@ -197,21 +198,19 @@ class Rectify(FramedUnit):
         fgo = Signal()
         fk = Signal(range(self.node_stride))
         ftgt = Signal(2)
-        fphase = Signal(2)
+        fphase = Signal(3)
         fbusy = Signal()
         top = [Signal(signed(OFFSET_BITS), name=f"top{c}") for c in "xy"]
+        bot = [Signal(signed(OFFSET_BITS), name=f"bot{c}") for c in "xy"]
+        prod = [Signal(signed(OFFSET_BITS + shift + 1), name=f"prod{c}") for c in "xy"]
         j = Signal(range(self.node_rows))
         fv = Signal(shift)
         m.d.comb += [j.eq(v >> shift), fv.eq(v[:shift])]
         m.d.comb += nr.addr.eq(Mux(fphase == 0, Cat(fk, j), Cat(fk, j + 1)))
         words = [nr.data[:OFFSET_BITS].as_signed(), nr.data[OFFSET_BITS:].as_signed()]
-        blend = []
-        for c in range(2):
-            b = Signal(signed(cw + 6), name=f"blend{c}")
-            # top (32 - fv) + bottom fv as one multiply
-            m.d.comb += b.eq(((top[c] << shift) + (words[c] - top[c]) * fv + (GRID // 2))
-                             >> shift)
-            blend.append(b)
+        # fphase 0: the top node's address; 1: top word read, the bottom node's address;
+        # 2: bottom word read; 3: (bottom - top) fv; 4: the blend written
+        # (top (32 - fv) + bottom fv, rounded): one register stage after each step
         with m.If(fgo):
             m.d.sync += [fphase.eq(0), fbusy.eq(1)]
         with m.Elif(fbusy):
@@ -219,9 +218,15 @@ class Rectify(FramedUnit):
             with m.If(fphase == 1):
                 m.d.sync += [top[c].eq(words[c]) for c in range(2)]
             with m.If(fphase == 2):
+                m.d.sync += [bot[c].eq(words[c]) for c in range(2)]
+            with m.If(fphase == 3):
+                m.d.sync += [prod[c].eq((bot[c] - top[c]) * fv) for c in range(2)]
+            with m.If(fphase == 4):
                 m.d.sync += fbusy.eq(0)
                 for c in range(2):
-                    val = Mux(self.enable, blend[c], 0)
+                    b = Signal(signed(cw + 6), name=f"blend{c}")
+                    m.d.comb += b.eq(((top[c] << shift) + prod[c] + (GRID // 2)) >> shift)
+                    val = Mux(self.enable, b, 0)
                     with m.Switch(ftgt):
                         with m.Case(0):
                             m.d.sync += cA[c].eq(val)
@@ -229,8 +234,6 @@ class Rectify(FramedUnit):
                             m.d.sync += cB[c].eq(val)
                         with m.Case(2):
                             m.d.sync += cC[c].eq(val)
-        # fphase 0: address of the top node presented; 1: top word read, bottom address;
-        # 2: bottom word read, blend written
 
         # pipeline stage valid bits (p1..p4 before the memory read, p5, p6 = output register)
         pv = [Signal(name=f"p{k}_valid") for k in range(1, 6)]
@@ -393,23 +396,31 @@ class Rectify(FramedUnit):
         def pix(pr, pc):
             return word[Cat(pc, pr)]
 
-        q00, q01 = pix(p6["pr0"], p6["pc0"]), pix(p6["pr0"], p6["pc1"])
-        q10, q11 = pix(p6["pr1"], p6["pc0"]), pix(p6["pr1"], p6["pc1"])
-        ax, ay = p6["ax"], p6["ay"]
+        # pq: the four pixels routed from the banks, registered
+        q = [Signal(9, name=f"q{k}") for k in ("00", "01", "10", "11")]
+        pq = dict(ax=Signal(4), ay=Signal(4), flags=Signal(3))
+        with m.If(step):
+            m.d.sync += [q[0].eq(pix(p6["pr0"], p6["pc0"])), q[1].eq(pix(p6["pr0"], p6["pc1"])),
+                         q[2].eq(pix(p6["pr1"], p6["pc0"])), q[3].eq(pix(p6["pr1"], p6["pc1"])),
+                         pq["ax"].eq(p6["ax"]), pq["ay"].eq(p6["ay"]),
+                         pq["flags"].eq(p6["flags"])]
+        q00, q01, q10, q11 = q
+        ax, ay = pq["ax"], pq["ay"]
         with m.If(step):
             m.d.sync += [
                 p7["top"].eq((q00[:8] << 4) + (q01[:8] - q00[:8]) * ax),
                 p7["bot"].eq((q10[:8] << 4) + (q11[:8] - q10[:8]) * ax),
                 p7["ground"].eq(Mux(ay[3], Mux(ax[3], q11[8], q10[8]),
                                     Mux(ax[3], q01[8], q00[8]))),
-                p7["ay"].eq(ay), p7["flags"].eq(p6["flags"]),
+                p7["ay"].eq(ay), p7["flags"].eq(pq["flags"]),
             ]
         p6_valid = Signal()
+        pq_valid = Signal()
         p7_valid = Signal()
         with m.If(abandon):
-            m.d.sync += [p6_valid.eq(0), p7_valid.eq(0)]
+            m.d.sync += [p6_valid.eq(0), pq_valid.eq(0), p7_valid.eq(0)]
         with m.Elif(step):
-            m.d.sync += [p6_valid.eq(pv[4]), p7_valid.eq(p6_valid)]
+            m.d.sync += [p6_valid.eq(pv[4]), pq_valid.eq(p6_valid), p7_valid.eq(pq_valid)]
         # output register
         luma = Signal(8)
         m.d.comb += luma.eq(((p7["top"] << 4) + (p7["bot"] - p7["top"]) * p7["ay"] + 128) >> 8)
