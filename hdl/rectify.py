@@ -18,18 +18,19 @@ registers below can change), and the map's node columns 0, 1 and 2 are blended d
 cell (``c_k``, one multiply each; the map memory is read twice per node column). Along the row
 it only adds: the offset accumulator starts at ``32 c_0`` and adds ``c_(i+1) - c_i`` each
 pixel; at every cell boundary the node columns move on and the next one but one is fetched
-(it takes four cycles of the 32 the cell lasts). Then, one stage each: the offsets rounded to
+(it takes six cycles of the 32 the cell lasts). Then, one stage each: the offsets rounded to
 1/16 px; the source column and the source row relative to ``v`` with their fractions; both
 clamped (columns to the image, rows to ``max(lo, -v) .. min(lo + span, last - v)``, the
-buffer's window cut by the image); the rows' slots; the four memory reads; the horizontal
-blends; the vertical blend and the ground bit, into the output register.
+buffer's window cut by the image); the rows' slots; the four memory reads; the four pixels
+routed; the horizontal blends; the vertical blend and the ground bit, into the output
+register.
 
 Flow control. The input may write row ``r`` while output row ``v`` (the one being issued)
 reads only rows ``v + lo .. v + lo + span``, so the input waits at row ``v + lo + span + 2``;
 the output waits for rows as said. After the input's ``eof`` the input waits until the output
 has sent its own ``eof`` (the next frame's rows would overwrite the last ones). So the output is
 the input delayed by ``lo + span`` rows plus a few pixels, each output row starts after about
-ten cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
+twenty cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
 
 Registers: ``lo`` (signed, ``-span .. 0``: the first buffered row relative to the output row;
 sampled at each frame's start) and ``enable`` (0: a zero map, the image passes unchanged),
@@ -45,7 +46,11 @@ errors, dropped : Out(16), Out(32): the frame tracker's counts (:mod:`hdl.framin
 abandoned by the tracker ends the output frame where it is (no ``eof``).
 
 Keyword-only parameters: ``max_width``, ``max_height``; ``span`` (even, at least 2): the
-buffer's readable rows less one, the largest vertical warp the map may have across the image.
+buffer's readable rows less one, the largest vertical warp the map may have across the image;
+``horizontal``: ``"linear"`` (bilinear) or ``"nearest"`` (the nearest column of both rows, as
+golden's; the same memories, no horizontal blend); ``nodes`` (optional, a
+:data:`golden.rectify.MAP_DTYPE` array): the map memory's initial contents, a map in the
+bitstream.
 """
 from amaranth.hdl import Module, Signal, Mux, Cat, Const, signed, Array
 from amaranth.lib import stream, memory
@@ -72,7 +77,12 @@ class Rectify(FramedUnit):
     errors: Out(16)
     dropped: Out(32)
 
-    def __init__(self, *, max_width=1024, max_height=1024, span=8):
+    def __init__(self, *, max_width=1024, max_height=1024, span=8, horizontal="linear",
+                 nodes=None):
+        if horizontal not in ("linear", "nearest"):
+            raise ValueError(f"horizontal must be 'linear' or 'nearest', not {horizontal!r}")
+        self.horizontal = horizontal
+        self._nodes = nodes
         if not isinstance(span, int) or span < 2 or span % 2:
             raise ValueError(f"span must be an even integer of at least 2, not {span!r}")
         if span > 30:
@@ -101,8 +111,13 @@ class Rectify(FramedUnit):
         m.d.comb += [self.errors.eq(tr.errors), self.dropped.eq(tr.dropped)]
 
         # ---- memories --------------------------------------------------------------------
+        init = [0] * self.map_depth
+        if self._nodes is not None:
+            from golden.rectify import node_words
+            for addr, word in node_words(self._nodes, self.node_stride):
+                init[addr] = word
         m.submodules.nodes = nodes = memory.Memory(shape=2 * OFFSET_BITS, depth=self.map_depth,
-                                                   init=[])
+                                                   init=init)
         nw = nodes.write_port()
         nr = nodes.read_port()
         m.d.comb += [nw.addr.eq(self.map_addr), nw.data.eq(self.map_data),
@@ -128,7 +143,7 @@ class Rectify(FramedUnit):
         block = Signal()
         m.d.comb += [
             block.eq((in_done & out_busy)
-                     | (tr.in_frame & ~in_done & (rows_in > need_gate + 1))),
+                     | (tr.in_frame & ~in_done & (rows_in > (need_gate + 1).as_unsigned()))),
             self.i.ready.eq(~block),
             tr.beat.eq(self.i.valid & self.i.ready),
             tr.sof.eq(self.i.payload.sof), tr.eol.eq(self.i.payload.eol),
@@ -163,9 +178,15 @@ class Rectify(FramedUnit):
         u = Signal(range(W))
         slot_lo = Signal(range(N))            # (v + lo) mod N
         slot_run = Signal(range(N))           # slot_lo of the row in the pipeline
+        nlo = Signal(range(span + 1))         # -lo
+        lsp = Signal(range(span + 1))         # lo + span
+        lob = Signal(7)                       # lo + KB
+        below = Signal(range(H))              # last row - v
         need = Signal(signed(bits_for(H) + 2))   # v + lo + span
-        kmin = Signal(signed(bits_for(H) + 2))
-        kmax = Signal(signed(bits_for(H) + 2))
+        # the row window relative to the output row, biased by KB (unsigned comparisons only)
+        KB = 64
+        kmin = Signal(7)
+        kmax = Signal(7)
         cw = OFFSET_BITS + 1
         cA = [Signal(signed(cw), name=f"cA{c}") for c in "xy"]
         cB = [Signal(signed(cw), name=f"cB{c}") for c in "xy"]
@@ -177,21 +198,19 @@ class Rectify(FramedUnit):
         fgo = Signal()
         fk = Signal(range(self.node_stride))
         ftgt = Signal(2)
-        fphase = Signal(2)
+        fphase = Signal(3)
         fbusy = Signal()
         top = [Signal(signed(OFFSET_BITS), name=f"top{c}") for c in "xy"]
+        bot = [Signal(signed(OFFSET_BITS), name=f"bot{c}") for c in "xy"]
+        prod = [Signal(signed(OFFSET_BITS + shift + 1), name=f"prod{c}") for c in "xy"]
         j = Signal(range(self.node_rows))
         fv = Signal(shift)
         m.d.comb += [j.eq(v >> shift), fv.eq(v[:shift])]
         m.d.comb += nr.addr.eq(Mux(fphase == 0, Cat(fk, j), Cat(fk, j + 1)))
         words = [nr.data[:OFFSET_BITS].as_signed(), nr.data[OFFSET_BITS:].as_signed()]
-        blend = []
-        for c in range(2):
-            b = Signal(signed(cw + 6), name=f"blend{c}")
-            # top (32 - fv) + bottom fv as one multiply
-            m.d.comb += b.eq(((top[c] << shift) + (words[c] - top[c]) * fv + (GRID // 2))
-                             >> shift)
-            blend.append(b)
+        # fphase 0: the top node's address; 1: top word read, the bottom node's address;
+        # 2: bottom word read; 3: (bottom - top) fv; 4: the blend written
+        # (top (32 - fv) + bottom fv, rounded): one register stage after each step
         with m.If(fgo):
             m.d.sync += [fphase.eq(0), fbusy.eq(1)]
         with m.Elif(fbusy):
@@ -199,9 +218,15 @@ class Rectify(FramedUnit):
             with m.If(fphase == 1):
                 m.d.sync += [top[c].eq(words[c]) for c in range(2)]
             with m.If(fphase == 2):
+                m.d.sync += [bot[c].eq(words[c]) for c in range(2)]
+            with m.If(fphase == 3):
+                m.d.sync += [prod[c].eq((bot[c] - top[c]) * fv) for c in range(2)]
+            with m.If(fphase == 4):
                 m.d.sync += fbusy.eq(0)
                 for c in range(2):
-                    val = Mux(self.enable, blend[c], 0)
+                    b = Signal(signed(cw + 6), name=f"blend{c}")
+                    m.d.comb += b.eq(((top[c] << shift) + prod[c] + (GRID // 2)) >> shift)
+                    val = Mux(self.enable, b, 0)
                     with m.Switch(ftgt):
                         with m.Case(0):
                             m.d.sync += cA[c].eq(val)
@@ -209,8 +234,6 @@ class Rectify(FramedUnit):
                             m.d.sync += cB[c].eq(val)
                         with m.Case(2):
                             m.d.sync += cC[c].eq(val)
-        # fphase 0: address of the top node presented; 1: top word read, bottom address;
-        # 2: bottom word read, blend written
 
         # pipeline stage valid bits (p1..p4 before the memory read, p5, p6 = output register)
         pv = [Signal(name=f"p{k}_valid") for k in range(1, 6)]
@@ -224,12 +247,14 @@ class Rectify(FramedUnit):
         at_eof = Signal()
         m.d.comb += [at_eol.eq(u == last_x), at_eof.eq(at_eol & in_done & (v == last_row))]
         ready_rows = Signal()
-        m.d.comb += ready_rows.eq((rows_in != 0) & (in_done | (rows_in > need)))
+        m.d.comb += [nlo.eq(-lo_r), lsp.eq(lo_r + span), lob.eq(lo_r + KB),
+                     below.eq(Mux(in_done, last_row, H - 1) - v)]
+        m.d.comb += ready_rows.eq((rows_in != 0) & (in_done | (rows_in > need.as_unsigned())))
         fetch_n = Signal(2)            # node columns fetched for this row's preparation
 
         def begin():
             m.d.sync += [v.eq(0), lo_r.eq(self.lo), v_gate.eq(0),
-                         slot_lo.eq(Mux(self.lo < 0, self.lo + N, self.lo)),
+                         slot_lo.eq(Mux(self.lo[-1], self.lo + N, self.lo)),
                          need.eq(self.lo + span), fetch_n.eq(0), out_busy.eq(1)]
             m.next = "PREP"
 
@@ -248,11 +273,10 @@ class Rectify(FramedUnit):
                         m.d.comb += fgo.eq(1)
                         m.d.sync += [fk.eq(fetch_n), ftgt.eq(fetch_n), fetch_n.eq(fetch_n + 1)]
                     with m.Elif(drained & ready_rows):
-                        last_v = Mux(in_done, last_row, H - 1)
                         m.d.sync += [
                             v_gate.eq(v), u.eq(0), slot_run.eq(slot_lo),
-                            kmin.eq(Mux(lo_r > -v, lo_r, -v)),
-                            kmax.eq(Mux(lo_r + span < last_v - v, lo_r + span, last_v - v)),
+                            kmin.eq(KB - Mux(v < nlo, v, nlo)),
+                            kmax.eq(KB + Mux(lsp < below, lsp, below)),
                         ]
                         for c in range(2):
                             m.d.sync += [acc[c].eq(cA[c] << shift), delta[c].eq(cB[c] - cA[c])]
@@ -324,24 +348,28 @@ class Rectify(FramedUnit):
                          p3["k0"].eq(p2["off"][1] >> 4), p3["ay"].eq(p2["off"][1][:4]),
                          p3["flags"].eq(p2["flags"])]
             # p4: clamps
-            lastc = Signal(signed(bits_for(W) + 2))
-            m.d.comb += lastc.eq(last_x)
+            x0 = Signal(signed(bits_for(W) + 2))
             x1 = Signal(signed(bits_for(W) + 2))
-            m.d.comb += x1.eq(p3["x0"] + 1)
+            ax3 = Signal(4)
+            if self.horizontal == "nearest":       # both columns the nearest one, no blend
+                m.d.comb += [x0.eq(p3["x0"] + p3["ax"][3]), x1.eq(x0), ax3.eq(0)]
+            else:
+                m.d.comb += [x0.eq(p3["x0"]), x1.eq(p3["x0"] + 1), ax3.eq(p3["ax"])]
 
             def clampc(x):
-                return Mux(x < 0, 0, Mux(x > lastc, lastc, x))[:len(p4["c0"])]
+                return Mux(x[-1], 0, Mux(x.as_unsigned() > last_x, last_x, x))[:len(p4["c0"])]
 
-            k1 = Signal(signed(9))
-            m.d.comb += k1.eq(p3["k0"] + 1)
+            k0b = Signal(7)
+            k1b = Signal(7)
+            m.d.comb += [k0b.eq(p3["k0"] + KB), k1b.eq(k0b + 1)]
 
-            def clampr(k):
-                kc = Mux(k < kmin, kmin, Mux(k > kmax, kmax, k))
-                return (kc - lo_r)[:len(p4["r0"])]
+            def clampr(kb):
+                kc = Mux(kb < kmin, kmin, Mux(kb > kmax, kmax, kb))
+                return (kc - lob)[:len(p4["r0"])]
 
-            m.d.sync += [p4["c0"].eq(clampc(p3["x0"])), p4["c1"].eq(clampc(x1)),
-                         p4["r0"].eq(clampr(p3["k0"])), p4["r1"].eq(clampr(k1)),
-                         p4["ax"].eq(p3["ax"]), p4["ay"].eq(p3["ay"]),
+            m.d.sync += [p4["c0"].eq(clampc(x0)), p4["c1"].eq(clampc(x1)),
+                         p4["r0"].eq(clampr(k0b)), p4["r1"].eq(clampr(k1b)),
+                         p4["ax"].eq(ax3), p4["ay"].eq(p3["ay"]),
                          p4["flags"].eq(p3["flags"])]
             # p5: slots
 
@@ -368,23 +396,31 @@ class Rectify(FramedUnit):
         def pix(pr, pc):
             return word[Cat(pc, pr)]
 
-        q00, q01 = pix(p6["pr0"], p6["pc0"]), pix(p6["pr0"], p6["pc1"])
-        q10, q11 = pix(p6["pr1"], p6["pc0"]), pix(p6["pr1"], p6["pc1"])
-        ax, ay = p6["ax"], p6["ay"]
+        # pq: the four pixels routed from the banks, registered
+        q = [Signal(9, name=f"q{k}") for k in ("00", "01", "10", "11")]
+        pq = dict(ax=Signal(4), ay=Signal(4), flags=Signal(3))
+        with m.If(step):
+            m.d.sync += [q[0].eq(pix(p6["pr0"], p6["pc0"])), q[1].eq(pix(p6["pr0"], p6["pc1"])),
+                         q[2].eq(pix(p6["pr1"], p6["pc0"])), q[3].eq(pix(p6["pr1"], p6["pc1"])),
+                         pq["ax"].eq(p6["ax"]), pq["ay"].eq(p6["ay"]),
+                         pq["flags"].eq(p6["flags"])]
+        q00, q01, q10, q11 = q
+        ax, ay = pq["ax"], pq["ay"]
         with m.If(step):
             m.d.sync += [
                 p7["top"].eq((q00[:8] << 4) + (q01[:8] - q00[:8]) * ax),
                 p7["bot"].eq((q10[:8] << 4) + (q11[:8] - q10[:8]) * ax),
                 p7["ground"].eq(Mux(ay[3], Mux(ax[3], q11[8], q10[8]),
                                     Mux(ax[3], q01[8], q00[8]))),
-                p7["ay"].eq(ay), p7["flags"].eq(p6["flags"]),
+                p7["ay"].eq(ay), p7["flags"].eq(pq["flags"]),
             ]
         p6_valid = Signal()
+        pq_valid = Signal()
         p7_valid = Signal()
         with m.If(abandon):
-            m.d.sync += [p6_valid.eq(0), p7_valid.eq(0)]
+            m.d.sync += [p6_valid.eq(0), pq_valid.eq(0), p7_valid.eq(0)]
         with m.Elif(step):
-            m.d.sync += [p6_valid.eq(pv[4]), p7_valid.eq(p6_valid)]
+            m.d.sync += [p6_valid.eq(pv[4]), pq_valid.eq(p6_valid), p7_valid.eq(pq_valid)]
         # output register
         luma = Signal(8)
         m.d.comb += luma.eq(((p7["top"] << 4) + (p7["bot"] - p7["top"]) * p7["ay"] + 128) >> 8)

@@ -443,3 +443,71 @@ class FloorUnit:
 
 
 UNITS["floor"] = FloorUnit()
+
+
+
+# --- the right camera's rectifier as a unit: a fixed map in its memory's initial contents ------
+
+#: The rectifier's test configuration (``rectify`` unit): line buffer span, horizontal mode.
+RECTIFY_SPAN = 8
+RECTIFY_HORIZONTAL = "nearest"
+
+
+def rectify_test_map():
+    """``(nodes, lo)``: the ``rectify`` unit's map, the test rigs' errors all together (row
+    offset, roll 0.5 degrees, pitch and yaw 0.1 degrees, barrel lenses) on the reference lens
+    at 1024 x 1024, so it covers every frame size the unit takes; ``lo`` fits it into
+    :data:`RECTIFY_SPAN`."""
+    from golden.rectify import build_map, row_window
+    from golden.rig import Lens, Rig
+    f = 600.0 * 1024 / 752
+    lens = Lens(f, f, 511.5, 511.5)
+    rig = Rig(lens, lens, T=(-0.12, 0.0, 0.0), width=1024, height=1024).with_errors(
+        row_offset=1.0, roll_deg=0.5, pitch_deg=0.1, yaw_deg=0.1, k1=-0.3, k2=0.08)
+    nodes = build_map(rig, 0.0)
+    return nodes, row_window(nodes, 1024, 1024, RECTIFY_SPAN)
+
+
+def _rectify(job):
+    from amaranth.hdl import Module
+    from amaranth.lib import stream as _stream, wiring
+    from amaranth.lib.wiring import In, Out
+    from hdl.rectify import Rectify
+
+    nodes, lo = rectify_test_map()
+
+    class FixedMapRectify(wiring.Component):
+        """:class:`hdl.rectify.Rectify` with the test map in its memory, ``lo`` and
+        ``enable`` tied."""
+        i: In(_stream.Signature(types.GroundPixel))
+        o: Out(_stream.Signature(types.GroundPixel))
+        errors: Out(16)
+        dropped: Out(32)
+
+        def elaborate(self, platform):
+            m = Module()
+            m.submodules.rectify = r = Rectify(**_size(job), span=RECTIFY_SPAN,
+                                               horizontal=RECTIFY_HORIZONTAL, nodes=nodes)
+            wiring.connect(m, wiring.flipped(self.i), r.i)
+            wiring.connect(m, r.o, wiring.flipped(self.o))
+            m.d.comb += [r.lo.eq(lo), r.enable.eq(1), self.errors.eq(r.errors),
+                         self.dropped.eq(r.dropped)]
+            return m
+
+    return FixedMapRectify()
+
+
+def _rectified(job):
+    from golden.rectify import rectify
+    nodes, lo = rectify_test_map()
+    out = []
+    for g in job.golden:
+        y, ground = rectify(g.left.y, g.left.ground, nodes, lo, RECTIFY_SPAN,
+                            horizontal=RECTIFY_HORIZONTAL)
+        out.append(dict(y=y, ground=ground))
+    return out
+
+
+UNITS["rectify"] = Unit("rectify", False, _rectify, types.GroundPixel, types.GroundPixel,
+                        _ground_out, _rectified,
+                        "right-camera rectifier (fixed test map) on the ground unit's output")

@@ -98,9 +98,10 @@ def _random_nodes(h, w, seed, reach=3.0, vreach=2.0):
 
 
 def _run(frames, nodes, lo, span, *, seed=0, idle=0.0, stall=0.0, enable=1, extra=(),
-         max_width=128, max_height=80):
+         max_width=128, max_height=80, horizontal="linear"):
     def make():
-        return Rectify(max_width=max_width, max_height=max_height, span=span)
+        return Rectify(max_width=max_width, max_height=max_height, span=span,
+                       horizontal=horizontal)
 
     async def setup(ctx, dut):
         ctx.set(dut.lo, lo)
@@ -115,7 +116,7 @@ def _run(frames, nodes, lo, span, *, seed=0, idle=0.0, stall=0.0, enable=1, extr
     use = nodes if enable else np.zeros_like(nodes)
     expected = []
     for y, g in frames:
-        ry, rg = rectify(y, g, use, lo, span)
+        ry, rg = rectify(y, g, use, lo, span, horizontal=horizontal)
         expected.append(dict(y=ry, ground=rg))
     return check_unit(make, P, P, [dict(y=y, ground=g) for y, g in frames], expected,
                       name="rectify", seed=seed, idle=idle, stall=stall, setup=setup,
@@ -137,6 +138,13 @@ def test_rtl_bit_exact_with_stalls(seed):
     nodes = _random_nodes(h, w, seed, vreach=3)
     frames = [_image(h, w, seed), _image(h, w, seed + 1)]
     _run(frames, nodes, -3, 6, seed=seed, idle=0.3, stall=0.3)
+
+
+def test_rtl_nearest_column_with_stalls():
+    h, w = 30, 70
+    nodes = _random_nodes(h, w, 11, vreach=3)
+    _run([_image(h, w, 11), _image(h, w, 12)], nodes, -3, 6, seed=11, idle=0.2, stall=0.3,
+         horizontal="nearest")
 
 
 def test_rtl_rig_map_and_disabled():

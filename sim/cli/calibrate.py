@@ -63,12 +63,16 @@ def _pairs(folder):
 
 
 def _grey(path, role):
-    from sim.cli.main import load_image
-    img = load_image(str(path), role)
-    if img.ndim == 3:
-        import cv2
-        img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
-    return img
+    """An 8-bit grey image; CliError when it cannot be read or has deeper samples."""
+    from PIL import Image, UnidentifiedImageError
+    try:
+        with Image.open(path) as im:
+            if im.mode not in ("L", "P", "RGB", "RGBA", "1", "LA"):
+                raise CliError(f"{role} image {str(path)!r} is not an 8-bit image "
+                               f"({im.mode}): convert it first")
+            return np.asarray(im.convert("L"), dtype=np.uint8)
+    except (UnidentifiedImageError, OSError) as e:
+        raise CliError(f"cannot read {role} image {str(path)!r}: {e}") from None
 
 
 def _corners(img, board):
