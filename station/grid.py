@@ -119,21 +119,25 @@ class OccupancyGrid:
             self.logodds *= np.float32(math.exp(-dt / self.p.age_tau_s))
 
     def _ray_cells(self, ox, oy, angles, lengths, start=0.0):
-        """Flat indices of grid cells sampled every half cell along rays from (ox, oy) at the
-        given world angles, from ``start`` to ``start + lengths`` metres."""
+        """Boolean mask over the flattened grid of the cells sampled every half cell along
+        rays from (ox, oy) at the given world angles, from ``start`` to ``start + lengths``
+        metres."""
+        mask = np.zeros(self.ny * self.nx, dtype=bool)
         step = self.res / 2.0
         n = np.maximum(np.ceil(lengths / step).astype(int), 0)
-        if n.sum() == 0:
-            return np.zeros(0, dtype=np.int64)
+        total = int(n.sum())
+        if total == 0:
+            return mask
         ray = np.repeat(np.arange(len(angles)), n)
-        k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+        k = np.arange(total) - np.repeat(np.cumsum(n) - n, n)
         s = start[ray] if np.ndim(start) else start
         dist = s + (k + 0.5) * step
-        x = ox + dist * np.cos(angles[ray])
-        y = oy + dist * np.sin(angles[ray])
+        x = ox + dist * np.cos(angles)[ray]
+        y = oy + dist * np.sin(angles)[ray]
         r, c = self.world_to_cell(x, y)
         ok = self.inside(r, c)
-        return np.unique(r[ok] * self.nx + c[ok])
+        mask[r[ok] * self.nx + c[ok]] = True
+        return mask
 
     def update(self, pose, obs: BandObservation, dt: float = 0.0) -> np.ndarray:
         """Age the map by ``dt`` seconds, then apply one observation taken at ``pose``
@@ -146,24 +150,23 @@ class OccupancyGrid:
         cf, cl = obs.origin
         ox = x + cf * math.cos(th) - cl * math.sin(th)
         oy = y + cf * math.sin(th) + cl * math.cos(th)
-        # sub-rays: one per cell width at the far end of the fan
+        # sub-rays: one per cell width at the far end of the fan, each band's spread evenly
+        # over its span, both ends included (what np.linspace gives, for all bands at once)
         spacing = self.res / max(p.max_range_m, p.clear_range_m)
-        ang, fwd, band = [], [], []
-        for i in range(len(obs.forward_m)):
-            lo, hi = float(obs.bearing_lo[i]), float(obs.bearing_hi[i])
-            k = max(2, int(math.ceil((hi - lo) / spacing)) + 1)
-            a = np.linspace(lo, hi, k)
-            ang.append(a)
-            fwd.append(np.full(k, obs.forward_m[i]))
-            band.append(np.full(k, i))
-        ang = np.concatenate(ang)
-        fwd = np.concatenate(fwd)
+        lo = np.asarray(obs.bearing_lo, dtype=np.float64)
+        hi = np.asarray(obs.bearing_hi, dtype=np.float64)
+        k = np.maximum(2, np.ceil((hi - lo) / spacing).astype(np.int64) + 1)
+        band = np.repeat(np.arange(len(k)), k)
+        j = np.arange(band.size) - np.repeat(np.cumsum(k) - k, k)
+        ang = j * ((hi - lo) / (k - 1))[band] + lo[band]
+        last = j == k[band] - 1
+        ang[last] = hi[band[last]]
+        fwd = np.repeat(np.asarray(obs.forward_m), k)
         rng = fwd / np.cos(ang)
         hit = np.isfinite(rng) & (rng <= p.max_range_m) & (rng >= p.min_range_m)
         far = np.isfinite(rng) & (rng > p.max_range_m)
         none = ~np.isfinite(rng)
         world_ang = th + ang
-        L = self.logodds.reshape(-1)
         free_len = np.where(hit, rng - self.res / 2.0, p.clear_range_m)
         free_len = np.maximum(free_len, 0.0)
         strong = hit | far
@@ -171,8 +174,10 @@ class OccupancyGrid:
         free_weak = self._ray_cells(ox, oy, world_ang[none], free_len[none])
         hits = self._ray_cells(ox, oy, world_ang[hit], np.full(hit.sum(), p.hit_depth_m),
                                start=rng[hit])
-        free_weak = np.setdiff1d(free_weak, np.union1d(free_strong, hits), assume_unique=True)
-        free_strong = np.setdiff1d(free_strong, hits, assume_unique=True)
+        # hits win over free space, strong free space over weak
+        free_weak &= ~(free_strong | hits)
+        free_strong &= ~hits
+        L = self.logodds.reshape(-1)
         L[free_weak] += p.l_miss
         L[free_strong] += p.l_free
         L[hits] += p.l_hit

@@ -76,6 +76,14 @@ length is relative to the shortest path the colony knows, not to the octile star
 distance: against that, every path on a cluttered map falls in "long" and the cost no longer
 discriminates.
 
+Implementation: each iteration walks the ants in lockstep, one NumPy row per walking ant
+per step (``_walk_lockstep``), until fewer than ``WALK_EACH_BELOW`` ants still walk; those
+(the stragglers of a long search) finish with Python scalars (``_walk_each``), where a NumPy
+call would cost more than the step itself. Both use the same rule, the same floating-point
+sums and the same draws in the same order (``_Draws``), so the result is the same bit for
+bit as a walk done wholly in NumPy rows (tests/test_station_planner.py keeps that version as
+its reference). Loop removal and the shortcut work on Python lists of the path and grid.
+
 Bad requests never raise: ``PlanResult.status`` says what happened ("ok", "start_outside",
 "goal_outside", "start_blocked", "goal_blocked", "no_path", "step_limit").
 """
@@ -248,9 +256,11 @@ def _bresenham(r0, c0, r1, c1):
             r += sr
 
 
-def _line_ok(blocked, cells):
+def _line_ok(rows, cells):
+    """Is every move of ``cells`` allowed? ``rows``: the blocked grid as nested lists (the
+    same rule as ``move_ok``; the cells of a Bresenham line are inside the grid)."""
     for (r0, c0), (r1, c1) in zip(cells, cells[1:]):
-        if not move_ok(blocked, r0, c0, r1 - r0, c1 - c0):
+        if rows[r1][c1] or (r0 != r1 and c0 != c1 and (rows[r1][c0] or rows[r0][c1])):
             return False
     return True
 
@@ -260,7 +270,7 @@ def shortcut(blocked, path, passes: int = 2, patience: int = 25):
     Greedy: from each kept cell, jump to the farthest later cell (looking ahead until
     ``patience`` candidates in a row fail) reachable in a line that is shorter than the path
     between them. The result stays on the graph and is never longer."""
-    blocked = np.asarray(blocked, dtype=bool)
+    rows = np.asarray(blocked, dtype=bool).tolist()
     path = [tuple(p) for p in path]
     for _ in range(passes):
         if len(path) < 3:
@@ -280,7 +290,7 @@ def shortcut(blocked, path, passes: int = 2, patience: int = 25):
                 if _octile(r0, c0, r1, c1) >= cum[j] - cum[i] - 1e-9:
                     continue                      # the path is already straight here
                 cells = _bresenham(r0, c0, r1, c1)
-                if _line_ok(blocked, cells):
+                if _line_ok(rows, cells):
                     best, best_cells, misses = j, cells, 0
                 else:
                     misses += 1
@@ -296,22 +306,25 @@ def shortcut(blocked, path, passes: int = 2, patience: int = 25):
     return path
 
 
-def _prune(nodes, neighbour, allowed, where):
+def _prune(nodes, nbr_ok, where):
     """Loop removal on one ant's path: from each kept node, jump to the LATEST later node of
     the path that is one allowed move away (the ant wandered off and came back next to
-    where it had been). Returns (nodes, move indices); the result is a path on the graph."""
+    where it had been). ``nbr_ok[node, move]``: the neighbour, or the index of ``where``'s
+    last entry (always -1) where the move is not allowed; ``where`` is -1 everywhere else
+    too and is left so. Returns (nodes, move indices); the result is a path on the graph."""
     n = len(nodes)
     where[nodes] = np.arange(n)
-    later = np.where(allowed[nodes], where[neighbour[nodes]], -1)        # (n, 8)
-    jump_move = np.argmax(later, axis=1)
-    jump_to = later[np.arange(n), jump_move]
-    out_nodes, out_moves = [int(nodes[0])], []
+    later = where[nbr_ok[nodes]]                                       # (n, 8)
+    jump_move = np.argmax(later, axis=1).tolist()
+    jump_to = later.max(axis=1).tolist()
+    all_nodes = nodes.tolist()
+    out_nodes, out_moves = [all_nodes[0]], []
     i = 0
     while i < n - 1:
-        j = int(jump_to[i])
-        out_moves.append(int(jump_move[i]))
+        j = jump_to[i]
+        out_moves.append(jump_move[i])
         i = j if j > i else i + 1
-        out_nodes.append(int(nodes[i]))
+        out_nodes.append(all_nodes[i])
     where[nodes] = -1
     return np.asarray(out_nodes, dtype=np.int64), np.asarray(out_moves, dtype=np.int64)
 
@@ -379,6 +392,145 @@ def path_effort(nodes, w: int) -> float:
     turn = np.abs((np.diff(h) + np.pi) % (2 * np.pi) - np.pi)
     return float(turn.mean() / np.pi)
 
+#: below this many walking ants, ``sacodm`` steps each ant with Python scalars
+#: (``_walk_each``) instead of NumPy rows: a NumPy call costs more than an ant's whole step
+WALK_EACH_BELOW = 5
+
+
+class _Draws:
+    """The colony's uniform draws, taken from ``rng`` in blocks and handed out in the order
+    they are asked for: the same numbers as calling ``rng.random(k)`` for each request
+    (a generator's stream does not depend on how it is chunked; the draws left unused at the
+    end belong to no request, and the generator is private to one plan)."""
+
+    def __init__(self, rng, block: int = 2048):
+        self.rng, self.block = rng, block
+        self.buf = rng.random(block)
+        self.pos = 0
+
+    def take(self, k: int) -> np.ndarray:
+        if self.pos + k > self.buf.size:
+            self.buf = np.concatenate([self.buf[self.pos:], self.rng.random(max(self.block, k))])
+            self.pos = 0
+        out = self.buf[self.pos:self.pos + k]
+        self.pos += k
+        return out
+
+
+def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, draws, g_idx,
+                   q0, max_steps) -> int:
+    """One iteration's walk, every walking ant one step per round, as NumPy rows, until
+    fewer than ``WALK_EACH_BELOW`` ants walk or ``max_steps`` rounds. Per round, the walking
+    ants in index order each either step back (no free unvisited neighbour: the dead end
+    stays in memory; an ant back past its start has no path) or draw one uniform number
+    (then, with ``q0``, one more each for the greedy choice) and move. Returns the rounds
+    taken; ``stack``/``depth``/``visited``/``active``/``arrived`` hold the ants' state."""
+    n_nodes = visited.shape[1]
+    vflat = visited.reshape(-1)
+    a = np.nonzero(active)[0]
+    cur = stack[a, depth[a] - 1]
+    off = (a * n_nodes)[:, None]
+    step = 0
+    while step < max_steps and a.size >= WALK_EACH_BELOW:
+        step += 1
+        nbs = neighbour.take(cur, axis=0)                          # (k, 8)
+        wts = weight.take(cur, axis=0)
+        wts[vflat[nbs + off]] = 0.0
+        cum = wts.cumsum(axis=1)
+        total = cum[:, 7]
+        stuck = total <= 0.0
+        changed = False
+        if stuck.any():
+            sa = a[stuck]
+            depth[sa] -= 1
+            d = depth[sa]
+            cur[stuck] = stack[sa, np.maximum(d - 1, 0)]
+            if (d == 0).any():
+                active[sa[d == 0]] = False
+                changed = True
+            go = ~stuck
+            ma, cum, total, nbs = a[go], cum[go], total[go], nbs[go]
+        else:
+            go, ma = None, a
+        if ma.size:
+            # the move whose cumulative weight first reaches the draw: the count of
+            # cumulative weights below it (cum does not decrease, and draw * total <= total)
+            pick = (cum >= (draws.take(ma.size) * total)[:, None]).argmax(axis=1)
+            if q0 > 0.0:
+                greedy = draws.take(ma.size) < q0
+                if greedy.any():
+                    pick[greedy] = np.argmax(np.diff(cum[greedy], axis=1, prepend=0.0),
+                                             axis=1)
+            nxt = nbs[np.arange(ma.size), pick]
+            stack[ma, depth[ma]] = nxt
+            depth[ma] += 1
+            vflat[ma * n_nodes + nxt] = True
+            if go is None:
+                cur = nxt
+            else:
+                cur[go] = nxt
+            done = nxt == g_idx
+            if done.any():
+                arrived[ma[done]] = True
+                active[ma[done]] = False
+                changed = True
+        if changed:
+            keep = active[a]
+            a, cur = a[keep], cur[keep]
+            off = (a * n_nodes)[:, None]
+    return step
+
+
+def _walk_each(weight, neighbour, visited, stack, depth, active, arrived, draws, g_idx, q0,
+               max_steps):
+    """The rest of an iteration's walk (at most ``max_steps`` more rounds) for the few ants
+    still walking, with Python scalars: the same rule, the same draws in the same order and
+    the same floating-point sums as ``_walk_lockstep`` (each ant's running sum over its 8
+    moves, unvisited moves only, is NumPy's cumulative sum of the masked row)."""
+    ants = np.nonzero(active)[0].tolist()
+    stacks = {k: stack[k, :depth[k]].tolist() for k in ants}
+    vis = {k: memoryview(visited[k]) for k in ants}
+    step = 0
+    while ants and step < max_steps:
+        step += 1
+        moving = []
+        for k in ants:
+            node = stacks[k][-1]
+            n8 = neighbour[node].tolist()
+            w8 = weight[node].tolist()
+            vk = vis[k]
+            c = 0.0
+            cums = []
+            for j in range(8):
+                if not vk[n8[j]]:
+                    c += w8[j]
+                cums.append(c)
+            if c <= 0.0:
+                stacks[k].pop()
+            else:
+                moving.append((k, n8, cums, c))
+        if moving:
+            us = draws.take(len(moving)).tolist()
+            gs = draws.take(len(moving)).tolist() if q0 > 0.0 else None
+            for i, (k, n8, cums, c) in enumerate(moving):
+                x = us[i] * c
+                pick = min(sum(1 for v in cums if v < x), 7)
+                if gs is not None and gs[i] < q0:
+                    diffs = [cums[0] - 0.0] + [cums[j] - cums[j - 1] for j in range(1, 8)]
+                    pick = diffs.index(max(diffs))
+                nxt = n8[pick]
+                stacks[k].append(nxt)
+                vis[k][nxt] = True
+                if nxt == g_idx:
+                    arrived[k] = True
+        ants = [k for k in ants if stacks[k] and not arrived[k]]
+    for k, st in stacks.items():
+        depth[k] = len(st)
+        stack[k, :len(st)] = st
+        active[k] = bool(st) and not arrived[k]
+
+
+
 def sacodm(blocked, start, goal, params: SacoParams = SacoParams()) -> PlanResult:
     """SACOdm ant colony path from ``start`` to ``goal`` (row, col) on the grid graph.
 
@@ -418,61 +570,31 @@ def sacodm(blocked, start, goal, params: SacoParams = SacoParams()) -> PlanResul
     s_idx, g_idx = start[0] * w + start[1], goal[0] * w + goal[1]
     n_ants = params.n_ants
     max_steps = int(min(params.max_steps, 4 * int((~blocked).sum()) + 100))
-    ants_idx = np.arange(n_ants)
+    draws = _Draws(rng)
+    stack = np.empty((n_ants, max_steps + 2), dtype=np.int64)
 
     best_nodes, best_len, best_effort = None, math.inf, 0.0
-    where = np.full(n_nodes, -1, dtype=np.int64)        # scratch for _prune
+    where = np.full(n_nodes + 1, -1, dtype=np.int64)    # scratch for _prune
+    nbr_ok = np.where(allowed, neighbour, n_nodes)
     arrived_total = 0
     for it in range(params.n_iter):
         weight = (tau ** params.alpha) * eta_b if params.alpha != 1.0 else tau * eta_b
         visited = np.zeros((n_ants, n_nodes), dtype=bool)
         visited[:, s_idx] = True
-        stack = np.zeros((n_ants, max_steps + 2), dtype=np.int64)
-        stack[:, 0] = s_idx
+        stack[:, 0] = s_idx              # only stack[k, :depth[k]] is ever read
         depth = np.ones(n_ants, dtype=np.int64)
         active = np.ones(n_ants, dtype=bool)
         arrived = np.zeros(n_ants, dtype=bool)
-        vflat = visited.reshape(-1)
-        for _step in range(max_steps):
-            a = ants_idx[active]
-            if a.size == 0:
-                break
-            cur = stack[a, depth[a] - 1]
-            nbs = neighbour[cur]                                   # (k, 8)
-            wts = weight[cur]
-            wts[vflat.take(nbs + (a * n_nodes)[:, None])] = 0.0
-            cum = np.cumsum(wts, axis=1)
-            total = cum[:, 7]
-            stuck = total <= 0.0
-            # stuck ants step back (the dead end stays in memory); an ant back at an empty
-            # stack has no path at all
-            if stuck.any():
-                sa = a[stuck]
-                depth[sa] -= 1
-                active[sa[depth[sa] == 0]] = False
-                go = ~stuck
-                a, cum, total, nbs = a[go], cum[go], total[go], nbs[go]
-            if a.size:
-                pick = (cum < (rng.random(a.size) * total)[:, None]).sum(axis=1)
-                np.minimum(pick, 7, out=pick)
-                if params.q0 > 0.0:
-                    greedy = rng.random(a.size) < params.q0
-                    if greedy.any():
-                        pick[greedy] = np.argmax(np.diff(cum[greedy], axis=1, prepend=0.0),
-                                                 axis=1)
-                nxt = nbs[np.arange(a.size), pick]
-                stack[a, depth[a]] = nxt
-                depth[a] += 1
-                vflat[a * n_nodes + nxt] = True
-                done = nxt == g_idx
-                if done.any():
-                    arrived[a[done]] = True
-                    active[a[done]] = False
+        step = _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived,
+                              draws, g_idx, params.q0, max_steps)
+        if step < max_steps and active.any():
+            _walk_each(weight, neighbour, visited, stack, depth, active, arrived, draws,
+                       g_idx, params.q0, max_steps - step)
         # evaluate (after pruning each ant's loops) and update pheromone
         tau *= (1.0 - params.rho)
         paths = []
         for k in np.nonzero(arrived)[0]:
-            nodes, moves = _prune(stack[k, :depth[k]], neighbour, allowed, where)
+            nodes, moves = _prune(stack[k, :depth[k]], nbr_ok, where)
             L = float(MOVE_COST[moves].sum())
             paths.append((nodes, moves, L,
                           path_effort(nodes, w) if params.fuzzy_cost else 0.0))
