@@ -445,7 +445,6 @@ class FloorUnit:
 UNITS["floor"] = FloorUnit()
 
 
-
 # --- the right camera's rectifier as a unit: a fixed map in its memory's initial contents ------
 
 #: The rectifier's test configuration (``rectify`` unit): line buffer span, horizontal mode.
