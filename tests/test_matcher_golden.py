@@ -1,7 +1,6 @@
 """Golden matcher (golden/matcher.py, SAD version 1 and census version 2): hand cases, rules, the
 cross-check against the plain form (golden/matcher_plain.py) in both cost forms, and the accuracy
 targets of both versions on the Middlebury motorcycle pair."""
-import time
 
 import numpy as np
 import pytest
@@ -343,7 +342,6 @@ def accuracy_table(t_left=ACCURACY_T_LEFT, t_right=ACCURACY_T_RIGHT, uniqueness=
 
 @pytest.mark.slow
 def test_accuracy_motorcycle():
-    t0 = time.time()
     rows = accuracy_table()
     for name, a in rows.items():
         print(f"{name:15} density {a['density']:.3f} bad-1 {a['bad1']:.3f} bad-2 {a['bad2']:.3f}"
@@ -355,7 +353,6 @@ def test_accuracy_motorcycle():
     # Plain adaptive is cheaper but misses the bad-2 target (see the report).
     assert rows["adaptive"]["eval_fraction"] < a["eval_fraction"]
     assert rows["full"]["bad2"] < a["bad2"]
-    assert time.time() - t0 < 60
 
 
 def v2_accuracy(right_gain=None):
