@@ -240,8 +240,10 @@ class LineStore(wiring.Component):
             rp = mem.read_port()
             m.d.comb += [rp.addr.eq(self.pair_addr), self.pair_data[16 * q:16 * q + 16].eq(rp.data)]
 
-        with m.If(track.accept & p.sof & ~self.open):
-            m.d.sync += [self.open.eq(1), self.ended.eq(0)]
+        starts = Signal()                 # an accepted sof opens the frame
+        m.d.comb += starts.eq(track.accept & p.sof & ~self.open)
+        with m.If(starts):
+            m.d.sync += self.open.eq(1)
         with m.If(write):
             m.d.sync += self.wrow.eq(track.y + 1)
         # wrow steps by one at the first written beat of a line (lines are written from their
@@ -256,13 +258,16 @@ class LineStore(wiring.Component):
                 with m.If(self.width == 0):
                     m.d.sync += self.width.eq(track.x + 1)
         # The camera's frame ends at its eof, at a broken rule, at a sof before its eof, or at
-        # the frame abort (in the tracker's abandon).
-        with m.If(self.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
-                               (port.valid & p.sof & ~self.ended))):
-            m.d.sync += self.ended.eq(1)
-        with m.If(track.accept & p.eof & p.sof & ~self.open):   # one-pixel frame
-            m.d.sync += self.ended.eq(1)
+        # the frame abort (in the tracker's abandon); a one-pixel frame ends as it starts. A
+        # sof that opens the frame clears ``ended``, and so does ``complete``. Written as one
+        # expression rather than a chain of priority multiplexers, so that the tracker's
+        # ``accept`` and ``abandon``, which come late in the cycle, pass few logic levels.
+        ends = Signal()
+        m.d.comb += ends.eq((self.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
+                                          (port.valid & p.sof & ~self.ended))) |
+                            (starts & p.eof))
+        m.d.sync += self.ended.eq(~self.complete & (ends | (self.ended & ~starts)))
         with m.If(self.complete):
-            m.d.sync += [self.open.eq(0), self.ended.eq(0), self.rows.eq(0), self.wrow.eq(0),
+            m.d.sync += [self.open.eq(0), self.rows.eq(0), self.wrow.eq(0),
                          self.width.eq(0), slot.eq(0), self.yrows.eq(0), flushing.eq(0)]
         return m
