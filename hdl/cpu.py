@@ -122,9 +122,10 @@ class RiscvCPU(wiring.Component):
 
     Parameters: ``image`` (a list of 32-bit words, the RAM's initial contents; at most
     ``ram_bytes`` / 4; None: zeros), ``ram_bytes`` (a power of two, 1 KB..64 KB),
-    ``io_timeout`` (cycles an I/O access waits for ``ready``)."""
+    ``io_timeout`` (cycles an I/O access waits for ``ready``), ``ram_register`` (a register
+    between the RAM and the core: one wait state a RAM access, for a faster clock)."""
 
-    def __init__(self, *, image=None, ram_bytes=8192, io_timeout=64):
+    def __init__(self, *, image=None, ram_bytes=8192, io_timeout=64, ram_register=False):
         words = ram_bytes // 4
         if not isinstance(ram_bytes, int) or ram_bytes < 1024 or ram_bytes > 65536 or \
                 ram_bytes & (ram_bytes - 1):
@@ -137,6 +138,7 @@ class RiscvCPU(wiring.Component):
         self._image = image
         self._ram_bytes = ram_bytes
         self._io_timeout = io_timeout
+        self._ram_register = bool(ram_register)
         super().__init__({"bus": Out(IOBusSignature()), "idle": Out(1), "trap": Out(1)})
 
     def elaborate(self, platform):
@@ -177,8 +179,14 @@ class RiscvCPU(wiring.Component):
         rp = ram.read_port()
         wp = ram.write_port(granularity=8)
         ram_ready = Signal()
-        m.d.comb += [ram_ready.eq(valid & ~addr[31]),
-                     rp.addr.eq(la_addr[2:2 + abits]), rp.en.eq(la_read),
+        ram_data = Signal(32)
+        if self._ram_register:
+            # a register after the memory: one wait state, and the core's read path starts
+            # from a flip-flop, not from the memory's output
+            m.d.sync += [ram_ready.eq(valid & ~addr[31] & ~ram_ready), ram_data.eq(rp.data)]
+        else:
+            m.d.comb += [ram_ready.eq(valid & ~addr[31]), ram_data.eq(rp.data)]
+        m.d.comb += [rp.addr.eq(la_addr[2:2 + abits]), rp.en.eq(la_read),
                      wp.addr.eq(addr[2:2 + abits]), wp.data.eq(wdata),
                      wp.en.eq(Mux(ram_ready, wstrb, 0))]
 
@@ -226,5 +234,5 @@ class RiscvCPU(wiring.Component):
                 m.d.sync += [io_busy.eq(0), reg_ready.eq(1), reg_data.eq(0xFFFF_FFFF)]
 
         m.d.comb += [ready.eq(ram_ready | reg_ready),
-                     rdata.eq(Mux(ram_ready, rp.data, reg_data))]
+                     rdata.eq(Mux(ram_ready, ram_data, reg_data))]
         return m

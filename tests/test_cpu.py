@@ -1,5 +1,5 @@
 """The soft CPU (hdl/cpu.py) boots the cross-compiled firmware under Verilator: on a tiny SoC
-of the core, its RAM, the timer and the radio UART, the firmware's first act is the XBee
+of the core, its RAM (with and without the register after it), the timer and the radio UART, the firmware's first act is the XBee
 query "AP" in API mode, and it must come out of the TX pin as a correct API frame; the core
 never traps, and it sleeps in the timer (idle cycles) while it waits for the answer."""
 import shutil
@@ -53,14 +53,15 @@ int main(int argc, char** argv) {
 class TinySoC(wiring.Component):
     """The CPU and the radio UART on its I/O bus."""
 
-    def __init__(self, image):
+    def __init__(self, image, ram_register=False):
         self._image = image
+        self._ram_register = ram_register
         super().__init__({"uart_tx": Out(1, init=1), "uart_rx": In(1, init=1), "idle": Out(1),
                           "trap": Out(1)})
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.cpu = cpu = RiscvCPU(image=self._image)
+        m.submodules.cpu = cpu = RiscvCPU(image=self._image, ram_register=self._ram_register)
         m.submodules.uart = uart = UART(divisor=434, base=UART_BASEADDR)
         for name in ("addr_strobe", "address", "read_strobe", "write_strobe", "write_data",
                      "byte_enable"):
@@ -71,13 +72,14 @@ class TinySoC(wiring.Component):
         return m
 
 
-@pytest.fixture(scope="module")
-def boot():
+@pytest.fixture(scope="module", params=[False, True], ids=["ram", "ram_register"])
+def boot(request):
     firmware.build_image()
-    out = BUILD / "test_cpu"
+    out = BUILD / f"test_cpu_{request.param}"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    (out / "tiny.v").write_text(verilog_source("tiny", TinySoC(firmware.image_words()), {}))
+    top = TinySoC(firmware.image_words(), ram_register=request.param)
+    (out / "tiny.v").write_text(verilog_source("tiny", top, {}))
     (out / "main.cpp").write_text(MAIN)
     (out / "picorv32.v").write_text(verilog_text())
     cmd = ["verilator", "--cc", "--exe", "--build", *VERILATOR_FLAGS, "-Wno-TIMESCALEMOD",

@@ -49,3 +49,18 @@ def test_bad_combinations_are_usage_errors(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:")
+
+
+def test_decoder_not_answering_is_bounded_and_the_other_runs():
+    """--fault iic-nack: the right decoder never answers its address. The firmware retries it
+    for two report periods (it was addressed), then starts the video path without it: the
+    packets go on, their sequence unbroken, and the frames are exact."""
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["--cpu", "picorv32", "--scene", "mixed", "--frames", "5", "--fault",
+                     "iic-nack"])
+    res = json.loads(buf.getvalue().strip().splitlines()[-1])
+    assert code == 0, res
+    assert res["bit_exact"] and res["fault_counted"] and res["frames_out"] == 5
+    assert res["radio_packets"] >= 2 and res["radio_exact"]
+    assert res["radio_flags"][0] & 0b100 == 0 and res["radio_flags"][-1] & 0b111 == 0b111

@@ -41,6 +41,11 @@ typedef struct {
  *  even if the first fails). Returns the first error, FW_OK if both started. */
 fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls);
 
+/** Start again the decoders whose start-up failed (after app_init_decoders), leaving the
+ *  rest of the application's state (report sequence, summary) as it is. Returns the first
+ *  error, FW_OK when both have started. */
+fw_status_t app_retry_decoders(app_t *app);
+
 /** Check the register block's ID and write the default configuration. */
 fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base);
 

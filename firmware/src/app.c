@@ -42,6 +42,24 @@ fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeou
     return first;
 }
 
+fw_status_t app_retry_decoders(app_t *app)
+{
+    fw_status_t first = FW_OK;
+    uint32_t i;
+    if (app == NULL) {
+        return FW_ERR_PARAM;
+    }
+    for (i = 0u; i < APP_N_DECODERS; i++) {
+        if (app->dec_status[i] != FW_OK) {
+            app->dec_status[i] = adv7180_init(&app->dec[i]);
+        }
+        if (app->dec_status[i] != FW_OK && first == FW_OK) {
+            first = app->dec_status[i];
+        }
+    }
+    return first;
+}
+
 fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base)
 {
     fw_status_t st;

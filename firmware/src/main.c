@@ -75,7 +75,7 @@ int main(void)
         } else if (st_video != FW_OK) {
             if (!decoders_locked) {
                 if (st_dec != FW_OK) {
-                    st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
+                    st_dec = app_retry_decoders(&app);
                 }
                 /* ADV7180 STATUS1, over IIC: once, then the streams' lock (HEALTH_STATUS). A
                  * decoder that does not answer is retried DECODER_TRIES periods, then the
