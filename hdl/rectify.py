@@ -22,8 +22,8 @@ pixel; at every cell boundary the node columns move on and the next one but one 
 1/16 px; the source column and the source row relative to ``v`` with their fractions; both
 clamped (columns to the image, rows to ``max(lo, -v) .. min(lo + span, last - v)``, the
 buffer's window cut by the image); the rows' slots; the four memory reads; the four pixels
-routed; the horizontal blends; the vertical blend and the ground bit, into the output
-register.
+routed; the horizontal blends; the vertical blend's product; the vertical blend and the
+ground bit, into the output register.
 
 Flow control. The input may write row ``r`` while output row ``v`` (the one being issued)
 reads only rows ``v + lo .. v + lo + span``, so the input waits at row ``v + lo + span + 2``;
@@ -137,13 +137,13 @@ class Rectify(FramedUnit):
         last_row = Signal(range(H))
         out_busy = Signal()                   # the output has not sent the frame's eof yet
         lo_r = Signal(signed(6))
-        v_gate = Signal(range(H))             # the row being issued (or prepared after drain)
-        need_gate = Signal(signed(bits_for(H) + 2))
-        m.d.comb += need_gate.eq(v_gate + lo_r + span)
+        # the input may write rows below this one: one past the last row the row being
+        # issued (or prepared after the drain) reads, v + lo + span + 1
+        gate_row = Signal(range(H + span + 2))
         block = Signal()
         m.d.comb += [
             block.eq((in_done & out_busy)
-                     | (tr.in_frame & ~in_done & (rows_in > (need_gate + 1).as_unsigned()))),
+                     | (tr.in_frame & ~in_done & (rows_in > gate_row))),
             self.i.ready.eq(~block),
             tr.beat.eq(self.i.valid & self.i.ready),
             tr.sof.eq(self.i.payload.sof), tr.eol.eq(self.i.payload.eol),
@@ -253,7 +253,7 @@ class Rectify(FramedUnit):
         fetch_n = Signal(2)            # node columns fetched for this row's preparation
 
         def begin():
-            m.d.sync += [v.eq(0), lo_r.eq(self.lo), v_gate.eq(0),
+            m.d.sync += [v.eq(0), lo_r.eq(self.lo), gate_row.eq(self.lo + span + 1),
                          slot_lo.eq(Mux(self.lo[-1], self.lo + N, self.lo)),
                          need.eq(self.lo + span), fetch_n.eq(0), out_busy.eq(1)]
             m.next = "PREP"
@@ -274,7 +274,7 @@ class Rectify(FramedUnit):
                         m.d.sync += [fk.eq(fetch_n), ftgt.eq(fetch_n), fetch_n.eq(fetch_n + 1)]
                     with m.Elif(drained & ready_rows):
                         m.d.sync += [
-                            v_gate.eq(v), u.eq(0), slot_run.eq(slot_lo),
+                            gate_row.eq(need + 1), u.eq(0), slot_run.eq(slot_lo),
                             kmin.eq(KB - Mux(v < nlo, v, nlo)),
                             kmax.eq(KB + Mux(lsp < below, lsp, below)),
                         ]
@@ -421,18 +421,29 @@ class Rectify(FramedUnit):
             m.d.sync += [p6_valid.eq(0), pq_valid.eq(0), p7_valid.eq(0)]
         with m.Elif(step):
             m.d.sync += [p6_valid.eq(pv[4]), pq_valid.eq(p6_valid), p7_valid.eq(pq_valid)]
+        # p8: the vertical blend's product
+        p8 = dict(top=Signal(12), prod=Signal(signed(18)), ground=Signal(), flags=Signal(3))
+        p8_valid = Signal()
+        with m.If(step):
+            m.d.sync += [p8["top"].eq(p7["top"]),
+                         p8["prod"].eq((p7["bot"] - p7["top"]) * p7["ay"]),
+                         p8["ground"].eq(p7["ground"]), p8["flags"].eq(p7["flags"])]
+        with m.If(abandon):
+            m.d.sync += p8_valid.eq(0)
+        with m.Elif(step):
+            m.d.sync += p8_valid.eq(p7_valid)
         # output register
         luma = Signal(8)
-        m.d.comb += luma.eq(((p7["top"] << 4) + (p7["bot"] - p7["top"]) * p7["ay"] + 128) >> 8)
+        m.d.comb += luma.eq(((p8["top"] << 4) + p8["prod"] + 128) >> 8)
         with m.If(step):
-            m.d.sync += [self.o.payload.y.eq(luma), self.o.payload.ground.eq(p7["ground"]),
-                         self.o.payload.sof.eq(p7["flags"][0]),
-                         self.o.payload.eol.eq(p7["flags"][1]),
-                         self.o.payload.eof.eq(p7["flags"][2])]
+            m.d.sync += [self.o.payload.y.eq(luma), self.o.payload.ground.eq(p8["ground"]),
+                         self.o.payload.sof.eq(p8["flags"][0]),
+                         self.o.payload.eol.eq(p8["flags"][1]),
+                         self.o.payload.eof.eq(p8["flags"][2])]
         with m.If(abandon):
             m.d.sync += o_valid.eq(0)
         with m.Elif(step):
-            m.d.sync += o_valid.eq(p7_valid)
+            m.d.sync += o_valid.eq(p8_valid)
         m.d.comb += self.o.valid.eq(o_valid)
         with m.If(o_valid & self.o.ready & self.o.payload.eof):
             m.d.sync += out_busy.eq(0)
