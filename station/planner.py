@@ -423,7 +423,7 @@ def _grid_tables(h, w, goal, kappa, beta):
 
 #: below this many walking ants, ``sacodm`` steps each ant with Python scalars
 #: (``_walk_each``) instead of NumPy rows: a NumPy call costs more than an ant's whole step
-WALK_EACH_BELOW = 5
+WALK_EACH_BELOW = 8
 
 
 class _Draws:
@@ -454,7 +454,8 @@ def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, dr
     stays in memory; an ant back past its start has no path) or draw one uniform number
     (then, with ``q0``, one more each for the greedy choice) and move. Returns the rounds
     taken; ``stack``/``depth``/``visited``/``active``/``arrived`` hold the ants' state."""
-    n_nodes = visited.shape[1]
+    n_ants, n_nodes = visited.shape
+    rows = np.arange(n_ants)                     # sliced for row indices, not made anew
     vflat = visited.reshape(-1)
     a = np.nonzero(active)[0]
     cur = stack[a, depth[a] - 1]
@@ -467,9 +468,9 @@ def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, dr
         wts[vflat[nbs + off]] = 0.0
         cum = wts.cumsum(axis=1)
         total = cum[:, 7]
-        stuck = total <= 0.0
         changed = False
-        if stuck.any():
+        if not total.all():                        # weights are >= 0: a zero sum is stuck
+            stuck = total <= 0.0
             sa = a[stuck]
             depth[sa] -= 1
             d = depth[sa]
@@ -490,10 +491,15 @@ def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, dr
                 if greedy.any():
                     pick[greedy] = np.argmax(np.diff(cum[greedy], axis=1, prepend=0.0),
                                              axis=1)
-            nxt = nbs[np.arange(ma.size), pick]
-            stack[ma, depth[ma]] = nxt
-            depth[ma] += 1
-            vflat[ma * n_nodes + nxt] = True
+            nxt = nbs[rows[:ma.size], pick]
+            if ma.size == n_ants:                  # every ant walks and moves
+                stack[rows, depth] = nxt
+                depth += 1
+                vflat[off[:, 0] + nxt] = True
+            else:
+                stack[ma, depth[ma]] = nxt
+                depth[ma] += 1
+                vflat[ma * n_nodes + nxt] = True
             if go is None:
                 cur = nxt
             else:
