@@ -8,7 +8,8 @@ an oval among round obstacles, the band disparities ray-cast with the station's 
 model, a few frames damaged on the line) replayed by ``python -m station replay --speed X
 --http`` with ``--clients`` websocket clients connected, ``--browsers`` of them headless
 Chromium pages. It reports the station's resident memory over the run (sampled from
-``/proc``), the achieved replay speed, and per client whether it saw every packet (no gap in
+``/proc``), the achieved replay speed, the replans and their host time (from the run's
+MCAP log), and per client whether it saw every packet (no gap in
 the packet index, as many as the station accepted) and the final state (the end message's
 link statistics equal ``link.json``, the last map equals ``map.npy``). Exit 1 if a client
 missed a packet or the final state.
@@ -178,6 +179,16 @@ def _rss_kb(pid):
     return None
 
 
+def _plan_times(mcap_path):
+    """Host seconds of every replan, from the run's ``/planner`` messages (one per replan)."""
+    from mcap.reader import make_reader
+    out = []
+    with open(mcap_path, "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages(topics=["/planner"]):
+            out.append(float(json.loads(message.data)["last_plan_s"]))
+    return out
+
+
 async def _ws_client(url, name):
     import aiohttp
     res = {"name": name, "kind": "websocket", "packets": 0, "gaps": 0, "last_index": -1,
@@ -325,6 +336,7 @@ def load_run(out: Path, minutes=10.0, speed=50.0, clients=4, browsers=0, seed=0,
                      "final_link": bool(end) and end.get("link", {}).get("rejected") ==
                      link["rejected"] and end.get("accepted") == link["accepted"],
                      "final_map": final_map, "maps": r["maps"]})
+    plan_s = _plan_times(out / "run.mcap")
     kb = [k for _, k in samples]
     n = len(kb)
     quart = [kb[min(n - 1, int(q * (n - 1)))] for q in (0.1, 0.25, 0.5, 0.75, 1.0)] if n else []
@@ -333,7 +345,11 @@ def load_run(out: Path, minutes=10.0, speed=50.0, clients=4, browsers=0, seed=0,
     return {"minutes": minutes, "speed_asked": speed, "clients": clients,
             "browsers": browsers, "packets": packets, "accepted": link["accepted"],
             "rejected": link["rejected_total"], "lost": link["lost"],
-            "replans": link["replans"], "station_s": station_s, "wall_s": wall_s,
+            "replans": link["replans"],
+            "plan_s": {"mean": round(float(np.mean(plan_s)), 4) if plan_s else None,
+                       "max": round(max(plan_s), 4) if plan_s else None,
+                       "total": round(sum(plan_s), 2)},
+            "station_s": station_s, "wall_s": wall_s,
             "speed_achieved": round(station_s / wall_s, 1) if wall_s else None,
             "rss_mb": {"first": round(kb[0] / 1024, 1) if kb else None,
                        "at_10_25_50_75_100_pct": [round(k / 1024, 1) for k in quart],

@@ -90,6 +90,7 @@ Bad requests never raise: ``PlanResult.status`` says what happened ("ok", "start
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 from dataclasses import dataclass, field
@@ -392,9 +393,37 @@ def path_effort(nodes, w: int) -> float:
     turn = np.abs((np.diff(h) + np.pi) % (2 * np.pi) - np.pi)
     return float(turn.mean() / np.pi)
 
+@functools.lru_cache(maxsize=2)
+def _grid_tables(h, w, goal, kappa, beta):
+    """The tables of an h x w grid that do not depend on which cells are blocked, kept for
+    the next request on the same grid and goal (read-only): per node (row-major) and move,
+    the neighbour's index (clipped to the grid), whether it is inside the grid, the two
+    cells a diagonal move cuts past (the node itself for a straight move, so they add no
+    condition on a free node), and the heuristic factor eta^beta before masking."""
+    n_nodes = h * w
+    rr, cc = np.mgrid[0:h, 0:w]
+    nb_r = rr[..., None] + MOVES[:, 0]
+    nb_c = cc[..., None] + MOVES[:, 1]
+    inside = ((nb_r >= 0) & (nb_r < h) & (nb_c >= 0) & (nb_c < w)).reshape(n_nodes, 8)
+    nr, nc = np.clip(nb_r, 0, h - 1), np.clip(nb_c, 0, w - 1)
+    neighbour = (nr * w + nc).reshape(n_nodes, 8)
+    diag = (MOVES[:, 0] != 0) & (MOVES[:, 1] != 0)
+    own = (rr * w + cc)[..., None].repeat(8, axis=2)
+    side_a = np.where(diag, np.clip(rr[..., None] + MOVES[:, 0], 0, h - 1) * w + cc[..., None],
+                      own).reshape(n_nodes, 8)
+    side_b = np.where(diag, rr[..., None] * w + np.clip(cc[..., None] + MOVES[:, 1], 0, w - 1),
+                      own).reshape(n_nodes, 8)
+    dist = np.hypot(rr - goal[0], cc - goal[1]).reshape(n_nodes)
+    detour = MOVE_COST[None, :] + dist[neighbour] - dist[:, None]
+    eta_all = (1.0 / (kappa + np.maximum(detour, 0.0))) ** beta
+    for t in (neighbour, inside, side_a, side_b, eta_all):
+        t.flags.writeable = False
+    return neighbour, inside, side_a, side_b, eta_all
+
+
 #: below this many walking ants, ``sacodm`` steps each ant with Python scalars
 #: (``_walk_each``) instead of NumPy rows: a NumPy call costs more than an ant's whole step
-WALK_EACH_BELOW = 5
+WALK_EACH_BELOW = 8
 
 
 class _Draws:
@@ -425,7 +454,8 @@ def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, dr
     stays in memory; an ant back past its start has no path) or draw one uniform number
     (then, with ``q0``, one more each for the greedy choice) and move. Returns the rounds
     taken; ``stack``/``depth``/``visited``/``active``/``arrived`` hold the ants' state."""
-    n_nodes = visited.shape[1]
+    n_ants, n_nodes = visited.shape
+    rows = np.arange(n_ants)                     # sliced for row indices, not made anew
     vflat = visited.reshape(-1)
     a = np.nonzero(active)[0]
     cur = stack[a, depth[a] - 1]
@@ -438,9 +468,9 @@ def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, dr
         wts[vflat[nbs + off]] = 0.0
         cum = wts.cumsum(axis=1)
         total = cum[:, 7]
-        stuck = total <= 0.0
         changed = False
-        if stuck.any():
+        if not total.all():                        # weights are >= 0: a zero sum is stuck
+            stuck = total <= 0.0
             sa = a[stuck]
             depth[sa] -= 1
             d = depth[sa]
@@ -461,10 +491,15 @@ def _walk_lockstep(weight, neighbour, visited, stack, depth, active, arrived, dr
                 if greedy.any():
                     pick[greedy] = np.argmax(np.diff(cum[greedy], axis=1, prepend=0.0),
                                              axis=1)
-            nxt = nbs[np.arange(ma.size), pick]
-            stack[ma, depth[ma]] = nxt
-            depth[ma] += 1
-            vflat[ma * n_nodes + nxt] = True
+            nxt = nbs[rows[:ma.size], pick]
+            if ma.size == n_ants:                  # every ant walks and moves
+                stack[rows, depth] = nxt
+                depth += 1
+                vflat[off[:, 0] + nxt] = True
+            else:
+                stack[ma, depth[ma]] = nxt
+                depth[ma] += 1
+                vflat[ma * n_nodes + nxt] = True
             if go is None:
                 cur = nxt
             else:
@@ -546,25 +581,14 @@ def sacodm(blocked, start, goal, params: SacoParams = SacoParams()) -> PlanResul
     n_nodes = h * w
     rng = np.random.default_rng(params.seed)
 
-    # Static tables: neighbour index and allowed-move mask per node and move.
-    rr, cc = np.mgrid[0:h, 0:w]
-    nb_r = rr[..., None] + MOVES[:, 0]
-    nb_c = cc[..., None] + MOVES[:, 1]
-    inside = (nb_r >= 0) & (nb_r < h) & (nb_c >= 0) & (nb_c < w)
-    nr, nc = np.clip(nb_r, 0, h - 1), np.clip(nb_c, 0, w - 1)
-    allowed = inside & ~blocked[nr, nc] & ~blocked[..., None]
-    diag = (MOVES[:, 0] != 0) & (MOVES[:, 1] != 0)
-    side_a = blocked[np.clip(rr[..., None] + MOVES[:, 0], 0, h - 1), cc[..., None]]
-    side_b = blocked[rr[..., None], np.clip(cc[..., None] + MOVES[:, 1], 0, w - 1)]
-    allowed &= ~(diag & (side_a | side_b))
-    neighbour = (nr * w + nc).reshape(n_nodes, 8)
-    allowed = allowed.reshape(n_nodes, 8)
-
-    # Heuristic: eta_ij = 1 / (kappa + c_ij + d(j) - d(i)), d = Euclidean distance to goal.
-    dist = np.hypot(rr - goal[0], cc - goal[1]).reshape(n_nodes)
-    detour = MOVE_COST[None, :] + dist[neighbour] - dist[:, None]
-    eta_b = (1.0 / (params.kappa + np.maximum(detour, 0.0))) ** params.beta
-    eta_b[~allowed] = 0.0
+    # Tables: neighbour index and allowed-move mask per node and move; the heuristic
+    # eta_ij = 1 / (kappa + c_ij + d(j) - d(i)) (d = Euclidean distance to goal) ^ beta,
+    # zero on a move that is not allowed.
+    neighbour, inside, side_a, side_b, eta_all = _grid_tables(h, w, goal, params.kappa,
+                                                              params.beta)
+    bf = blocked.reshape(-1)
+    allowed = inside & ~bf[neighbour] & ~bf[:, None] & ~(bf[side_a] | bf[side_b])
+    eta_b = np.where(allowed, eta_all, 0.0)
 
     tau = np.full((n_nodes, 8), params.tau0)
     s_idx, g_idx = start[0] * w + start[1], goal[0] * w + goal[1]
