@@ -68,12 +68,12 @@ from amaranth.lib.wiring import In, Out
 
 from golden.bands import MAX_BANDS, MAX_WIDTH, SLOTS, check_config
 from . import regmap
-from .bands_parts import (CFG_BANDS_BITS, CFG_BANDS_LSB, BandRegisters, TableFill, TopInsert,
-                          split_column, table_bits)
+from .bands_parts import (CFG_BANDS_BITS, CFG_BANDS_LSB, COLUMNS_PER_ROW, BandRegisters,
+                          TableFill, TopInsert, table_rows_bits)
 from .regs import IOBusSignature, ResultLayout, check_window_base
 from .types import frame_layout
 
-__all__ = ["BandSummary", "BandSummaryStream", "table_bits", "summary_layout", "LATENCY"]
+__all__ = ["BandSummary", "BandSummaryStream", "summary_layout", "LATENCY"]
 
 #: Cycles from an end-of-frame marker's transfer to the first cycle ``frames`` (STATUS) counts
 #: its frame.
@@ -139,10 +139,9 @@ class BandSummary(wiring.Component):
         max_width, max_bands, slots = self._max_width, self._max_bands, self._slots
         per = -(-slots // 4)                            # words per band
         bb = max(1, (max_bands - 1).bit_length())       # band index
-        tb = table_bits(max_bands, max_width)
-        xb = Shape.cast(ResultLayout["x"].shape).width
+        rb = table_rows_bits(max_width)
         m.submodules.fill = fill = TableFill(max_width=max_width, max_bands=max_bands,
-                                             band_bits=bb, bucket_bits=tb)
+                                             band_bits=bb)
         m.submodules.regs = regs = BandRegisters(base=self._base, max_width=max_width,
                                                  max_bands=max_bands, slots=slots, band_bits=bb)
         m.submodules.insert = insert = TopInsert(slots)
@@ -151,10 +150,13 @@ class BandSummary(wiring.Component):
                      fill.load.eq(regs.cfg_write)]
 
         # ---- one block RAM: the two halves of band words, then the column table ------------
-        ab = max(bb + 1, tb) + 1
+        ab = max(bb + 1, rb) + 1
         entry = fill.entry
+        # a read in the cycle of a write to its row may see either word: port A's are covered
+        # by the bypass (stage 4), port B reads only without a write; ``no_rw_check`` spares
+        # the collision logic synthesis would add after port A's address
         m.submodules.ram = ram = Memory(shape=max(8 * slots, entry.size), depth=1 << ab,
-                                        init=[0] * (1 << ab))
+                                        init=[0] * (1 << ab), attrs={"no_rw_check": 1})
         # port A: table reads (stage 1), word reads (stage 2)
         addr_a = Signal(ab)
         port_a = ram.read_port()
@@ -167,8 +169,8 @@ class BandSummary(wiring.Component):
         def word_addr(band, half):
             return Cat(band, half, Const(0, ab - bb - 1))
 
-        def table_addr(bucket):
-            return Cat(bucket, Const(0, ab - 1 - tb), Const(1, 1))
+        def table_addr(row):
+            return Cat(row, Const(0, ab - 1 - rb), Const(1, 1))
 
         # ---- the record pipeline ----------------------------------------------------------
         p = self.i.payload
@@ -181,41 +183,49 @@ class BandSummary(wiring.Component):
         with m.If(drop & (dropped != 0xFFFF)):
             m.d.sync += dropped.eq(dropped + 1)
 
-        # stage 1: read the record's table entry
+        # stage 1: read the record's table row (port A takes its address from a register)
         mark1, abort1, lost1 = Signal(), Signal(), Signal()
-        x1, d1 = Signal(xb), Signal(8)
+        x1, d1 = Signal(ResultLayout["x"].shape), Signal(8)
+        row_addr1 = Signal(ab)              # the row's address, 0 without a record
         m.d.sync += [record1.eq(take & ~p.eof & ~drop), mark1.eq(take & p.eof),
-                     abort1.eq(p.abort), lost1.eq(drop), x1.eq(p.x), d1.eq(p.d)]
-        bucket1, low1 = Signal(tb), Signal(max(1, fill.max_shift))
-        split_column(m, fill.shift, fill.max_shift, bucket1, low1, x1)
+                     abort1.eq(p.abort), lost1.eq(drop), x1.eq(p.x), d1.eq(p.d),
+                     row_addr1.eq(Mux(take & ~p.eof & ~drop,
+                                      table_addr(p.x[2:2 + rb]), 0))]
 
-        # stage 2: its band; read the band's word
+        # stage 2: its band, one field of the row (a one-hot choice, 0 without a record); read
+        # the band's word
         match2, mark2, abort2, lost2 = Signal(), Signal(), Signal(), Signal()
-        low2, d2 = Signal(len(low1)), Signal(8)
+        field2, d2 = Signal(COLUMNS_PER_ROW), Signal(8)
         m.d.sync += [match2.eq(record1 & (x1 < regs.width) & (d1 != 0)), mark2.eq(mark1),
-                     abort2.eq(abort1), lost2.eq(lost1), low2.eq(low1), d2.eq(d1)]
-        table_entry = data.View(entry, port_a.data[:entry.size])
-        band2 = Signal(bb)
-        m.d.comb += band2.eq(Mux(table_entry.has & (low2 >= table_entry.start),
-                                 table_entry.next, table_entry.base))
+                     abort2.eq(abort1), lost2.eq(lost1), d2.eq(d1),
+                     field2.eq(Mux(record1, 1 << x1[:2], 0))]
+        table_row = data.View(entry, port_a.data[:entry.size])
+        # two pairs of fields, each pair one LUT level, kept apart (``keep``) so that synthesis
+        # does not chain the four: two LUT levels from the table read to the word read
+        fields01 = Signal(bb, attrs={"keep": 1})
+        fields23 = Signal(bb, attrs={"keep": 1})
+        chosen = [Mux(field2[j], table_row[j], 0) for j in range(COLUMNS_PER_ROW)]
+        m.d.comb += [fields01.eq(chosen[0] | chosen[1]), fields23.eq(chosen[2] | chosen[3])]
 
         acc = Signal()                      # the accumulating half; the published one is ~acc
         acc_valid = Signal(1 << bb)         # bands written in the accumulating frame
         pub_valid = Signal(1 << bb)         # bands written in the published frame
         read_half = Signal()                # the half stage 2 reads
         match3, mark3, abort3, lost3 = Signal(), Signal(), Signal(), Signal()
-        band3, d3 = Signal(bb), Signal(8)
+        row3, field3, band3, d3 = Signal(entry), Signal(COLUMNS_PER_ROW), Signal(bb), Signal(8)
         match4, mark4, abort4, lost4 = Signal(), Signal(), Signal(), Signal()
         band4, d4, word4 = Signal(bb), Signal(8), Signal(8 * slots)
         # a marker publishes in stage 4 (stage 5 still writes the last word of its frame); a
         # record behind a marker in stage 3 or 4 reads the half that will be accumulating
         m.d.comb += read_half.eq(acc ^ (mark3 & ~abort3) ^ (mark4 & ~abort4))
-        with m.If(record1):
-            m.d.comb += addr_a.eq(table_addr(bucket1))
-        with m.Else():
-            m.d.comb += addr_a.eq(word_addr(band2, read_half))
+        # stage 1 has no record in a cycle with a record in stage 2: an OR, no multiplexer
+        m.d.comb += addr_a.eq(row_addr1 | word_addr(fields01 | fields23, read_half & ~record1))
         m.d.sync += [match3.eq(match2), mark3.eq(mark2), abort3.eq(abort2), lost3.eq(lost2),
-                     band3.eq(band2), d3.eq(d2)]
+                     row3.eq(table_row), field3.eq(field2), d3.eq(d2)]
+        # stage 3: the band again, from the registered row (the table read drives only the
+        # word read's address)
+        m.d.comb += band3.eq(Mux(field3[0], row3[0], 0) | Mux(field3[1], row3[1], 0)
+                             | Mux(field3[2], row3[2], 0) | Mux(field3[3], row3[3], 0))
         # stage 3: the word, registered
         m.d.sync += [match4.eq(match3), mark4.eq(mark3), abort4.eq(abort3), lost4.eq(lost3),
                      band4.eq(band3), d4.eq(d3), word4.eq(port_a.data[:8 * slots])]
@@ -266,7 +276,7 @@ class BandSummary(wiring.Component):
                      regs.band_valid.eq((pub_valid >> regs.top_band)[0]),
                      regs.top_word.eq(port_b.data[:8 * slots])]
         with m.If(fill.building):
-            m.d.comb += addr_b.eq(table_addr(fill.write_bucket))
+            m.d.comb += addr_b.eq(table_addr(fill.write_row))
         with m.Elif(match5):
             m.d.comb += addr_b.eq(word_addr(band5, acc))
         with m.Else():

@@ -6,62 +6,51 @@ from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from golden.bands import table_shift
 from . import regmap
 from .regs import BusWindow, IOBusSignature
 
-__all__ = ["CFG_WIDTH_BITS", "CFG_BANDS_LSB", "CFG_BANDS_BITS", "table_bits", "entry_layout",
-           "split_column", "TableFill", "TopInsert", "BandRegisters"]
+__all__ = ["CFG_WIDTH_BITS", "CFG_BANDS_LSB", "CFG_BANDS_BITS", "COLUMNS_PER_ROW",
+           "table_rows_bits", "row_layout", "TableFill", "TopInsert", "BandRegisters"]
 
 CFG_WIDTH_BITS = 11
 CFG_BANDS_LSB, CFG_BANDS_BITS = 16, 7
 _TOP = regmap.BANDS_REGS["TOP"]
 
 
-def table_bits(max_bands, max_width):
-    """log2 of the column table's buckets: ``2**(table_bits - 1) >= max_bands`` keeps every
-    bucket within the narrowest band for every width (golden/bands.py), and at least
-    ``max_width / 4`` buckets keep a bucket at most 4 columns wide, so the band of a column is
-    one compare of 2 bits after the table read."""
-    return max((max_bands - 1).bit_length() + 1, (max_width - 1).bit_length() - 2, 1)
+COLUMNS_PER_ROW = 4
 
 
-def entry_layout(band_bits, low_bits):
-    """A column table entry: ``base`` (band of the bucket's first column), ``next`` (the band
-    after it), ``has`` (a band starts inside the bucket, at column offset ``start``)."""
-    return data.StructLayout({"base": band_bits, "next": band_bits, "has": 1,
-                              "start": low_bits})
+def table_rows_bits(max_width):
+    """Address bits of the column table: one row per ``COLUMNS_PER_ROW`` columns."""
+    return max(1, ((max_width - 1) // COLUMNS_PER_ROW).bit_length())
 
 
-def split_column(m, shift, max_shift, bucket, low, x):
-    """Drive ``bucket`` = ``x >> shift`` (its low ``len(bucket)`` bits) and ``low`` = ``x mod
-    2**shift`` (combinational, one multiplexer of ``max_shift + 1`` inputs)."""
-    with m.Switch(shift):
-        for s in range(max_shift + 1):
-            with m.Case(s):
-                m.d.comb += bucket.eq(x[s:s + len(bucket)])
-                if s:
-                    m.d.comb += low.eq(x[:s])
+def row_layout(band_bits):
+    """A column table row: the bands of its ``COLUMNS_PER_ROW`` columns, the first column's in
+    the low bits."""
+    return data.ArrayLayout(band_bits, COLUMNS_PER_ROW)
 
 
 class TableFill(wiring.Component):
     """The column table of a configuration, written one column a cycle.
 
-    A cycle with ``load`` high (a CFG write: ``width`` and ``n_bands`` hold the new
-    configuration from the next cycle on), and the reset, start a fill: the next cycle takes
-    the configuration and checks it (``ok``); when valid, the walk of
-    :func:`golden.bands.table_walk` follows: ``width`` cycles, each with ``building`` high,
-    writing the entries of :func:`golden.bands.column_table` (``2**bucket_bits`` buckets) on
-    ``write_en``, ``write_bucket`` and ``write_entry``. A ``load`` during the walk restarts it.
+    The table holds the band of every column (:func:`golden.bands.band_of_column`), four
+    columns a row (:func:`row_layout`): the band of column ``x`` is field ``x % 4`` of row
+    ``x // 4``, with no compare or adder after the table read. A cycle with ``load`` high (a
+    CFG write: ``width`` and ``n_bands`` hold the new configuration from the next cycle on),
+    and the reset, start a fill: the next cycle takes the configuration and checks it
+    (``ok``); when valid, the divide-free walk of :func:`golden.bands.table_walk` follows:
+    ``width`` cycles, one column each, with ``building`` high; a row is written (``write_en``,
+    ``write_row``, ``write_entry``) in the cycle of its last column (or of the frame's last
+    column). Fields past the frame's last column hold stale bands (their columns are no match).
+    A ``load`` during the walk restarts it.
 
     Ports
     -----
     width, n_bands : In
-        The configuration (CFG.width, CFG.n_bands), read in a cycle with ``load``.
+        The configuration (CFG.width, CFG.n_bands).
     load : In(1)
         Take the configuration and fill again (the reset does it too).
-    shift : Out
-        log2 of the columns per bucket of the configuration taken.
     ok : Out(1)
         The configuration taken is valid (``1 <= n_bands <= max_bands``, ``n_bands <= width
         <= max_width``).
@@ -71,29 +60,26 @@ class TableFill(wiring.Component):
         ``ok``, not loading and not building: records may use the table.
     bad : Out(1)
         The configuration taken is invalid (STATUS.bad_cfg).
-    write_en, write_bucket, write_entry : Out
-        One table entry to write (while ``building``).
+    write_en, write_row, write_entry : Out
+        One table row to write (while ``building``).
 
     Latency: ``usable`` rises ``width + 2`` cycles after a cycle with ``load``.
     """
 
-    def __init__(self, *, max_width, max_bands, band_bits, bucket_bits):
+    def __init__(self, *, max_width, max_bands, band_bits):
         self._max_width, self._max_bands = max_width, max_bands
-        #: log2 of the most columns per bucket (the widest configuration)
-        self.max_shift = table_shift(max_width, table_bits=bucket_bits)
-        self.entry = entry_layout(band_bits, max(1, self.max_shift))
+        self.entry = row_layout(band_bits)
         super().__init__({
             "width": In(CFG_WIDTH_BITS), "n_bands": In(CFG_BANDS_BITS), "load": In(1),
-            "shift": Out(max(2, self.max_shift.bit_length())),  # a 1-bit Switch trips GHDL
             "ok": Out(1), "building": Out(1), "usable": Out(1), "bad": Out(1),
-            "write_en": Out(1), "write_bucket": Out(bucket_bits), "write_entry": Out(self.entry),
+            "write_en": Out(1), "write_row": Out(table_rows_bits(max_width)),
+            "write_entry": Out(self.entry),
         })
 
     def elaborate(self, platform):
         m = Module()
         wb = CFG_WIDTH_BITS
         width, n_bands = self.width, self.n_bands
-        max_shift, tb = self.max_shift, len(self.write_bucket)
         loading = Signal(init=1)
         m.d.sync += loading.eq(self.load)
         valid = ((n_bands >= 1) & (n_bands <= self._max_bands) & (width >= n_bands)
@@ -102,36 +88,33 @@ class TableFill(wiring.Component):
                      self.bad.eq(~self.ok & ~loading)]
 
         # the walk: remainder = (column + 1) n - 1 - band * width, in 0..width - 1
-        column, remainder, stepped = Signal(wb), Signal(wb), Signal()
-        band = Signal(len(self.write_entry.base))
+        column, remainder = Signal(wb), Signal(wb)
+        band = Signal(self.entry.elem_shape)
         last_column, width_minus_n = Signal(wb), Signal(wb)
         over = Signal(wb + 1)               # remainder - (width - n): bit wb is the borrow
         m.d.comb += over.eq(remainder - width_minus_n)
-        low = Signal(len(self.write_entry.start))
-        split_column(m, self.shift, max_shift, self.write_bucket, low, column)
-        first = low == 0
+        position = column[:2]               # the column's field in its row
+        held = Signal(self.entry)           # the row's fields so far
+        for j in range(COLUMNS_PER_ROW):
+            m.d.comb += self.write_entry[j].eq(Mux(position == j, band, held[j]))
         m.d.comb += [
-            self.write_entry.base.eq(Mux(first, band, band - 1)),
-            self.write_entry.next.eq(band),
-            self.write_entry.has.eq(~first),
-            self.write_entry.start.eq(Mux(first, 0, low)),
-            self.write_en.eq(self.building & (first | stepped)),
+            self.write_row.eq(column[2:]),
+            self.write_en.eq(self.building & ((position == COLUMNS_PER_ROW - 1)
+                                              | (column == last_column))),
         ]
         with m.If(loading):
             m.d.sync += [
                 self.ok.eq(valid), self.building.eq(valid),
-                self.shift.eq(sum((width > (1 << (k + tb))).as_unsigned()
-                                  for k in range(max_shift)) if max_shift else 0),
                 width_minus_n.eq(width - n_bands), last_column.eq(width - 1),
-                column.eq(0), band.eq(0), remainder.eq(n_bands - 1), stepped.eq(0),
+                column.eq(0), band.eq(0), remainder.eq(n_bands - 1),
             ]
         with m.Elif(self.building):
             step = ~over[wb]                # remainder + n >= width: the next column's band steps
             m.d.sync += [
+                held.eq(self.write_entry),
                 column.eq(column + 1),
                 remainder.eq(Mux(step, over[:wb], remainder + n_bands)),
                 band.eq(band + step),
-                stepped.eq(step),
                 self.building.eq(column != last_column),
             ]
         return m
