@@ -66,26 +66,20 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from golden.bands import MAX_BANDS, MAX_WIDTH, SLOTS, check_config, table_shift
+from golden.bands import MAX_BANDS, MAX_WIDTH, SLOTS, check_config
 from . import regmap
-from .regs import BusWindow, IOBusSignature, ResultLayout, check_window_base
+from .bands_parts import (CFG_BANDS_BITS, CFG_BANDS_LSB, COLUMNS_PER_ROW, BandRegisters,
+                          TableFill, TopInsert, table_rows_bits)
+from .regs import IOBusSignature, ResultLayout, check_window_base
 from .types import frame_layout
 
-__all__ = ["BandSummary", "BandSummaryStream", "table_bits", "summary_layout", "LATENCY"]
+__all__ = ["BandSummary", "BandSummaryStream", "summary_layout", "LATENCY"]
 
 #: Cycles from an end-of-frame marker's transfer to the first cycle ``frames`` (STATUS) counts
 #: its frame.
 LATENCY = 5
 
-_CFG_WIDTH_BITS = 11
-_CFG_BANDS_LSB, _CFG_BANDS_BITS = 16, 7
 _TOP = regmap.BANDS_REGS["TOP"]
-
-
-def table_bits(max_bands):
-    """log2 of the column table's buckets: ``2**(table_bits - 1) >= max_bands`` keeps every
-    bucket within the narrowest band for every width (golden/bands.py)."""
-    return (max_bands - 1).bit_length() + 1
 
 
 def summary_layout(slots=SLOTS):
@@ -99,7 +93,7 @@ def _check(unit, max_width, max_bands, slots, base):
     problems = []
     if not isinstance(max_width, int) or not 1 <= max_width <= MAX_WIDTH:
         problems.append(f"max_width must be 1..{MAX_WIDTH}, not {max_width!r}")
-    if not isinstance(max_bands, int) or not 1 <= max_bands <= (1 << _CFG_BANDS_BITS) - 1:
+    if not isinstance(max_bands, int) or not 1 <= max_bands <= (1 << CFG_BANDS_BITS) - 1:
         problems.append(f"max_bands must be 1..127, not {max_bands!r}")
     elif isinstance(slots, int) and (max_bands * words * 4 > regmap.BANDS_WINDOW - _TOP):
         problems.append(f"{max_bands} bands of {slots} slots do not fit the register window")
@@ -140,174 +134,122 @@ class BandSummary(wiring.Component):
             "frames": Out(16), "dropped": Out(16), "aborted": Out(16),
         })
 
-    @staticmethod
-    def _split(m, shift, smax, tb, x, bucket, low):
-        """``bucket`` = x >> shift (its low ``tb`` bits) and ``low`` = x mod 2**shift."""
-        with m.Switch(shift):
-            for s in range(smax + 1):
-                with m.Case(s):
-                    m.d.comb += bucket.eq(x[s:s + tb])
-                    if s:
-                        m.d.comb += low.eq(x[:s])
-
     def elaborate(self, platform):
         m = Module()
         max_width, max_bands, slots = self._max_width, self._max_bands, self._slots
         per = -(-slots // 4)                            # words per band
-        pb = (per - 1).bit_length()
         bb = max(1, (max_bands - 1).bit_length())       # band index
-        tb = table_bits(max_bands)
-        smax = table_shift(max_width, table_bits=tb)
-        lb = max(1, smax)                               # column offset in a bucket
-        xb = Shape.cast(ResultLayout["x"].shape).width
-        wb = _CFG_WIDTH_BITS
+        rb = table_rows_bits(max_width)
+        m.submodules.fill = fill = TableFill(max_width=max_width, max_bands=max_bands,
+                                             band_bits=bb)
+        m.submodules.regs = regs = BandRegisters(base=self._base, max_width=max_width,
+                                                 max_bands=max_bands, slots=slots, band_bits=bb)
+        m.submodules.insert = insert = TopInsert(slots)
+        wiring.connect(m, wiring.flipped(self.bus), regs.bus)
+        m.d.comb += [fill.width.eq(regs.width), fill.n_bands.eq(regs.n_bands),
+                     fill.load.eq(regs.cfg_write)]
 
         # ---- one block RAM: the two halves of band words, then the column table ------------
-        ab = max(bb + 1, tb) + 1
-        # the table entry: base band, and the band after a start inside the bucket (no adder
-        # between the table read and the word read)
-        entry = data.StructLayout({"base": bb, "next": bb, "has": 1, "start": lb})
-        width_bits = max(8 * slots, entry.size)
-        m.submodules.ram = ram = Memory(shape=width_bits, depth=1 << ab, init=[0] * (1 << ab))
+        ab = max(bb + 1, rb) + 1
+        entry = fill.entry
+        # a read in the cycle of a write to its row may see either word: port A's are covered
+        # by the bypass (stage 4), port B reads only without a write; ``no_rw_check`` spares
+        # the collision logic synthesis would add after port A's address
+        m.submodules.ram = ram = Memory(shape=max(8 * slots, entry.size), depth=1 << ab,
+                                        init=[0] * (1 << ab), attrs={"no_rw_check": 1})
         # port A: table reads (stage 1), word reads (stage 2)
         addr_a = Signal(ab)
-        rd_a = ram.read_port()
-        # port B: table writes (the fill), word writes (stage 3), the CPU's reads
+        port_a = ram.read_port()
+        # port B: table writes (the fill), word writes (stage 5), the CPU's reads
         addr_b = Signal(ab)
-        rd_b, wr_b = ram.read_port(), ram.write_port()
-        m.d.comb += [rd_a.addr.eq(addr_a), rd_a.en.eq(1),
-                     rd_b.addr.eq(addr_b), wr_b.addr.eq(addr_b), rd_b.en.eq(1)]
+        port_b, write_b = ram.read_port(), ram.write_port()
+        m.d.comb += [port_a.addr.eq(addr_a), port_a.en.eq(1),
+                     port_b.addr.eq(addr_b), write_b.addr.eq(addr_b), port_b.en.eq(1)]
 
         def word_addr(band, half):
             return Cat(band, half, Const(0, ab - bb - 1))
 
-        def table_addr(bucket):
-            return Cat(bucket, Const(0, ab - 1 - tb), Const(1, 1))
-
-        # ---- configuration and the table fill ---------------------------------------------
-        init_w = min(720, max_width)
-        cfg_w = Signal(wb, init=init_w)
-        cfg_n = Signal(_CFG_BANDS_BITS, init=min(32, max_bands, init_w))
-        load = Signal(init=1)               # CFG changed: derive and fill the table
-        cfg_ok = Signal()
-        shift = Signal(max(2, smax.bit_length()))   # 2 bits at least: a 1-bit Switch trips GHDL
-        w_minus_n = Signal(wb)
-        building = Signal()
-        usable = Signal()
-        m.d.comb += usable.eq(cfg_ok & ~building & ~load)
-        valid_cfg = (cfg_n >= 1) & (cfg_n <= max_bands) & (cfg_w >= cfg_n) & (cfg_w <= max_width)
-
-        # the walk: r = (x + 1) n - 1 - band * width, in 0..width - 1
-        wx, wband, wr, stepped = Signal(wb), Signal(bb), Signal(wb), Signal()
-        last_x = Signal(wb)
-        t = Signal(wb + 1)                  # r - (width - n): bit wb is the borrow
-        m.d.comb += t.eq(wr - w_minus_n)
-        bucket, low = Signal(tb), Signal(lb)
-        self._split(m, shift, smax, tb, wx, bucket, low)
-        first = low == 0
-        fill = Signal(entry)
-        m.d.comb += [
-            fill.base.eq(Mux(first, wband, wband - 1)),
-            fill.next.eq(wband),
-            fill.has.eq(~first),
-            fill.start.eq(Mux(first, 0, low)),
-        ]
-        fill_en = building & (first | stepped)
-        with m.If(load):
-            m.d.sync += [
-                load.eq(0), cfg_ok.eq(valid_cfg), building.eq(valid_cfg),
-                shift.eq(sum((cfg_w > (1 << (k + tb))).as_unsigned() for k in range(smax))
-                         if smax else 0),
-                w_minus_n.eq(cfg_w - cfg_n), last_x.eq(cfg_w - 1),
-                wx.eq(0), wband.eq(0), wr.eq(cfg_n - 1), stepped.eq(0),
-            ]
-        with m.Elif(building):
-            step = ~t[wb]                   # r + n >= width
-            m.d.sync += [
-                wx.eq(wx + 1),
-                wr.eq(Mux(step, t[:wb], wr + cfg_n)),
-                wband.eq(wband + step),
-                stepped.eq(step),
-                building.eq(wx != last_x),
-            ]
+        def table_addr(row):
+            return Cat(row, Const(0, ab - 1 - rb), Const(1, 1))
 
         # ---- the record pipeline ----------------------------------------------------------
         p = self.i.payload
         m.d.comb += self.i.ready.eq(1)
         take = self.i.valid
-        v1 = Signal()                       # a record in stage 1
+        record1 = Signal()                  # a record in stage 1
         # a record right behind another would meet it at port A: dropped, as while unusable
-        drop = take & ~p.eof & (~usable | v1)
+        drop = take & ~p.eof & (~fill.usable | record1)
         dropped = Signal(16)
         with m.If(drop & (dropped != 0xFFFF)):
             m.d.sync += dropped.eq(dropped + 1)
 
-        # stage 1: read the record's table entry
+        # stage 1: read the record's table row (port A takes its address from a register)
         mark1, abort1, lost1 = Signal(), Signal(), Signal()
-        x1, d1 = Signal(xb), Signal(8)
-        m.d.sync += [v1.eq(take & ~p.eof & ~drop), mark1.eq(take & p.eof), abort1.eq(p.abort),
-                     lost1.eq(drop), x1.eq(p.x), d1.eq(p.d)]
-        c1, low1 = Signal(tb), Signal(lb)
-        self._split(m, shift, smax, tb, x1, c1, low1)
+        x1, d1 = Signal(ResultLayout["x"].shape), Signal(8)
+        row_addr1 = Signal(ab)              # the row's address, 0 without a record
+        m.d.sync += [record1.eq(take & ~p.eof & ~drop), mark1.eq(take & p.eof),
+                     abort1.eq(p.abort), lost1.eq(drop), x1.eq(p.x), d1.eq(p.d),
+                     row_addr1.eq(Mux(take & ~p.eof & ~drop,
+                                      table_addr(p.x[2:2 + rb]), 0))]
 
-        # stage 2: its band; read the band's word
+        # stage 2: its band, one field of the row (a one-hot choice, 0 without a record); read
+        # the band's word
         match2, mark2, abort2, lost2 = Signal(), Signal(), Signal(), Signal()
-        low2, d2 = Signal(lb), Signal(8)
-        m.d.sync += [match2.eq(v1 & (x1 < cfg_w) & (d1 != 0)), mark2.eq(mark1),
-                     abort2.eq(abort1), lost2.eq(lost1), low2.eq(low1), d2.eq(d1)]
-        ent = data.View(entry, rd_a.data[:entry.size])
-        band2 = Signal(bb)
-        m.d.comb += band2.eq(Mux(ent.has & (low2 >= ent.start), ent.next, ent.base))
+        field2, d2 = Signal(COLUMNS_PER_ROW), Signal(8)
+        m.d.sync += [match2.eq(record1 & (x1 < regs.width) & (d1 != 0)), mark2.eq(mark1),
+                     abort2.eq(abort1), lost2.eq(lost1), d2.eq(d1),
+                     field2.eq(Mux(record1, 1 << x1[:2], 0))]
+        table_row = data.View(entry, port_a.data[:entry.size])
+        # two pairs of fields, each pair one LUT level, kept apart (``keep``) so that synthesis
+        # does not chain the four: two LUT levels from the table read to the word read
+        fields01 = Signal(bb, attrs={"keep": 1})
+        fields23 = Signal(bb, attrs={"keep": 1})
+        chosen = [Mux(field2[j], table_row[j], 0) for j in range(COLUMNS_PER_ROW)]
+        m.d.comb += [fields01.eq(chosen[0] | chosen[1]), fields23.eq(chosen[2] | chosen[3])]
 
         acc = Signal()                      # the accumulating half; the published one is ~acc
         acc_valid = Signal(1 << bb)         # bands written in the accumulating frame
         pub_valid = Signal(1 << bb)         # bands written in the published frame
+        read_half = Signal()                # the half stage 2 reads
         match3, mark3, abort3, lost3 = Signal(), Signal(), Signal(), Signal()
-        band3, d3 = Signal(bb), Signal(8)
+        row3, field3, band3, d3 = Signal(entry), Signal(COLUMNS_PER_ROW), Signal(bb), Signal(8)
         match4, mark4, abort4, lost4 = Signal(), Signal(), Signal(), Signal()
-        band4, d4, raw4 = Signal(bb), Signal(8), Signal(8 * slots)
+        band4, d4, word4 = Signal(bb), Signal(8), Signal(8 * slots)
         # a marker publishes in stage 4 (stage 5 still writes the last word of its frame); a
         # record behind a marker in stage 3 or 4 reads the half that will be accumulating
-        with m.If(v1):
-            m.d.comb += addr_a.eq(table_addr(c1))
-        with m.Else():
-            m.d.comb += addr_a.eq(word_addr(band2, acc ^ (mark3 & ~abort3) ^ (mark4 & ~abort4)))
+        m.d.comb += read_half.eq(acc ^ (mark3 & ~abort3) ^ (mark4 & ~abort4))
+        # stage 1 has no record in a cycle with a record in stage 2: an OR, no multiplexer
+        m.d.comb += addr_a.eq(row_addr1 | word_addr(fields01 | fields23, read_half & ~record1))
         m.d.sync += [match3.eq(match2), mark3.eq(mark2), abort3.eq(abort2), lost3.eq(lost2),
-                     band3.eq(band2), d3.eq(d2)]
+                     row3.eq(table_row), field3.eq(field2), d3.eq(d2)]
+        # stage 3: the band again, from the registered row (the table read drives only the
+        # word read's address)
+        m.d.comb += band3.eq(Mux(field3[0], row3[0], 0) | Mux(field3[1], row3[1], 0)
+                             | Mux(field3[2], row3[2], 0) | Mux(field3[3], row3[3], 0))
         # stage 3: the word, registered
         m.d.sync += [match4.eq(match3), mark4.eq(mark3), abort4.eq(abort3), lost4.eq(lost3),
-                     band4.eq(band3), d4.eq(d3), raw4.eq(rd_a.data[:8 * slots])]
+                     band4.eq(band3), d4.eq(d3), word4.eq(port_a.data[:8 * slots])]
 
         # stage 4: insert; a band's first match of a frame is written alone (valid bits); a
         # word written since this record's read (the last write, at most 2 cycles ago) comes
         # from the bypass
         match5, band5, new5 = Signal(), Signal(bb), Signal(8 * slots)
-        lw_band, lw_word, lw_age = Signal(bb), Signal(8 * slots), Signal(2)
-        fwd4 = Signal()
-        m.d.comb += fwd4.eq((lw_age != 0) & (lw_band == band4))
-        vbit4 = Signal()
-        m.d.comb += vbit4.eq((acc_valid >> band4)[0])
-        old = Signal(8 * slots)
-        m.d.comb += old.eq(Mux(fwd4, lw_word, raw4))
-        top = [old[8 * j:8 * j + 8] for j in range(slots)]
-        ge = [top[j] >= d4 for j in range(slots)]
-        inserted = Signal(8 * slots)
-        for j in range(slots):
-            moved = d4 if j == 0 else Mux(ge[j - 1], d4, top[j - 1])
-            m.d.comb += inserted[8 * j:8 * j + 8].eq(Mux(ge[j], top[j], moved))
-        new = Signal(8 * slots)
-        m.d.comb += new.eq(Mux(fwd4 | vbit4, inserted, d4))
+        last_band, last_word, last_age = Signal(bb), Signal(8 * slots), Signal(2)
+        forward4 = Signal()
+        m.d.comb += forward4.eq((last_age != 0) & (last_band == band4))
+        m.d.comb += [insert.word.eq(Mux(forward4, last_word, word4)), insert.d.eq(d4),
+                     insert.fresh.eq(~forward4 & ~(acc_valid >> band4)[0])]
 
         # stage 5: write back (port B)
-        m.d.sync += [match5.eq(match4), band5.eq(band4), new5.eq(new)]
-        m.d.comb += [wr_b.data.eq(Mux(building, fill.as_value(), new5)),
-                     wr_b.en.eq(fill_en | match5)]
+        m.d.sync += [match5.eq(match4), band5.eq(band4), new5.eq(insert.new)]
+        m.d.comb += [write_b.data.eq(Mux(fill.building, fill.write_entry.as_value(), new5)),
+                     write_b.en.eq(fill.write_en | match5)]
         with m.If(mark4):                   # the bypass never crosses a frame's end
-            m.d.sync += lw_age.eq(0)
+            m.d.sync += last_age.eq(0)
         with m.Elif(match5):
-            m.d.sync += [lw_age.eq(0b01), lw_band.eq(band5), lw_word.eq(new5)]
+            m.d.sync += [last_age.eq(0b01), last_band.eq(band5), last_word.eq(new5)]
         with m.Else():
-            m.d.sync += lw_age.eq(lw_age << 1)
+            m.d.sync += last_age.eq(last_age << 1)
         written = Signal(1 << bb)           # acc_valid with stage 5's band
         for k in range(1 << bb):
             m.d.comb += written[k].eq(acc_valid[k] | (match5 & (band5 == k)))
@@ -326,57 +268,19 @@ class BandSummary(wiring.Component):
             m.d.sync += lost_acc.eq(1)
         m.d.comb += [self.frames.eq(frames), self.dropped.eq(dropped), self.aborted.eq(aborted)]
 
-        # the CPU's TOP reads take port B when no record writes
-        cpu_pending = Signal()
-        cpu_band = Signal(bb)
-        cpu_half = Signal(max(1, pb))
-        cpu_issue = cpu_pending & ~match5 & ~building
-        with m.If(building):
-            m.d.comb += addr_b.eq(table_addr(bucket))
+        # ---- the registers; the CPU's TOP reads take port B when no record writes -----------
+        m.d.comb += [regs.frames.eq(frames), regs.dropped.eq(dropped), regs.aborted.eq(aborted),
+                     regs.built.eq(fill.usable), regs.bad_cfg.eq(fill.bad),
+                     regs.lost.eq(lost_pub),
+                     regs.top_issue.eq(regs.top_pending & ~match5 & ~fill.building),
+                     regs.band_valid.eq((pub_valid >> regs.top_band)[0]),
+                     regs.top_word.eq(port_b.data[:8 * slots])]
+        with m.If(fill.building):
+            m.d.comb += addr_b.eq(table_addr(fill.write_row))
         with m.Elif(match5):
             m.d.comb += addr_b.eq(word_addr(band5, acc))
         with m.Else():
-            m.d.comb += addr_b.eq(word_addr(cpu_band, ~acc))
-
-        # ---- the bus ------------------------------------------------------------------------
-        bus = self.bus
-        window = BusWindow(m, bus, self._base, regmap.BANDS_WINDOW)
-        regs = regmap.BANDS_REGS
-        word_index = Signal(range(regmap.BANDS_WINDOW // 4))
-        m.d.comb += word_index.eq(window.offset[2:] - (_TOP >> 2))
-        top_read = window.read & (window.offset >= _TOP) & (word_index < max_bands * per)
-        value = Signal(32)
-        with m.Switch(window.offset):
-            with m.Case(regs["CFG"]):
-                m.d.comb += value.eq(Cat(cfg_w, Const(0, _CFG_BANDS_LSB - wb), cfg_n))
-            with m.Case(regs["STATUS"]):
-                m.d.comb += value.eq(Cat(frames, usable, ~cfg_ok & ~load, lost_pub))
-            with m.Case(regs["DROPS"]):
-                m.d.comb += value.eq(Cat(dropped, aborted))
-        ready, read_data = Signal(), Signal(32)
-        m.d.comb += [bus.ready.eq(ready), bus.read_data.eq(read_data)]
-        m.d.sync += [ready.eq(0), read_data.eq(0)]
-        with m.If(window.hit & (bus.read_strobe | bus.write_strobe)):
-            with m.If(top_read):
-                m.d.sync += [cpu_pending.eq(1), cpu_band.eq(word_index >> pb)]
-                if pb:
-                    m.d.sync += cpu_half.eq(word_index[:pb])
-            with m.Else():
-                m.d.sync += [ready.eq(1), read_data.eq(Mux(window.read, value, 0))]
-            with m.If(window.write & (window.offset == regs["CFG"])):
-                m.d.sync += [cfg_w.eq(bus.write_data[:wb]),
-                             cfg_n.eq(bus.write_data[_CFG_BANDS_LSB:_CFG_BANDS_LSB + _CFG_BANDS_BITS]),
-                             load.eq(1)]
-        answer, answer_valid, answer_half = Signal(), Signal(), Signal(max(1, pb))
-        m.d.sync += answer.eq(cpu_issue)
-        with m.If(cpu_issue):
-            m.d.sync += [cpu_pending.eq(0), answer_valid.eq((pub_valid >> cpu_band)[0]),
-                         answer_half.eq(cpu_half)]
-        with m.If(answer):
-            half = Signal(32)
-            padded = Cat(rd_b.data[:8 * slots], Const(0, 32 * per - 8 * slots))
-            m.d.comb += half.eq(padded.word_select(answer_half, 32) if per > 1 else padded)
-            m.d.sync += [ready.eq(1), read_data.eq(Mux(answer_valid, half, 0))]
+            m.d.comb += addr_b.eq(word_addr(regs.top_band, ~acc))
         return m
 
 
@@ -447,7 +351,7 @@ class BandSummaryStream(wiring.Component):
 
         with m.FSM():
             with m.State("CFG"):
-                access(regs["CFG"], write=True, data=self._width | self._n_bands << _CFG_BANDS_LSB)
+                access(regs["CFG"], write=True, data=self._width | self._n_bands << CFG_BANDS_LSB)
                 m.next = "CFG_WAIT"
             with m.State("CFG_WAIT"):
                 with m.If(bus.ready):
