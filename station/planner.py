@@ -394,12 +394,12 @@ def path_effort(nodes, w: int) -> float:
     return float(turn.mean() / np.pi)
 
 @functools.lru_cache(maxsize=2)
-def _grid_tables(h, w, goal, kappa, beta):
+def _grid_tables(h, w):
     """The tables of an h x w grid that do not depend on which cells are blocked, kept for
-    the next request on the same grid and goal (read-only): per node (row-major) and move,
-    the neighbour's index (clipped to the grid), whether it is inside the grid, the two
+    the next request on the same grid (read-only): per node (row-major) and move, the
+    neighbour's index (clipped to the grid), whether it is inside the grid, and the two
     cells a diagonal move cuts past (the node itself for a straight move, so they add no
-    condition on a free node), and the heuristic factor eta^beta before masking."""
+    condition on a free node)."""
     n_nodes = h * w
     rr, cc = np.mgrid[0:h, 0:w]
     nb_r = rr[..., None] + MOVES[:, 0]
@@ -413,12 +413,23 @@ def _grid_tables(h, w, goal, kappa, beta):
                       own).reshape(n_nodes, 8)
     side_b = np.where(diag, rr[..., None] * w + np.clip(cc[..., None] + MOVES[:, 1], 0, w - 1),
                       own).reshape(n_nodes, 8)
-    dist = np.hypot(rr - goal[0], cc - goal[1]).reshape(n_nodes)
+    for t in (neighbour, inside, side_a, side_b):
+        t.flags.writeable = False
+    return neighbour, inside, side_a, side_b
+
+
+@functools.lru_cache(maxsize=4)
+def _heuristic_table(h, w, goal, kappa, beta):
+    """eta_ij^beta = (1 / (kappa + c_ij + d(j) - d(i)))^beta per node and move of an h x w
+    grid, d the Euclidean distance to ``goal``, before the moves that are not allowed are
+    zeroed; kept for the next request with the same goal (read-only)."""
+    neighbour = _grid_tables(h, w)[0]
+    rr, cc = np.mgrid[0:h, 0:w]
+    dist = np.hypot(rr - goal[0], cc - goal[1]).reshape(h * w)
     detour = MOVE_COST[None, :] + dist[neighbour] - dist[:, None]
     eta_all = (1.0 / (kappa + np.maximum(detour, 0.0))) ** beta
-    for t in (neighbour, inside, side_a, side_b, eta_all):
-        t.flags.writeable = False
-    return neighbour, inside, side_a, side_b, eta_all
+    eta_all.flags.writeable = False
+    return eta_all
 
 
 #: below this many walking ants, ``sacodm`` steps each ant with Python scalars
@@ -584,8 +595,8 @@ def sacodm(blocked, start, goal, params: SacoParams = SacoParams()) -> PlanResul
     # Tables: neighbour index and allowed-move mask per node and move; the heuristic
     # eta_ij = 1 / (kappa + c_ij + d(j) - d(i)) (d = Euclidean distance to goal) ^ beta,
     # zero on a move that is not allowed.
-    neighbour, inside, side_a, side_b, eta_all = _grid_tables(h, w, goal, params.kappa,
-                                                              params.beta)
+    neighbour, inside, side_a, side_b = _grid_tables(h, w)
+    eta_all = _heuristic_table(h, w, goal, params.kappa, params.beta)
     bf = blocked.reshape(-1)
     allowed = inside & ~bf[neighbour] & ~bf[:, None] & ~(bf[side_a] | bf[side_b])
     eta_b = np.where(allowed, eta_all, 0.0)
