@@ -25,6 +25,12 @@ buffer's window cut by the image); the rows' slots; the four memory reads; the f
 routed; the horizontal blends; the vertical blend's product; the vertical blend and the
 ground bit, into the output register.
 
+Parts (:mod:`hdl.rectify_parts`): :class:`~hdl.rectify_parts.NodeColumns` (the map memory
+and the node columns' blend), :class:`~hdl.rectify_parts.LineBuffer` (the four banks, the
+input side and its row gate), :class:`~hdl.rectify_parts.SourceAddress` (the stages up to the
+memory read) and :class:`~hdl.rectify_parts.Sampler` (the routing, the blends and the output
+register); the unit itself holds the output generator and wires the parts.
+
 Flow control. The input may write row ``r`` while output row ``v`` (the one being issued)
 reads only rows ``v + lo .. v + lo + span``, so the input waits at row ``v + lo + span + 2``;
 the output waits for rows as said. After the input's ``eof`` the input waits until the output
