@@ -21,12 +21,12 @@ other addresses, bit 31 = 1  the I/O bus: the register block, the IIC master, th
                              ``io_timeout`` cycles reads 0xFFFF_FFFF (writes are lost)
 ===========================  ======================================================
 
-Timing of one access: RAM no wait state (the read starts from the core's look-ahead address,
-a cycle before the access); timer 2 cycles, WAIT n more; I/O bus the
-strobe in the access's first cycle (combinational from the core's registered address),
-``ready`` from the slave (one cycle later for every slave of this SoC), then the core's
-``mem_ready`` a cycle after that, from a register (the read data go through a register, not
-from the bus's OR into the core's decoder): 3 cycles. The core itself takes 3 to 6 cycles an
+Timing of one access: RAM one wait state (the read starts from the core's look-ahead address,
+a cycle before the access, and its data go through a register: ``ram_register``; without it
+no wait state); timer 2 cycles, WAIT n more; I/O bus the strobe from a register in the
+access's second cycle, ``ready`` from the slave (one cycle later for every slave of this SoC),
+then the core's ``mem_ready`` a cycle after that, from a register (the read data go through a
+register, not from the bus's OR into the core's decoder): 4 cycles. The core itself takes 3 to 6 cycles an
 instruction without memory waits.
 
 The RAM is ``ram_bytes`` / 4 words of 32 bits with byte writes, initialised with ``image``
@@ -122,10 +122,11 @@ class RiscvCPU(wiring.Component):
 
     Parameters: ``image`` (a list of 32-bit words, the RAM's initial contents; at most
     ``ram_bytes`` / 4; None: zeros), ``ram_bytes`` (a power of two, 1 KB..64 KB),
-    ``io_timeout`` (cycles an I/O access waits for ``ready``), ``ram_register`` (a register
-    between the RAM and the core: one wait state a RAM access, for a faster clock)."""
+    ``io_timeout`` (cycles an I/O access waits for ``ready``), ``ram_register`` (default: a
+    register between the RAM and the core, one wait state a RAM access, for a faster clock;
+    False: none, the RAM answers at once)."""
 
-    def __init__(self, *, image=None, ram_bytes=8192, io_timeout=64, ram_register=False):
+    def __init__(self, *, image=None, ram_bytes=8192, io_timeout=64, ram_register=True):
         words = ram_bytes // 4
         if not isinstance(ram_bytes, int) or ram_bytes < 1024 or ram_bytes > 65536 or \
                 ram_bytes & (ram_bytes - 1):
@@ -211,12 +212,14 @@ class RiscvCPU(wiring.Component):
             m.d.sync += [reg_ready.eq(1), reg_data.eq(count)]
         m.d.comb += self.idle.eq(waiting)
 
-        # I/O bus: strobe in the access's first cycle, then wait for ready (or time out).
+        # I/O bus: the strobe from a register, the cycle after the access begins (the bus's
+        # slaves decode it with the depth of logic they had behind an external CPU's
+        # registered pins), then wait for ready (or time out).
         bus = self.bus
         io_busy = Signal()
         io_wait = Signal(range(self._io_timeout + 1))
         io_go = valid & is_io & ~io_busy & ~reg_ready
-        m.d.comb += [
+        m.d.sync += [
             bus.addr_strobe.eq(io_go),
             bus.read_strobe.eq(io_go & ~write),
             bus.write_strobe.eq(io_go & write),
@@ -226,7 +229,7 @@ class RiscvCPU(wiring.Component):
         ]
         with m.If(io_go):
             m.d.sync += [io_busy.eq(1), io_wait.eq(0)]
-        with m.Elif(io_busy):
+        with m.Elif(io_busy & ~bus.addr_strobe):
             m.d.sync += io_wait.eq(io_wait + 1)
             with m.If(bus.ready):
                 m.d.sync += [io_busy.eq(0), reg_ready.eq(1), reg_data.eq(bus.read_data)]
