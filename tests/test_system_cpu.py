@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from sim.system.run import main
+from sim.system.command import main
 
 
 @pytest.fixture(scope="module")

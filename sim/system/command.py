@@ -1,0 +1,87 @@
+"""The ``python -m sim system`` command: the whole SoC under Verilator, its firmware either as
+the host build on the CPU bus (:mod:`sim.system.run`, the default) or cross-compiled on the core
+inside the SoC (``--cpu``, :mod:`sim.system.cpu_run`). Prints one JSON line; exit 0 only when
+bit-exact (and with ``--cpu`` every radio packet exact), 1 otherwise, 2 on a usage error."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from sim.system.cpu_run import CPU_FAULTS, LOST_FIELDS, run_cpu_system
+from sim.system.run import (FAULT_FIELD, FAULTS, SystemError_, _load, field_of, run_system,
+                            scene_pair)
+from sim.system import run as _run
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise SystemError_(message)
+
+
+def main(argv=None):
+    ap = _Parser(prog="python -m sim system",
+                 description=" ".join(_run.__doc__.split("\n\n")[0].split()),
+                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument("--left", help="left image (PNG/JPEG, colour); with --right, instead of --scene")
+    ap.add_argument("--right", help="right image")
+    ap.add_argument("--scene", default="mixed",
+                    help="embedded pair when no images are given: a synthetic scene of "
+                         "sim/scenes/rendered.py or 'motorcycle'")
+    ap.add_argument("--frames", type=int, default=5,
+                    help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
+    ap.add_argument("--fault", choices=FAULTS + CPU_FAULTS,
+                    help=f"fault injected in field {FAULT_FIELD} (see the module documentation; "
+                         f"{', '.join(CPU_FAULTS)}: with --cpu, sim/system/cpu_run.py)")
+    ap.add_argument("--cpu", choices=("picorv32",),
+                    help="run the cross-compiled firmware on this core inside the SoC "
+                         "(sim/system/cpu_run.py; 720 x 240 fields, NTSC timing) instead of "
+                         "the firmware's host build on the bus")
+    ap.add_argument("--width", type=int, default=720, help="field width, even, 16..720")
+    ap.add_argument("--height", type=int, default=240, help="field height, 8..240")
+    ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc",
+                    help="camera timing: NTSC 525/60, or short vertical blanking (tests)")
+    ap.add_argument("--seed", type=int, default=1, help="seed of the noise-left fault's bytes")
+    try:
+        args = ap.parse_args(argv)
+        if (args.left is None) != (args.right is None):
+            raise SystemError_("give both --left and --right, or neither")
+        if args.width % 2 or not 16 <= args.width <= 720 or not 8 <= args.height <= 240:
+            raise SystemError_("--width must be even, 16..720; --height 8..240")
+        if args.cpu is None and args.fault in CPU_FAULTS:
+            raise SystemError_(f"--fault {args.fault} needs --cpu")
+        if args.cpu is not None and args.fault in FAULTS:
+            raise SystemError_(f"--fault {args.fault} runs with the host firmware: drop --cpu")
+        if args.cpu is not None and (args.width, args.height, args.timing) != (720, 240, "ntsc"):
+            raise SystemError_("--cpu runs 720 x 240 fields with NTSC timing (the firmware's "
+                               "geometry and the register defaults)")
+        if args.cpu is not None and args.fault == "camera-lost-left" and \
+                args.frames < FAULT_FIELD + LOST_FIELDS + 3:
+            raise SystemError_(f"--fault camera-lost-left needs --frames at least "
+                               f"{FAULT_FIELD + LOST_FIELDS + 3}")
+        if args.frames < (FAULT_FIELD + 4 if args.fault else 1):
+            raise SystemError_(f"--frames must be at least {FAULT_FIELD + 4 if args.fault else 1}")
+        if args.left:
+            left = field_of(_load(args.left), args.width, args.height)
+            right = field_of(_load(args.right), args.width, args.height)
+        else:
+            left, right = scene_pair(args.scene, args.width, args.height)
+        if args.cpu is not None:
+            res = run_cpu_system(left, right, frames=args.frames, fault=args.fault,
+                                 timing=args.timing, seed=args.seed)
+        else:
+            res = run_system(left, right, frames=args.frames, fault=args.fault,
+                             timing=args.timing, seed=args.seed)
+    except SystemError_ as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(json.dumps(res))
+    ok = res["bit_exact"] and (args.cpu is None or res["radio_exact"])
+    return 0 if ok else 1
+
+
+
+if __name__ == "__main__":
+    sys.exit(main())
