@@ -67,7 +67,7 @@ are don't-care (``no_rw_check``): port A's are covered by the bypass, port B rea
 cycles without a write. The valid bits
 (``2 * max_bands`` flip-flops) spare a clearing pass that would stall the stream.
 """
-from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal
+from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
