@@ -9,15 +9,18 @@ its report period (:func:`golden.bands.merge_tops`), a few dozen reads a frame i
 drain per record.
 
 Structure: one block RAM holds both halves of band words (``slots`` bytes, descending) and
-the column table (:func:`golden.bands.column_table`: per bucket of ``2**shift`` columns the
-base band, whether a band starts inside it and where). Port A reads for the records;
-port B fills the table, writes the records' words and reads for the CPU. Five stages,
-``i.ready`` always 1:
+the column table (:class:`hdl.bands_parts.TableFill`: the band of every column, four columns
+a row, filled by the divide-free walk of :func:`golden.bands.table_walk`). Port A reads for
+the records; port B fills the table, writes the records' words and reads for the CPU. The
+parts: :class:`~hdl.bands_parts.TableFill` (the table's fill),
+:class:`~hdl.bands_parts.TopInsert` (the insertion), :class:`~hdl.bands_parts.BandRegisters`
+(the register window). Five stages, ``i.ready`` always 1:
 
-- stage 1: read the record's table entry (port A);
-- stage 2: its band (one compare and a choice of two, no divide); read the band's word from
-  the accumulating half (port A);
-- stage 3: register the word;
+- stage 1: read the record's table row (port A, its address from a register);
+- stage 2: its band (one of the row's four fields, no compare, no divide); read the band's
+  word from the accumulating half (port A): two LUT levels from the table read to the word
+  read's address;
+- stage 3: register the word (and the band again, from the registered row);
 - stage 4: insert the disparity (``slots`` parallel compares, a shift by one slot); a word
   written since the read comes from a bypass register, and a band's first match of a frame is
   written alone (a valid bit per band and half, so nothing is cleared between frames);
@@ -57,11 +60,14 @@ the TOP words) from cycle 5 on (:data:`LATENCY`).
 
 Trade-offs: ``slots`` bytes per band word: 4 fit one RAMB16 port (36 bits); up to 8 take a
 second RAMB16 for the wider word (reports then exact for ``min_support`` up to 8). The table
-shares the block RAM (its spare rows) at the price of the one-in-two-cycles rate; in
-distributed RAM it would cost more LUTs than the rest of the unit. The valid bits
+shares the block RAM (``max_width / 4`` rows beside the two halves' word rows) at the price of the one-in-two-cycles rate; in distributed RAM it would cost more LUTs
+than the rest of the unit. A row per column band, not per bucket of columns, spares a compare
+after the table read, the unit's longest path. The block RAM's read-during-write collisions
+are don't-care (``no_rw_check``): port A's are covered by the bypass, port B reads only in
+cycles without a write. The valid bits
 (``2 * max_bands`` flip-flops) spare a clearing pass that would stall the stream.
 """
-from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal
+from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
