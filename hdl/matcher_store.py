@@ -232,13 +232,7 @@ class LineStore(wiring.Component):
         wp = flags.write_port()
         m.d.comb += [wp.addr.eq(Cat(b_x, b_slot)), wp.data.eq(b_flags), wp.en.eq(b_write)]
 
-        # Read ports.
-        rp = flags.read_port()
-        m.d.comb += [rp.addr.eq(self.flag_addr), rp.en.eq(self.flag_en),
-                     self.flag_data.eq(rp.data)]
-        for q, mem in enumerate(pairs):
-            rp = mem.read_port()
-            m.d.comb += [rp.addr.eq(self.pair_addr), self.pair_data[16 * q:16 * q + 16].eq(rp.data)]
+        self._read_ports(m, flags, pairs)
 
         starts = Signal()                 # an accepted sof opens the frame
         m.d.comb += starts.eq(track.accept & p.sof & ~self.open)
@@ -257,11 +251,10 @@ class LineStore(wiring.Component):
                              slot.eq(Mux(slot_now == ROWS - 1, 0, slot_now + 1))]
                 with m.If(self.width == 0):
                     m.d.sync += self.width.eq(track.x + 1)
-        # The camera's frame ends at its eof, at a broken rule, at a sof before its eof, or at
-        # the frame abort (in the tracker's abandon); a one-pixel frame ends as it starts. A
-        # sof that opens the frame clears ``ended``, and so does ``complete``. Written as one
-        # expression rather than a chain of priority multiplexers, so that the tracker's
-        # ``accept`` and ``abandon``, which come late in the cycle, pass few logic levels.
+        # The frame ends at its eof, a broken rule, a sof before its eof or the frame abort (the
+        # tracker's abandon); a one-pixel frame ends as it starts; an opening sof and
+        # ``complete`` clear ``ended``. One expression, not a chain of priority multiplexers, so
+        # the tracker's late ``accept`` and ``abandon`` pass few logic levels.
         ends = Signal()
         m.d.comb += ends.eq((self.open & ((track.accept & p.eof & ~p.sof) | track.abandon |
                                           (port.valid & p.sof & ~self.ended))) |
@@ -271,3 +264,13 @@ class LineStore(wiring.Component):
             m.d.sync += [self.open.eq(0), self.rows.eq(0), self.wrow.eq(0),
                          self.width.eq(0), slot.eq(0), self.yrows.eq(0), flushing.eq(0)]
         return m
+
+    def _read_ports(self, m, flags, pairs):
+        """The engine's read ports: the flag memory at ``flag_addr`` (enabled by ``flag_en``)
+        and the pair memories, side by side in ``pair_data``, at ``pair_addr``."""
+        rp = flags.read_port()
+        m.d.comb += [rp.addr.eq(self.flag_addr), rp.en.eq(self.flag_en),
+                     self.flag_data.eq(rp.data)]
+        for q, mem in enumerate(pairs):
+            rp = mem.read_port()
+            m.d.comb += [rp.addr.eq(self.pair_addr), self.pair_data[16 * q:16 * q + 16].eq(rp.data)]
