@@ -16,9 +16,8 @@ to 8, is computed without forming the 4-bit-wider dividend: with ``a = |cm - cp|
 
 So the widest adder is ``max(cost_width, 7) + 3`` bits (the confidence's ``far_min - 3 c0 +
 128``), and each stage has one adder or comparator: 14-bit SAD costs would need a 17-bit chain,
-hence ``cost_width`` <= 13 for the project's 16-bit rule. Measured (Yosys xc3s estimate, tag 20
-bits, tests/test_matcher_post.py checks the rule): 185 LUT4, 585 FF, 3 LUT levels, longest
-carry 11 bits with 9-bit census costs; 247 LUT4, 669 FF, 3 levels, 15 bits at 13 bits.
+hence ``cost_width`` <= 13 for the project's 16-bit rule (tests/test_matcher_post.py checks
+the levels and the longest carry chain on the synthesis estimate).
 
 In the matcher (census cost) between the winner, which keeps the costs at ``d +- 1`` when
 they were candidates (``fit``), and the record stage, which adds ``16 d_min`` to ``d16``.
