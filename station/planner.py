@@ -418,7 +418,7 @@ def _grid_tables(h, w):
     return neighbour, inside, side_a, side_b
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=2)
 def _heuristic_table(h, w, goal, kappa, beta):
     """eta_ij^beta = (1 / (kappa + c_ij + d(j) - d(i)))^beta per node and move of an h x w
     grid, d the Euclidean distance to ``goal``, before the moves that are not allowed are
