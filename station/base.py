@@ -9,8 +9,20 @@ turns each good packet's pose and band disparities into a map update (``station.
   keeping the previous path, if any, meanwhile);
 - "blocked": a cell that became occupied in this update, inflated by the robot radius, lies
   on the part of the current path still ahead of the robot;
-- "periodic": ``replan_period_s`` (3 s, the seed's figure) since the last plan, so that a
-  shorter way that opened up (an obstacle moved away, unknown space seen free) is taken.
+- "goal": ``goal`` differs from the goal of the current path;
+- "offpath": the robot is farther than ``replan_offpath_m`` from every cell of its path
+  still ahead, and ``replan_min_gap_s`` have passed since the last plan;
+- "periodic": ``replan_period_s`` since the last plan, and the inflated map (the grid the
+  planner sees) differs from the last plan's, so that a shorter way that opened up (an
+  obstacle aged out or moved away) is taken. An unchanged inflated map, with the robot on
+  its path and the goal unchanged, gives the planner nothing new, so it is not asked again.
+
+Every decision uses the packets' clock ``t`` and the map, never the host's clock, so the
+same packets give the same replans at any replay speed. The "blocked" check costs the
+path's cells times the packet's newly occupied cells (a cell is hit when a newly occupied
+cell lies within the inflation disc around it, which is the same as dilating the newly
+occupied cells and reading the path's cells); the "periodic" check compares the occupied
+cells with those at the last plan and dilates only when they differ.
 
 Integrity: only packets whose payload passed the decoder's checks (escaping, length, XBee
 checksum, CRC-16/CCITT-FALSE, field ranges, not a duplicate sequence number) arrive here.
@@ -78,7 +90,9 @@ class BaseStation:
     planner: str = "sacodm"                    # or "astar"
     saco: SacoParams = SacoParams()
     inflate_m: float = 0.25                    # robot radius 0.15 m + 10 cm (range error)
-    replan_period_s: float = 3.0
+    replan_period_s: float = 3.0               # at most this often for a changed map
+    replan_offpath_m: float = 0.3              # farther from the path than this: replan
+    replan_min_gap_s: float = 1.0              # between "offpath" replans
     goal_tolerance_m: float = 0.3
     band_gap_fill: int = 3
     check_reference: bool = False              # also run A* on every request (for reports)
@@ -94,6 +108,9 @@ class BaseStation:
         self.pose = None
         self.last_t = None
         self.last_plan_t = -math.inf
+        self._plan_goal = None                 # the goal the current path was planned for
+        self._plan_blocked = None              # the inflated map the last plan saw
+        self._plan_occ = None                  # occupied cells whose inflation that is
         self.last_result: PlanResult | None = None
         self.events: list[PlanEvent] = []
         self.packets = 0
@@ -133,26 +150,65 @@ class BaseStation:
             reason = "initial"
         elif self.last_result is not None and not self.last_result.ok:
             reason = "retry"
+        elif tuple(self.goal) != self._plan_goal:
+            reason = "goal"
         elif newly.any() and self._path_hit(newly):
             reason = "blocked"
-        elif t - self.last_plan_t >= self.replan_period_s:
+        elif t - self.last_plan_t >= self.replan_min_gap_s and self._off_path():
+            reason = "offpath"
+        elif t - self.last_plan_t >= self.replan_period_s and self._map_changed():
             reason = "periodic"
         if reason:
             self.replan(t, reason)
 
     # -- planning side ----------------------------------------------------------------------
     def _path_hit(self, newly) -> bool:
-        grown = ndimage.binary_dilation(newly, structure=_disc(self.inflate_m / self.grid.res))
+        """Whether a cell of ``newly``, inflated by ``inflate_m``, lies on the path ahead."""
         ahead = self._remaining_cells()
-        return any(grown[r, c] for r, c in ahead)
+        if len(ahead) == 0:
+            return False
+        disc = _disc(self.inflate_m / self.grid.res)
+        rad = disc.shape[0] // 2
+        nr, nc = np.nonzero(newly)
+        pts = np.asarray(ahead, dtype=np.int64)
+        # only the path cells whose clearance box holds a newly occupied cell
+        near = ((pts[:, 0] >= nr.min() - rad) & (pts[:, 0] <= nr.max() + rad)
+                & (pts[:, 1] >= nc.min() - rad) & (pts[:, 1] <= nc.max() + rad))
+        pts = pts[near]
+        if len(pts) == 0:
+            return False
+        dr = nr[None, :] - pts[:, 0:1]
+        dc = nc[None, :] - pts[:, 1:2]
+        box = (np.abs(dr) <= rad) & (np.abs(dc) <= rad)
+        return bool(disc[dr[box] + rad, dc[box] + rad].any())
+
+    def _nearest_index(self):
+        """Index of the path cell nearest the robot, and its distance in cells."""
+        r, c = self.grid.world_to_cell(self.pose[0], self.pose[1])
+        pts = np.asarray(self.path_cells)
+        d = np.hypot(pts[:, 0] - r, pts[:, 1] - c)
+        k = int(np.argmin(d))
+        return k, float(d[k])
 
     def _remaining_cells(self):
         if not self.path_cells or self.pose is None:
             return self.path_cells
-        r, c = self.grid.world_to_cell(self.pose[0], self.pose[1])
-        pts = np.asarray(self.path_cells)
-        k = int(np.argmin(np.hypot(pts[:, 0] - r, pts[:, 1] - c)))
-        return self.path_cells[k:]
+        return self.path_cells[self._nearest_index()[0]:]
+
+    def _off_path(self) -> bool:
+        if not self.path_cells or self.pose is None:
+            return False
+        return self._nearest_index()[1] * self.grid.res > self.replan_offpath_m
+
+    def _map_changed(self) -> bool:
+        """Whether the inflated map differs from the one the last plan saw."""
+        occ = self.grid.occupied()
+        if self._plan_occ is not None and np.array_equal(occ, self._plan_occ):
+            return False
+        if np.array_equal(self.grid.blocked(self.inflate_m), self._plan_blocked):
+            self._plan_occ = occ           # same inflation: no need to dilate this one again
+            return False
+        return True
 
     def _nearest_free(self, blocked, cell, max_m):
         r, c = cell
@@ -197,6 +253,9 @@ class BaseStation:
             ref = a.length * self.grid.res if a.ok else math.nan
         self.last_result = res
         self.last_plan_t = t
+        self._plan_goal = tuple(self.goal)
+        self._plan_blocked = blocked
+        self._plan_occ = self.grid.occupied()
         self.events.append(PlanEvent(t, reason, res.status,
                                      res.length * self.grid.res if res.ok else math.inf, ref,
                                      plan_s, res.raw_length * self.grid.res if res.ok

@@ -69,13 +69,27 @@ def _pair(text, name):
     return vals
 
 
-def make_station(goal, extent, camera=None):
+def make_station(goal, extent, camera=None, **replan):
     """A base station with the grid's defaults and ``camera`` (a ``golden.camera.Camera``;
-    None: ``golden.camera.FIELD``, the module's 720 x 240 field)."""
+    None: ``golden.camera.FIELD``, the module's 720 x 240 field). ``replan`` sets the replan
+    policy's fields (``replan_period_s``, ``replan_offpath_m``, ``replan_min_gap_s``)."""
     from golden.camera import FIELD
     from station.base import BaseStation
     from station.grid import OccupancyGrid
-    return BaseStation(OccupancyGrid(*extent), FIELD if camera is None else camera, goal)
+    return BaseStation(OccupancyGrid(*extent), FIELD if camera is None else camera, goal,
+                       **replan)
+
+
+def replan_options(args) -> dict:
+    """The replan policy from ``--replan-period``, ``--replan-offpath`` and
+    ``--replan-min-gap`` (ValueError on a value that is not a finite number >= 0)."""
+    vals = {"replan_period_s": ("--replan-period", args.replan_period),
+            "replan_offpath_m": ("--replan-offpath", args.replan_offpath),
+            "replan_min_gap_s": ("--replan-min-gap", args.replan_min_gap)}
+    for name, v in vals.values():
+        if not (math.isfinite(v) and v >= 0):
+            raise ValueError(f"{name} must be a number >= 0, not {v}")
+    return {k: float(v) for k, (_, v) in vals.items()}
 
 
 def camera_option(values):
@@ -122,7 +136,8 @@ def _finish_report(link):
 def _listen(args) -> int:
     import serial
     goal, extent, camera = _common(args)
-    station = make_station(goal, extent, camera)
+    replan = replan_options(args)
+    station = make_station(goal, extent, camera, **replan)
     view = _start_view(args, station, f"listen {args.port} at {args.baud} baud")
     try:
         try:
@@ -211,12 +226,13 @@ def _read_recording(path):
 
 def _replay(args) -> int:
     goal, extent, camera = _common(args)
+    replan = replan_options(args)
     if not args.speed >= 0:
         raise ValueError(f"--speed must be >= 0 (0: as fast as possible), not {args.speed}")
     if args.hold is not None and args.hold < 0:
         raise ValueError(f"--hold must be >= 0 seconds, not {args.hold}")
     data, pkts = _read_recording(args.file)
-    station = make_station(goal, extent, camera)
+    station = make_station(goal, extent, camera, **replan)
     view = _start_view(args, station, f"replay {Path(args.file).name} at speed "
                                       f"{args.speed or 'max'}")
     try:
@@ -271,6 +287,14 @@ def _station_options(p):
                         "golden/camera.py); default: the module's 720x240 NTSC field. The "
                         "older form W H (the reference rig at that size) still works but is "
                         "deprecated")
+    p.add_argument("--replan-period", type=float, default=3.0, metavar="S",
+                   help="replan at most every S seconds of the packets' clock when the "
+                        "inflated map changed since the last plan (default 3)")
+    p.add_argument("--replan-offpath", type=float, default=0.3, metavar="M",
+                   help="replan when the robot is more than M metres from its path "
+                        "(default 0.3)")
+    p.add_argument("--replan-min-gap", type=float, default=1.0, metavar="S",
+                   help="at least S seconds between off-path replans (default 1)")
     p.add_argument("--mcap", metavar="FILE",
                    help="also log the run as MCAP with Foxglove's schemas (map, pose, path, "
                         "obstacle points, raw packets with link status)")
