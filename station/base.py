@@ -90,9 +90,9 @@ class BaseStation:
     planner: str = "sacodm"                    # or "astar"
     saco: SacoParams = SacoParams()
     inflate_m: float = 0.25                    # robot radius 0.15 m + 10 cm (range error)
-    replan_period_s: float = 3.0               # at most this often for a changed map
-    replan_offpath_m: float = 0.3              # farther from the path than this: replan
-    replan_min_gap_s: float = 1.0              # between "offpath" replans
+    replan_period_s: float = 5.0               # at most this often for a changed map
+    replan_offpath_m: float = 0.5              # farther from the path than this: replan
+    replan_min_gap_s: float = 5.0              # since the last plan, for "offpath"
     goal_tolerance_m: float = 0.3
     band_gap_fill: int = 3
     check_reference: bool = False              # also run A* on every request (for reports)

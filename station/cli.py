@@ -287,14 +287,15 @@ def _station_options(p):
                         "golden/camera.py); default: the module's 720x240 NTSC field. The "
                         "older form W H (the reference rig at that size) still works but is "
                         "deprecated")
-    p.add_argument("--replan-period", type=float, default=3.0, metavar="S",
+    p.add_argument("--replan-period", type=float, default=5.0, metavar="S",
                    help="replan at most every S seconds of the packets' clock when the "
-                        "inflated map changed since the last plan (default 3)")
-    p.add_argument("--replan-offpath", type=float, default=0.3, metavar="M",
+                        "inflated map changed since the last plan (default 5)")
+    p.add_argument("--replan-offpath", type=float, default=0.5, metavar="M",
                    help="replan when the robot is more than M metres from its path "
-                        "(default 0.3)")
-    p.add_argument("--replan-min-gap", type=float, default=1.0, metavar="S",
-                   help="at least S seconds between off-path replans (default 1)")
+                        "(default 0.5)")
+    p.add_argument("--replan-min-gap", type=float, default=5.0, metavar="S",
+                   help="an off-path replan comes at least S seconds after the last plan "
+                        "(default 5)")
     p.add_argument("--mcap", metavar="FILE",
                    help="also log the run as MCAP with Foxglove's schemas (map, pose, path, "
                         "obstacle points, raw packets with link status)")
