@@ -16,8 +16,8 @@ Every control period (0.1 s, the firmware's packet period):
 
 Simplifications, stated: odometry is perfect (the pose sent is the true pose, rounded to the
 wire format); the path reaches the robot instantly and reliably (the downlink is not
-modelled); planning takes no simulated time (SACOdm plans on these maps in less host time
-than the seed's 3 s replan period).
+modelled); planning takes no simulated time (SACOdm plans on these maps in far less host
+time than the station's shortest gap between replans, docs/station.md).
 """
 
 from __future__ import annotations
