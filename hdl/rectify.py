@@ -124,7 +124,7 @@ class Rectify(FramedUnit):
         m.submodules.columns = cols = NodeColumns(
             node_rows=self.node_rows, node_stride=self.node_stride, map_depth=self.map_depth,
             max_height=H, init=init)
-        m.submodules.buffer = buf = LineBuffer(max_width=self._max_width, max_height=H,
+        m.submodules.lines = buf = LineBuffer(max_width=self._max_width, max_height=H,
                                                slots=N, span=span)
         m.submodules.address = adr = SourceAddress(max_width=self._max_width, slots=N,
                                                    span=span, horizontal=self.horizontal)

@@ -363,7 +363,7 @@ def _floor_unit(job):
             m.submodules.flag = f = self.flag
             wiring.connect(m, wiring.flipped(self.i), f.i)
             wiring.connect(m, f.o, wiring.flipped(self.o))
-            frame = Signal(range(len(lines) + 1))
+            frame = Signal(range(max(len(lines) + 1, 4)))      # a vector, also for one line
             with m.If(self.i.valid & self.i.ready & self.i.payload.eof & (frame < len(lines) - 1)):
                 m.d.sync += frame.eq(frame + 1)
             slopes = Array(Const(l.slope, 10) for l in lines)

@@ -24,7 +24,7 @@ void floor_default_params(floor_params_t *p)
 }
 
 /* floor(v / 2^s) for any sign */
-static int64_t asr(int64_t v, unsigned s)
+static int64_t asr(int64_t v, uint32_t s)
 {
     return v >= 0 ? v >> s : -((-v - 1) >> s) - 1;
 }
@@ -42,7 +42,7 @@ static int64_t bin_of(uint16_t y, uint16_t d16, uint16_t slope)
 
 /* Sorted keys k * 2^16 + row band of one slope's records into work[0..n). */
 static void keys(const uint16_t *y, const uint16_t *d16, uint32_t n, uint16_t slope,
-                 unsigned row_shift, int64_t *work)
+                 uint32_t row_shift, int64_t *work)
 {
     for (uint32_t i = 0; i < n; i++)
         work[i] = bin_of(y[i], d16[i], slope) * 65536 + (y[i] >> row_shift);
@@ -50,7 +50,7 @@ static void keys(const uint16_t *y, const uint16_t *d16, uint32_t n, uint16_t sl
 }
 
 static int64_t key_bin(int64_t key) { return asr(key, 16); }
-static unsigned key_band(int64_t key) { return (unsigned)(key - key_bin(key) * 65536); }
+static uint32_t key_band(int64_t key) { return (uint32_t)(key - key_bin(key) * 65536); }
 
 /* score of the line of bin kl on one slope's sorted keys */
 static int64_t score_at(const int64_t *k, uint32_t n, int64_t kl, const floor_params_t *p,
@@ -62,7 +62,7 @@ static int64_t score_at(const int64_t *k, uint32_t n, int64_t kl, const floor_pa
     while (lo < n && key_bin(k[lo]) < kl - p->band)
         lo++;
     for (hi = lo; hi < n && key_bin(k[hi]) <= kl + p->band; hi++) {
-        unsigned b = key_band(k[hi]);
+        uint32_t b = key_band(k[hi]);
         if (!seen[b]) {
             seen[b] = 1;
             support++;
@@ -188,8 +188,8 @@ int floor_free_space(const uint16_t *x, const uint16_t *y, const uint8_t *floor,
         if (!floor[i] && band < FLOOR_FREE_BANDS)
             rows[y[i]] |= (uint16_t)(1u << band);
     }
-    for (unsigned b = 0; b < FLOOR_FREE_BANDS; b++) {
-        unsigned run = 0;
+    for (uint32_t b = 0; b < FLOOR_FREE_BANDS; b++) {
+        uint32_t run = 0;
         out[b] = FLOOR_FREE_NONE;
         for (uint16_t r = 0; r < height; r++) {
             run = (rows[r] >> b) & 1u ? (run < run_r ? run + 1 : run) : 0;
