@@ -104,14 +104,27 @@ def test_sources_describe_behaviour_not_history():
     assert bad == []
 
 
+#: Elaborates still over the limit, each with its reason; the test fails when one of them is no
+#: longer long, so that the entry goes. ``Matcher``: its split into stage components converted
+#: to VHDL (iverilog -tvhdl) that GHDL simulates differently from the Verilog, so the matcher
+#: keeps its one-piece elaborate until a split passes the four-simulator check.
+LONG_ELABORATES = {"matcher.py:Matcher"}
+
+
 def test_every_elaborate_reads_on_one_screenful():
     """Every ``elaborate`` in hdl/ is at most 150 lines: a longer one is split into named
     components, each with its own docstring and tests."""
-    long = []
+    long, seen = [], set()
     for path in sorted((ROOT / "hdl").glob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.FunctionDef) and node.name == "elaborate":
-                lines = node.end_lineno - node.lineno + 1
-                if lines > 150:
-                    long.append(f"{path.name}:{node.lineno}: {lines} lines")
+        tree = ast.parse(path.read_text())
+        for cls in [n for n in ast.walk(tree) if isinstance(n, ast.ClassDef)]:
+            for node in cls.body:
+                if isinstance(node, ast.FunctionDef) and node.name == "elaborate":
+                    lines = node.end_lineno - node.lineno + 1
+                    name = f"{path.name}:{cls.name}"
+                    if lines > 150 and name in LONG_ELABORATES:
+                        seen.add(name)
+                    elif lines > 150:
+                        long.append(f"{name} (line {node.lineno}): {lines} lines")
     assert long == []
+    assert seen == LONG_ELABORATES, "no longer long: drop from LONG_ELABORATES"
