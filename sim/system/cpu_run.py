@@ -35,10 +35,6 @@ from field 1, whose bytes are lost, then its stream goes on), ``iic-nack`` (the 
 from __future__ import annotations
 
 import ctypes as C
-import fcntl
-import os
-import shutil
-import subprocess
 import time
 
 from golden.pipeline import default_params, pipeline_frames
@@ -61,64 +57,28 @@ _libs = {}
 def build_cpu_system(soc_params):
     """``build/system/cpu-<hash>/libcpusystem.so`` for SystemSoC(cpu="picorv32", monitor=True,
     **soc_params) with an empty RAM (the harness loads the image: the model does not depend on
-    the firmware); returns (path, build seconds)."""
+    the firmware); returns (path, build seconds), built once per process."""
     from hdl.cpu import verilog_text
     from hdl.soc import SystemSoC
-    from sim.backends.verilator import VERILATOR_FLAGS, verilator_env
+    from sim.backends.verilator import VERILATOR_FLAGS
     from sim.designs import silenced
-    from sim.flows.verilog import SIMULATION_PASSES, text_hash, verilog_source
-    from sim.paths import ROOT
-    from sim.system.run import HARNESS
-    harness_path = HARNESS.parent / "cpu_system.cpp"
-    soc = silenced(SystemSoC(cpu="picorv32", monitor=True, **soc_params))
-    verilog = verilog_source("soc", soc, soc_params, passes=SIMULATION_PASSES)
-    core = [verilog_text()]
-    harness = harness_path.read_text()
-    vlt = ('`verilator_config\npublic_flat_rd -module "picorv32" -var "count_instr"\n'
-           'public_flat_rw -module "soc.cpu" -var "ram"\n')
-    flags = [*VERILATOR_FLAGS, "-Wno-TIMESCALEMOD"]
-    key = text_hash(verilog, *core, harness, vlt, " ".join(flags))
+    from sim.flows.verilog import SIMULATION_PASSES, verilog_source
+    from sim.system.run import HARNESS, verilated_library
+    key = repr(sorted(soc_params.items()))
     if key in _libs:
         return _libs[key], 0.0
-    base = ROOT / "build" / "system"
-    out = base / f"cpu-{key}"
-    lib = out / "libcpusystem.so"
-    base.mkdir(parents=True, exist_ok=True)
-    with open(base / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if lib.exists():
-            _libs[key] = lib
-            return lib, 0.0
-        t0 = time.monotonic()
-        tmp = base / f"cpu-{key}.tmp{os.getpid()}"
-        shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir()
-        (tmp / "soc.v").write_text(verilog)
-        (tmp / "cpu.vlt").write_text(vlt)
-        (tmp / "cpu_system.cpp").write_text(harness)
-        sources = []
-        for i, text in enumerate(core):
-            (tmp / f"core{i}.v").write_text(text)
-            sources.append(f"core{i}.v")
-        cmds = [
-            ["verilator", "--cc", "--exe", *flags, "--top-module", "soc", "-Mdir", "obj",
-             "-o", "../libcpusystem.so", "-CFLAGS", f"-std=c++17 -fPIC -DINSTRET={_INSTRET} -DRAM={_RAM}",
-             "-LDFLAGS", "-shared", "cpu.vlt", "soc.v", *sources, "cpu_system.cpp"],
-            ["make", "-C", "obj", "-f", "Vsoc.mk", "-j", "2", "CFG_CXXFLAGS_PCH_I=-include",
-             "OPT_FAST=-O2", "OPT_SLOW=-O0", "OPT_GLOBAL=-O1"],
-        ]
-        for cmd in cmds:
-            r = subprocess.run(cmd, cwd=tmp, env=verilator_env(), capture_output=True, text=True)
-            (tmp / "build.log").open("a").write("$ " + " ".join(cmd) + "\n" + r.stdout + r.stderr)
-            if r.returncode != 0:
-                tail = "\n".join((r.stdout + r.stderr).splitlines()[-20:])
-                raise RuntimeError(f"Verilator build of the SoC with its CPU failed "
-                                   f"({tmp / 'build.log'}):\n{tail}")
-        shutil.rmtree(tmp / "obj", ignore_errors=True)
-        shutil.rmtree(out, ignore_errors=True)
-        os.replace(tmp, out)
-        _libs[key] = lib
-        return lib, time.monotonic() - t0
+    soc = silenced(SystemSoC(cpu="picorv32", monitor=True, **soc_params))
+    vlt = ('`verilator_config\npublic_flat_rd -module "picorv32" -var "count_instr"\n'
+           'public_flat_rw -module "soc.cpu" -var "ram"\n')
+    files = {"cpu.vlt": vlt,
+             "soc.v": verilog_source("soc", soc, soc_params, passes=SIMULATION_PASSES),
+             "core0.v": verilog_text(),
+             "cpu_system.cpp": (HARNESS.parent / "cpu_system.cpp").read_text()}
+    lib, seconds = verilated_library(
+        "cpu-", "libcpusystem.so", files, [*VERILATOR_FLAGS, "-Wno-TIMESCALEMOD"],
+        f"-std=c++17 -fPIC -DINSTRET={_INSTRET} -DRAM={_RAM}", "the SoC with its CPU")
+    _libs[key] = lib
+    return lib, seconds
 
 
 def _load(path):

@@ -179,31 +179,44 @@ def build(params):
 def _build(params):
     from hdl.soc import SystemSoC
     from sim.designs import silenced
-    from sim.flows.verilog import SIMULATION_PASSES, text_hash, verilog_source
-    from sim.backends.verilator import VERILATOR_FLAGS, verilator_env
+    from sim.flows.verilog import SIMULATION_PASSES, verilog_source
+    from sim.backends.verilator import VERILATOR_FLAGS
     soc = silenced(SystemSoC(**params))
     verilog = verilog_source("soc", soc, params, passes=SIMULATION_PASSES)
-    harness = HARNESS.read_text()
-    key = text_hash(verilog, harness, " ".join(VERILATOR_FLAGS))
+    return verilated_library("", "libsystem.so", {"soc.v": verilog,
+                                                  "system.cpp": HARNESS.read_text()},
+                             VERILATOR_FLAGS, "-std=c++17 -fPIC", "the SoC")
+
+
+def verilated_library(prefix, name, files, flags, cflags, what):
+    """``build/system/<prefix><hash>/<name>``: a shared library Verilated from ``files``
+    (``{file name: text}``, Verilog, Verilator configuration and the C++ harness, passed to
+    Verilator in that order, top module ``soc``) with ``flags`` and C++ ``cflags``; the hash
+    covers all of them, so a changed design or harness builds anew and an unchanged one is
+    found built. Builds run in a temporary folder under a lock (tests build in parallel) and
+    replace the result at once; a failed build raises with the log's tail (``what`` names the
+    model). Returns (path, build seconds; 0 when found built)."""
+    from sim.flows.verilog import text_hash
+    from sim.backends.verilator import verilator_env
+    key = text_hash(*files.values(), " ".join(flags), cflags)
     base = ROOT / "build" / "system"
-    out = base / key
-    lib = out / "libsystem.so"
+    out = base / f"{prefix}{key}"
+    lib = out / name
     base.mkdir(parents=True, exist_ok=True)
     with open(base / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if lib.exists():
             return lib, 0.0
         t0 = time.monotonic()
-        tmp = base / f"{key}.tmp{os.getpid()}"
+        tmp = base / f"{prefix}{key}.tmp{os.getpid()}"
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
-        (tmp / "soc.v").write_text(verilog)
-        (tmp / "system.cpp").write_text(harness)
+        for file, text in files.items():
+            (tmp / file).write_text(text)
         env = verilator_env()
         cmds = [
-            ["verilator", "--cc", "--exe", *VERILATOR_FLAGS, "--top-module", "soc", "-Mdir",
-             "obj", "-o", "../libsystem.so", "-CFLAGS", "-std=c++17 -fPIC", "-LDFLAGS",
-             "-shared", "soc.v", "system.cpp"],
+            ["verilator", "--cc", "--exe", *flags, "--top-module", "soc", "-Mdir", "obj",
+             "-o", f"../{name}", "-CFLAGS", cflags, "-LDFLAGS", "-shared", *files],
             ["make", "-C", "obj", "-f", "Vsoc.mk", "-j", "2", "CFG_CXXFLAGS_PCH_I=-include",
              "OPT_FAST=-O2", "OPT_SLOW=-O0", "OPT_GLOBAL=-O1"],
         ]
@@ -212,7 +225,7 @@ def _build(params):
             (tmp / "build.log").open("a").write("$ " + " ".join(cmd) + "\n" + r.stdout + r.stderr)
             if r.returncode != 0:
                 tail = "\n".join((r.stdout + r.stderr).splitlines()[-20:])
-                raise RuntimeError(f"Verilator build of the SoC failed ({tmp / 'build.log'}):\n{tail}")
+                raise RuntimeError(f"Verilator build of {what} failed ({tmp / 'build.log'}):\n{tail}")
         shutil.rmtree(tmp / "obj", ignore_errors=True)
         shutil.rmtree(out, ignore_errors=True)
         os.replace(tmp, out)
