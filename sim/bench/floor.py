@@ -30,14 +30,13 @@ an existing scene without floor matches passes the second); on the motorcycle pa
 obstacle points >= 95 % and at most 20 % of its floor matches left unflagged.
 """
 import argparse
-import json
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
 from golden.floor import FloorLine, FloorModel, FloorParams
+from sim.bench.common import write_table
 
 __all__ = ["MODES", "DEFAULT_MODE", "LIMITS", "scene_frames", "score", "run", "markdown",
            "check", "main"]
@@ -254,11 +253,7 @@ def main(argv=None):
             print(f"error: unknown scene {s!r}; known: {', '.join(known)}", file=sys.stderr)
             return 2
     rep = run(args.scene)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "floor.json").write_text(json.dumps(rep, indent=1) + "\n")
-    (out / "floor.md").write_text(markdown(rep))
-    print(markdown(rep))
+    write_table(args.out, "floor", rep, markdown(rep))
     if rep["failed"]:
         print("error: floor requirements not met: " + "; ".join(rep["failed"]), file=sys.stderr)
         return 1

@@ -28,7 +28,6 @@ by the robust truth the appearance model finds only part of that floor, and the 
 decision (golden/floor.py, sim/bench/floor.py) carries the floor requirements there.
 """
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -37,6 +36,7 @@ import numpy as np
 from golden.color import rgb_to_yhs
 from golden.ground import GroundMode, GroundModel, GroundParams, PeakGroundModel
 from golden.sobel import SobelParams, sobel_edges
+from sim.bench.common import write_table
 
 __all__ = ["FLOOR_LIMITS", "MOTORCYCLE_LIMITS", "motorcycle_truth", "floor_accuracy", "check_row",
            "motorcycle_accuracy", "check", "run", "markdown", "bench_section", "main"]
@@ -199,11 +199,7 @@ def main(argv=None):
     ap.add_argument("--out", default="build/bench", help="output folder (default %(default)s)")
     args = ap.parse_args(argv)
     rep = run()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "ground.json").write_text(json.dumps(rep, indent=1) + "\n")
-    (out / "ground.md").write_text(markdown(rep))
-    print(markdown(rep))
+    write_table(args.out, "ground", rep, markdown(rep))
     if rep["failed"]:
         print("error: ground-mask requirements not met: " + "; ".join(rep["failed"]),
               file=sys.stderr)
@@ -221,9 +217,7 @@ def bench_section(bench, out_dir):
     requirement fails the bench's acceptance check (:func:`sim.bench.report.acceptance`)."""
     rep = run()
     out = Path(out_dir)
-    (out / "ground.json").write_text(json.dumps(rep, indent=1) + "\n")
-    (out / "ground.md").write_text(markdown(rep))
-    print(markdown(rep))
+    write_table(out, "ground", rep, markdown(rep))
     bench.source("ground_masks", "sim.bench.ground.run(): colour floors (sim.scenes.rendered.floor_scene) "
                                  f"and the motorcycle pair; table {out / 'ground.md'}")
     return rep
