@@ -48,6 +48,8 @@ after (four when a record writes meanwhile; while the table fills, after the fil
 - STATUS (ro): frames bits 15..0 (frames published, wraps), built bit 16, bad_cfg bit 17,
   lost bit 18 (the published frame lost records).
 - DROPS (ro): records dropped bits 15..0 (saturating), aborted frames bits 31..16 (wraps).
+- RECORDS (rw): fifo bit 0 (reset 0), the ``fifo_enable`` output: for the SoC, which sends the
+  records to its result FIFO as well only while it is 1 (``hdl/soc.py``).
 - TOP (ro), from 0x100: ``ceil(slots / 4)`` words per band, band 0 first
   (:func:`golden.bands.summary_words`) of the published frame.
 
@@ -125,6 +127,8 @@ class BandSummary(wiring.Component):
         (the SoC ORs the answers).
     frames, dropped, aborted : Out(16)
         STATUS.frames, DROPS.records and DROPS.aborted.
+    fifo_enable : Out(1)
+        RECORDS.fifo.
 
     Elaboration parameters: ``max_width`` (widest CFG.width), ``max_bands`` (most CFG.n_bands),
     ``slots`` (disparities kept per band), ``base`` (bus address).
@@ -138,6 +142,7 @@ class BandSummary(wiring.Component):
             "i": In(stream.Signature(ResultLayout)),
             "bus": In(IOBusSignature()),
             "frames": Out(16), "dropped": Out(16), "aborted": Out(16),
+            "fifo_enable": Out(1),
         })
 
     def elaborate(self, platform):
@@ -272,7 +277,8 @@ class BandSummary(wiring.Component):
                              lost_pub.eq(lost_acc)]
         with m.Elif(lost4):
             m.d.sync += lost_acc.eq(1)
-        m.d.comb += [self.frames.eq(frames), self.dropped.eq(dropped), self.aborted.eq(aborted)]
+        m.d.comb += [self.frames.eq(frames), self.dropped.eq(dropped), self.aborted.eq(aborted),
+                     self.fifo_enable.eq(regs.fifo_enable)]
 
         # ---- the registers; the CPU's TOP reads take port B when no record writes -----------
         m.d.comb += [regs.frames.eq(frames), regs.dropped.eq(dropped), regs.aborted.eq(aborted),

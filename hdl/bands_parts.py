@@ -180,6 +180,9 @@ class BandRegisters(wiring.Component):
         A TOP read waiting for port B.
     top_issue, band_valid : In(1); top_word : In(8 * slots)
         See above.
+    fifo_enable : Out(1)
+        RECORDS.fifo (reset 0): the SoC also sends the records to its result FIFO. Writing
+        RECORDS does not touch the band table.
     """
 
     def __init__(self, *, base, max_width, max_bands, slots, band_bits):
@@ -196,6 +199,7 @@ class BandRegisters(wiring.Component):
             "built": In(1), "bad_cfg": In(1), "lost": In(1),
             "top_pending": Out(1), "top_band": Out(band_bits), "top_half": Out(max(1, self._pb)),
             "top_issue": In(1), "band_valid": In(1), "top_word": In(8 * slots),
+            "fifo_enable": Out(1),
         })
 
     def elaborate(self, platform):
@@ -214,6 +218,8 @@ class BandRegisters(wiring.Component):
                 m.d.comb += value.eq(Cat(self.frames, self.built, self.bad_cfg, self.lost))
             with m.Case(regs["DROPS"]):
                 m.d.comb += value.eq(Cat(self.dropped, self.aborted))
+            with m.Case(regs["RECORDS"]):
+                m.d.comb += value.eq(self.fifo_enable)
         ready, read_data = Signal(), Signal(32)
         m.d.comb += [bus.ready.eq(ready), bus.read_data.eq(read_data)]
         m.d.sync += [ready.eq(0), read_data.eq(0)]
@@ -230,6 +236,8 @@ class BandRegisters(wiring.Component):
                 m.d.sync += [self.width.eq(data_in[:CFG_WIDTH_BITS]),
                              self.n_bands.eq(data_in[CFG_BANDS_LSB:
                                                      CFG_BANDS_LSB + CFG_BANDS_BITS])]
+            with m.If(window.write & (window.offset == regs["RECORDS"])):
+                m.d.sync += self.fifo_enable.eq(bus.write_data[0])
         answer, answer_valid, answer_half = Signal(), Signal(), Signal(max(1, pb))
         m.d.sync += answer.eq(self.top_issue)
         with m.If(self.top_issue):

@@ -438,6 +438,8 @@ BANDS_WINDOW = 0x400          #: bytes decoded by the band summary
 #: STATUS (ro): frames bits 15..0 (published frames, wraps), built bit 16 (the band table
 #: matches CFG and CFG is valid), bad_cfg bit 17, lost bit 18 (the published frame lost records).
 #: DROPS (ro): records dropped bits 15..0 (saturating), aborted frames bits 31..16 (wraps).
+#: RECORDS (rw): fifo bit 0 (reset 0): in the SoC with its CPU inside (hdl/soc.py), 1 sends the
+#: records to the result FIFO too (RESULT); 0 spares the FIFO (it neither fills nor overflows).
 #: TOP (ro): from 0x100, ceil(slots / 4) words per band, band 0 first: the published frame's
 #: largest disparities of the band, the largest in bits 7..0, then 15..8, 23..16, 31..24.
-BANDS_REGS = {"CFG": 0x000, "STATUS": 0x004, "DROPS": 0x008, "TOP": 0x100}
+BANDS_REGS = {"CFG": 0x000, "STATUS": 0x004, "DROPS": 0x008, "RECORDS": 0x00C, "TOP": 0x100}

@@ -126,6 +126,10 @@ def check_result_limits(component, *, max_width, max_height, max_disparity=MAX_D
                              f"(at most {limit - 1 if name == 'max_disparity' else limit})")
 
 
+#: Result FIFOs of at most this many records keep their memory in distributed RAM.
+DISTRIBUTED_RESULTS = 16
+
+
 class ResultFIFO(wiring.Component):
     """The result FIFO: records in two words each, in one block RAM.
 
@@ -138,7 +142,8 @@ class ResultFIFO(wiring.Component):
     may issue in consecutive cycles. With two words the FIFO reads the popped record's second
     word in the cycle of the RESULT_EXT read and the next record's first word in the cycle
     after, so a firmware reading as fast as the bus goes never finds the next record not
-    ready; three words a record would take three cycles for every two of the bus.
+    ready; three words a record would take three cycles for every two of the bus. A FIFO of
+    at most :data:`DISTRIBUTED_RESULTS` records keeps its memory in distributed RAM.
 
     Ports
     -----
@@ -179,7 +184,9 @@ class ResultFIFO(wiring.Component):
         m = Module()
         depth = self._depth
         width = max(_HEAD.size, _EXT.size)
-        m.submodules.mem = mem = Memory(shape=width, depth=2 * depth, init=[])
+        # a FIFO of a few records (the SoC with its CPU inside) in distributed RAM, not a RAMB16
+        attrs = {"ram_style": "distributed"} if depth <= DISTRIBUTED_RESULTS else {}
+        m.submodules.mem = mem = Memory(shape=width, depth=2 * depth, init=[], attrs=attrs)
         wp = mem.write_port()
         rp = mem.read_port()
 

@@ -21,6 +21,7 @@ from amaranth.lib.wiring import In, Out
 from golden.matcher import SUBPIXEL_BITS
 
 from . import regmap
+from .bands import BandSummary
 from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
@@ -30,16 +31,21 @@ from .freespace import free_space_tables
 from .iic import IICMaster
 from .pairing import FramePairing
 from .pipeline import StereoPipeline
-from .regs import IOBusSignature, RegisterBlock, check_result_limits, status_port_name
+from .regs import (IOBusSignature, RegisterBlock, ResultLayout, check_result_limits,
+                   status_port_name)
 from .types import RGBPixel
 from .uart import UART
 
-__all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR", "CPUS", "bus_monitor_signature"]
+__all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR", "CPUS", "CPU_FIFO_DEPTH",
+           "bus_monitor_signature"]
 
 #: Bus address of the radio UART (hdl/uart.py).
 UART_BASEADDR = 0xC002_0000
 #: The CPU choices of :class:`SystemSoC`: None (the bus is a port) or a core inside.
 CPUS = (None, "picorv32")
+#: The result FIFO's default depth (records) with the CPU inside: distributed RAM
+#: (:data:`hdl.regs.DISTRIBUTED_RESULTS`); its firmware reads the band summaries instead.
+CPU_FIFO_DEPTH = 16
 
 
 def bus_monitor_signature():
@@ -148,15 +154,26 @@ class SystemSoC(wiring.Component):
     bus, and the ``bus`` port is gone; ports ``cpu_idle`` (the CPU sleeps in a timer wait) and
     ``cpu_trap`` (it stopped on an illegal instruction) come out, and with ``monitor`` a copy of
     the I/O bus, every member an output (``monitor``: for a simulation or a logic analyser
-    that watches the CPU's transfers). With ``cpu = None`` (the default) the bus is a port, for
-    an external CPU: a MicroBlaze MCS in the vendor flow, or the firmware's host build in
-    simulation.
+    that watches the CPU's transfers), and the records (``record_valid``, ``record_word``: a
+    record or marker taken this cycle, as RESULT shows it). With ``cpu = None`` (the default)
+    the bus is a port, for an external CPU: a MicroBlaze MCS in the vendor flow, or the
+    firmware's host build in simulation.
+
+    Records with the CPU inside: a slow core cannot read every record (a busy row of the
+    matcher brings one every few cycles), so the records and markers go to the per-band
+    summary unit (:class:`hdl.bands.BandSummary`, at ``hdl.regmap.BANDS_BASEADDR``), one every
+    two cycles at most, and the firmware reads its summary once a frame; they go to the result
+    FIFO as well only while the unit's RECORDS.fifo is 1 (reset 0, so an unread FIFO never
+    overflows), and that FIFO defaults to :data:`CPU_FIFO_DEPTH` records in distributed RAM:
+    the summary's block RAM takes the FIFO's. Without the CPU the records go to the result
+    FIFO only.
 
     Elaboration parameters: ``max_width``, ``max_height`` (pipeline; default one NTSC field of
     the ADV7180, 720 x 240: every counter and comparator of the pipeline is sized by them),
     ``lines`` (active lines per field), ``camera_fifo_depth`` (each camera port's clock-domain
     FIFO, distributed RAM), ``buffer_depth`` (pixels of each camera's queue in the shared block
-    RAM of :class:`hdl.camera_buffer.PairBuffer`, two a word), ``skew`` (pairing), ``fifo_depth`` (results),
+    RAM of :class:`hdl.camera_buffer.PairBuffer`, two a word), ``skew`` (pairing), ``fifo_depth``
+    (results; None: 256, or :data:`CPU_FIFO_DEPTH` with the CPU inside),
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
     :class:`hdl.pipeline.StereoPipeline`).
 
@@ -174,7 +191,7 @@ class SystemSoC(wiring.Component):
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
-                 camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=256,
+                 camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
                  monitor=False):
         check_result_limits(self, max_width=max_width, max_height=max_height)
@@ -193,6 +210,8 @@ class SystemSoC(wiring.Component):
                              f"{buffer_depth!r}")
         self._buffer_depth = buffer_depth
         self._skew = skew
+        if fifo_depth is None:
+            fifo_depth = 256 if cpu is None else CPU_FIFO_DEPTH
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
         self._uart_divisor = uart_divisor
@@ -200,6 +219,8 @@ class SystemSoC(wiring.Component):
             "cpu_idle": Out(1), "cpu_trap": Out(1)}
         if self._monitor:
             members["monitor"] = Out(bus_monitor_signature())
+            members["record_valid"] = Out(1)
+            members["record_word"] = Out(32)
         super().__init__({
             **members,
             "cam0_clk": In(1), "cam1_clk": In(1),
@@ -224,13 +245,17 @@ class SystemSoC(wiring.Component):
         m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
         m.submodules.uart = uart = UART(divisor=self._uart_divisor, base=UART_BASEADDR)
         slaves = (regs, iic, uart)
+        if self._cpu is not None:
+            m.submodules.bands = bands = BandSummary(max_width=self._pipeline["max_width"],
+                                                     base=regmap.BANDS_BASEADDR)
+            slaves += (bands,)
         for slave in slaves:
             for name in ("addr_strobe", "address", "read_strobe", "write_strobe", "write_data",
                          "byte_enable"):
                 m.d.comb += getattr(slave.bus, name).eq(getattr(bus, name))
         m.d.comb += [
-            bus.read_data.eq(regs.bus.read_data | iic.bus.read_data | uart.bus.read_data),
-            bus.ready.eq(regs.bus.ready | iic.bus.ready | uart.bus.ready),
+            bus.read_data.eq(_or(s.bus.read_data for s in slaves)),
+            bus.ready.eq(_or(s.bus.ready for s in slaves)),
         ]
         for pin in ("scl_o", "scl_oe", "sda_o", "sda_oe"):
             m.d.comb += getattr(self, pin).eq(getattr(iic, pin))
@@ -290,7 +315,17 @@ class SystemSoC(wiring.Component):
         m.d.comb += pairing.busy.eq(busy)
         _connect_parameters(m, regs, pipe)
 
-        _records_and_markers(m, pipe.o, regs.results, video_rst)
+        if self._cpu is None:
+            _records_and_markers(m, pipe.o, regs.results, video_rst)
+        else:
+            records = stream.Signature(ResultLayout).create()
+            _records_and_markers(m, pipe.o, records, video_rst)
+            _records_to_summary(m, records, regs.results, bands.i, bands.fifo_enable)
+            if self._monitor:
+                p = records.payload
+                m.d.comb += [self.record_valid.eq(records.valid & records.ready),
+                             self.record_word.eq(Cat(p.x, p.y, p.d, p.eof, p.abort,
+                                                     Const(0, 1), 1))]
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
                                   reset=video_rst)
         match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
@@ -342,6 +377,33 @@ def _records_and_markers(m, o, results, video_rst):
     for name in ("x", "y", "d"):
         m.d.comb += results.payload[name].eq(Mux(marker, 0, rec[name]))
     m.d.comb += _second_half(rec, results.payload)
+
+
+def _or(values):
+    """The OR of ``values``."""
+    values = list(values)
+    out = values[0]
+    for v in values[1:]:
+        out = out | v
+    return out
+
+
+def _records_to_summary(m, records, results, summary, fifo_enable):
+    """Records and markers (stream ``records``) into the band summary's input ``summary``
+    (always ready), and into the result FIFO's input ``results`` only while ``fifo_enable``:
+    one every two cycles at most (the rate both take), and no faster than the FIFO takes them
+    while it is enabled."""
+    took = Signal()                         # a record went last cycle
+    ready = Signal()
+    m.d.comb += [
+        ready.eq(~took & (results.ready | ~fifo_enable)),
+        records.ready.eq(ready),
+        results.valid.eq(records.valid & ~took & fifo_enable),
+        results.payload.eq(records.payload),
+        summary.valid.eq(records.valid & ready),
+        summary.payload.eq(records.payload),
+    ]
+    m.d.sync += took.eq(records.valid & ready)
 
 
 def _second_half(rec, payload):

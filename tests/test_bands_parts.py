@@ -145,6 +145,13 @@ def test_registers_answer_and_top_handshake():
         seen["status"] = await access(ctx, bus, BASE + REGS["STATUS"])
         seen["drops"] = await access(ctx, bus, BASE + REGS["DROPS"])
         seen["outside"] = await access(ctx, bus, BASE + regmap.BANDS_WINDOW)
+        seen["records0"] = (await access(ctx, bus, BASE + REGS["RECORDS"]))[0], \
+            ctx.get(dut.fifo_enable)
+        seen["records_write"] = await access(ctx, bus, BASE + REGS["RECORDS"], write=0xFF)
+        seen["records1"] = (await access(ctx, bus, BASE + REGS["RECORDS"]))[0], \
+            ctx.get(dut.fifo_enable), ctx.get(dut.cfg_write)
+        await access(ctx, bus, BASE + REGS["RECORDS"], write=0)
+        seen["records2"] = ctx.get(dut.fifo_enable), (ctx.get(dut.width), ctx.get(dut.n_bands))
         # TOP word 5 with 8 slots: band 2, second word; port B free after 3 cycles
         ctx.set(dut.top_word, 0x8877665544332211)
         ctx.set(dut.band_valid, 1)
@@ -160,6 +167,11 @@ def test_registers_answer_and_top_handshake():
     assert seen["status"][:2] == (0x1234 | 1 << 16 | 1 << 18, 1)
     assert seen["drops"][:2] == (7 | 3 << 16, 1)
     assert seen["outside"][0] is None
+    # RECORDS.fifo: reset 0, bit 0 of a write, read back; the band table's CFG untouched
+    assert seen["records0"] == (0, 0)
+    assert seen["records_write"][:2] == (0, 1)
+    assert seen["records1"] == (1, 1, 0)
+    assert seen["records2"] == (0, (100, 7))
     data, waited, pending = seen["top"]
     assert data == 0x88776655 and waited == 3 + 2 and pending == [1, 1, 1, 0]
     assert seen["top_band"] == (2, 1)

@@ -24,6 +24,8 @@
 #define BANDS_HW_CFG_OFFSET        0x000u       /**< rw: width bits 10..0, n_bands bits 22..16 */
 #define BANDS_HW_STATUS_OFFSET     0x004u       /**< ro: frames, built, bad_cfg, lost */
 #define BANDS_HW_DROPS_OFFSET      0x008u       /**< ro: records dropped, frames aborted */
+#define BANDS_HW_RECORDS_OFFSET    0x00Cu       /**< rw: bit 0, the records also go to the
+                                                     result FIFO (RESULT); reset 0 */
 #define BANDS_HW_TOP_OFFSET        0x100u       /**< ro: one word per band, band 0 first */
 #define BANDS_HW_CFG_N_BANDS_SHIFT 16u
 #define BANDS_HW_STATUS_FRAMES_MASK 0xFFFFu     /**< frames published (wraps) */

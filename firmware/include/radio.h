@@ -88,8 +88,12 @@ uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_
  */
 #define RADIO_MAX_WIDTH 1024u       /**< widest image: RESULT.x has 10 bits */
 /** Columns with a floor byte: an NTSC field is 720 wide, a WVGA sensor's 752; the matches of
- *  wider images' last columns take the slower path (their band's list decides). */
+ *  wider images' last columns take the slower path (their band's list decides). A build that
+ *  never calls radio_summary_add (the image that reads the SoC's summary unit, bands_hw.h)
+ *  defines it as 1 and spares the bytes. */
+#ifndef RADIO_FLOOR_COLUMNS
 #define RADIO_FLOOR_COLUMNS 768u
+#endif
 
 typedef struct {
     uint16_t width;

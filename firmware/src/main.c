@@ -8,12 +8,21 @@
  * reads the health registers (app_read_health: decoder lock, enable, camera and matcher
  * errors, drops, overflow) and sends the radio report, so the base station sees a module that
  * is not running and why (flags: locked bits and the enabled bit stay 0).
+ *
+ * Two ways to the summary, chosen at build time: the records drained from the result FIFO
+ * (app_collect), or, with FIRMWARE_BANDS_HW (the image for the SoC's own RISC-V core,
+ * `make -C firmware rv32`), the SoC's per-band summary unit (bands_hw.h), whose summary of
+ * each frame is merged once a frame: the core is too slow to read every record of a busy
+ * row, the unit sees them all.
  */
 #include "app.h"
 #include "hal.h"
 #include "stereo_regs.h"
 #include "pose.h"
 #include "xbee.h"
+#ifdef FIRMWARE_BANDS_HW
+#include "bands_hw.h"
+#endif
 
 #define REPORT_PERIOD_US 100000u
 /** The result FIFO is drained whenever it holds records; when a drain found fewer than
@@ -21,7 +30,13 @@
  *  records: far more than the pipeline's average rate fills in that sleep, so the records of
  *  a busy row wait in it while the CPU works through them. The period is measured with the
  *  timer, so a slow CPU keeps the 100 ms. */
+#ifdef FIRMWARE_BANDS_HW
+/** With the summary unit a step only looks for a published frame (its summary waits a whole
+ *  frame time, 16.7 ms, in the unit) and sends a byte of the report (one every 87 us). */
+#define COLLECT_SLEEP_US 100u
+#else
 #define COLLECT_SLEEP_US 25u
+#endif
 #define PERIOD_CYCLES (REPORT_PERIOD_US * (HAL_CPU_HZ / 1000000u))
 /** A field lasts 16.7 ms: the report waits at most that much for the end of a frame. */
 #define FRAME_WAIT_CYCLES (17000u * (HAL_CPU_HZ / 1000000u))
@@ -37,19 +52,35 @@ static uint8_t frame_buf[RADIO_MAX_FRAME];
 static radio_health_t health;
 static uint32_t tx_len;         /**< the report being sent: frame_buf[tx_pos..tx_len) waits */
 static uint32_t tx_pos;
+#ifdef FIRMWARE_BANDS_HW
+static bands_hw_t bands;
+static uint16_t bands_drops;    /**< DROPS.records at the last report */
+#endif
 
 /** One step of the period: the next byte of the report being sent, a drain of the result
- *  FIFO, and a short sleep when it held few records. */
-static void step(void)
+ *  FIFO (or the merge of a frame the summary unit published), and a short sleep when there
+ *  was little to do. Returns what was collected: records, or frames merged. */
+static uint32_t step(void)
 {
+    uint32_t n;
     /* the report goes out a byte at a time between drains: the UART takes a byte every
      * 87 us, far longer than the FIFO could wait */
     if (tx_pos < tx_len && hal_uart_put(frame_buf[tx_pos]) != 0) {
         tx_pos++;
     }
-    if (app_collect(&app) < COLLECT_FEW) {
+    n = app_collect(&app);
+#ifdef FIRMWARE_BANDS_HW
+    /* app_collect opened the summary; the unit's frames go into it */
+    n = bands_hw_collect(&bands, &app.summary);
+    if (n == 0u) {
         hal_delay_us(COLLECT_SLEEP_US);
     }
+#else
+    if (n < COLLECT_FEW) {
+        hal_delay_us(COLLECT_SLEEP_US);
+    }
+#endif
+    return n;
 }
 
 int main(void)
@@ -67,6 +98,9 @@ int main(void)
     st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
     st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);
     (void)app_collect(&app);        /* the summary's band boundaries, before any record */
+#ifdef FIRMWARE_BANDS_HW
+    (void)bands_hw_init(&bands, BANDS_HW_BASEADDR, app.width, app.n_bands);
+#endif
     start = hal_ticks();
     for (;;) {
         uint32_t frame;
@@ -92,6 +126,13 @@ int main(void)
             step();
         } while ((uint32_t)(hal_ticks() - start) < PERIOD_CYCLES);
         start += PERIOD_CYCLES;
+#ifdef FIRMWARE_BANDS_HW
+        /* the report right after the end of the frame in progress (its summary merged), at
+         * most FRAME_WAIT_US later */
+        (void)frame;
+        while (step() == 0u && (uint32_t)(hal_ticks() - start) < FRAME_WAIT_CYCLES) {
+        }
+#else
         /* the report's work in the vertical blanking, when no records come: after the end
          * of the frame in progress (FRAME_COUNT steps), at most FRAME_WAIT_US later */
         frame = STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET);
@@ -99,10 +140,19 @@ int main(void)
                (uint32_t)(hal_ticks() - start) < FRAME_WAIT_CYCLES) {
             step();
         }
+#endif
         /* flags 0 (not locked, not enabled) when the register block does not answer */
         if (app_read_health(&app, &health) != FW_OK) {
             health.flags = 0u;
         }
+#ifdef FIRMWARE_BANDS_HW
+        {
+            /* records the summary unit lost count as overflow */
+            uint16_t drops = (uint16_t)Xil_In32(BANDS_HW_BASEADDR + BANDS_HW_DROPS_OFFSET);
+            health.fifo_overflow = (uint16_t)(health.fifo_overflow + (uint16_t)(drops - bands_drops));
+            bands_drops = drops;
+        }
+#endif
         /* the motion controller's pose (pose.h); the last good one if it is being updated */
         (void)pose_read(POSE_BASEADDR, &pose);
         if (tx_pos >= tx_len) {         /* the last report is out */

@@ -12,18 +12,22 @@ answering the firmware's API-mode queries (AP = 2, MY = the robot's address) on 
 Checks (the JSON line):
 
 ``bit_exact``
-    The records the firmware read (every RESULT read, seen on the I/O bus) split into frames at
-    the end-of-frame markers equal golden's (x, y, d) frame for frame (with a fault: as
-    :mod:`sim.system.run`, the frames before it and from the second pair after it).
+    The records the SoC hands its band summary unit (``hdl.soc.SystemSoC`` ports
+    ``record_valid``, ``record_word``) split into frames at the end-of-frame markers equal
+    golden's (x, y, d) frame for frame (with a fault: as :mod:`sim.system.run`, the frames
+    before it and from the second pair after it).
 ``radio_packets``, ``radio_exact``
-    The packets decoded from the pin; each one's bands equal ``station.radio.summarise_matches``
-    (the firmware's summary rule) of the records the firmware read between the previous
-    packet's first byte and this one's (the firmware closes its summary right before sending).
+    The packets decoded from the pin; each one's bands equal the firmware's summary rule
+    (``golden.bands``: :func:`~golden.bands.band_values` of :func:`~golden.bands.merge_tops` of
+    each frame's :func:`~golden.bands.frame_top`) over the frames that ended (their marker
+    reached the unit) between the previous packet's first byte and this one's: the firmware
+    merges each frame's summary as the unit publishes it and closes its summary right before
+    sending. A frame it missed, or merged twice, makes a packet differ.
 ``cpu``
     ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
     ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
     firmware's enabling the video path to the end), ``cycles_per_record`` (those busy cycles
-    per record read: an upper bound of the drain cost), ``trapped``.
+    per record the SoC produced), ``trapped``.
 
 Health (``frames``, ``drops``, ``fifo_overflow``, ...) is the sum of the packets' health fields:
 what the firmware reported. The run goes on after the last frame until a packet has covered it.
@@ -84,7 +88,7 @@ def build_cpu_system(soc_params):
 def _load(path):
     lib = C.CDLL(str(path))
     lib.sys_init.argtypes = [C.c_char_p, C.c_uint64, C.c_char_p, C.c_uint64] + \
-        [C.c_int64] * 5 + [C.c_uint32, C.c_uint32, C.c_int, C.c_int]
+        [C.c_int64] * 5 + [C.c_uint32, C.c_int, C.c_int]
     lib.sys_camera_stop.argtypes = [C.c_int, C.c_int64, C.c_int64]
     lib.sys_run_until.argtypes = [C.c_int64]
     lib.sys_load_ram.argtypes = [C.POINTER(C.c_uint32), C.c_uint64]
@@ -120,7 +124,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     from sim.system import firmware
     from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
                                 _field_spans, camera_streams)
-    from station.radio import FrameDecoder, summarise_matches
+    from golden.bands import band_values, frame_top, merge_tops
+    from station.radio import FrameDecoder
+    from station.wire import DEFAULT_MIN_SUPPORT
     from station.wire import API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
@@ -137,12 +143,11 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
     want = [[(int(r["x"]), int(r["y"]), int(r["d"])) for r in g.records] for g in golden]
 
-    result_addr = regmap.REGS_BASEADDR + regmap.register("RESULT").offset
     nack = 0b10 if fault == "iic-nack" else 0
     t0 = time.monotonic()
     video_addr = regmap.REGS_BASEADDR + regmap.register("VIDEO").offset
     lib.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345,
-                 result_addr, video_addr, UART_DIVISOR, nack)
+                 video_addr, UART_DIVISOR, nack)
     words_in = (C.c_uint32 * len(image))(*image)
     if lib.sys_load_ram(words_in, len(image)) != 0:
         lib.sys_final()
@@ -153,7 +158,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
         pos = _field_spans(ldata)[FAULT_FIELD]["codes"][0] - 3
         lib.sys_camera_stop(0, pos, int(LOST_FIELDS * 1716 * 262.5) * CAM_PS)
     decoder = FrameDecoder()
-    records = []                    # (cycle, word) not yet given to a packet
+    ended = []                      # (marker cycle, x, d) of frames not yet in a packet
     packets, exact_packets = [], []
     out_frames, current, aborted = [], [], 0
     total_records = 0
@@ -177,12 +182,12 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
                     word = words[i]
                     if not word >> 31:
                         continue
-                    records.append((cyc[i], word))
                     total_records += 1
                     if word >> 29 & 1:              # abort marker
                         current, aborted = [], aborted + 1
                     elif word >> 28 & 1:            # end of frame
                         out_frames.append(current)
+                        ended.append((cyc[i], [r[0] for r in current], [r[2] for r in current]))
                         current = []
                         if len(out_frames) == frames:
                             last_frame_cycle = cyc[i]
@@ -197,14 +202,15 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
                         if fault != "no-radio-module" and (answer := _xbee_answer(f)):
                             lib.sys_send_rx(answer, len(answer))
                         if f.api == API_TX16 and f.packet is not None:
-                            mine = [r for c, r in records if c < frame_start_cycle]
-                            records = [(c, r) for c, r in records if c >= frame_start_cycle]
-                            matches = [(r & 0x3FF, r >> 10 & 0x3FF, r >> 20 & 0xFF)
-                                       for r in mine if not r >> 28 & 1]
+                            mine = [e for e in ended if e[0] < frame_start_cycle]
+                            ended = [e for e in ended if e[0] >= frame_start_cycle]
                             pkt = f.packet
-                            expect = summarise_matches(matches, pkt.width, len(pkt.bands))
+                            n = len(pkt.bands)
+                            tops = [frame_top(x, d, pkt.width, n) for _c, x, d in mine]
+                            expect = band_values(merge_tops(tops), DEFAULT_MIN_SUPPORT) \
+                                if tops else [0] * n
                             packets.append((frame_start_cycle, pkt, len(mine)))
-                            exact_packets.append(tuple(pkt.bands) == tuple(expect))
+                            exact_packets.append(tuple(pkt.bands) == tuple(int(v) for v in expect))
             if last_frame_cycle is not None and any(c > last_frame_cycle for c, _p, _n in packets):
                 break
         cycles = lib.sys_core_cycles()

@@ -15,8 +15,8 @@
 //     pin at the same rate (the XBee's answers);
 //   - the cameras send blanking filler until the firmware enables the video path (the first
 //     write of VIDEO with video_enable = 1 seen on the bus), then their streams;
-//   - the I/O bus monitor: every completed read of the RESULT register (`result_addr`) is
-//     logged with its cycle, so the host sees exactly the records the firmware read;
+//   - the records and end-of-frame markers the SoC hands its band summary unit (ports
+//     record_valid, record_word, as RESULT shows them) are logged with their cycle;
 //   - the CPU's idle cycles (cpu_idle: asleep in a timer wait) and traps are counted.
 // The model is built with an empty RAM; sys_load_ram writes the firmware image into it (the
 // memory and the core's instruction counter are public through a Verilator configuration
@@ -137,11 +137,10 @@ Adv7180 decoders[2] = {Adv7180{0x20}, Adv7180{0x21}};
 int dev_sda_low = 0;
 int64_t now_ps = 0;
 uint64_t core_cycles = 0, idle_cycles = 0, trap_cycles = 0;
-uint32_t result_addr = 0, video_addr = 0;
+uint32_t video_addr = 0;
 bool video_on = false;
 int64_t video_on_ps = -1;
 uint64_t video_on_cycles = 0, video_on_idle = 0;
-bool result_pending = false;
 std::vector<uint64_t> rec_cycle;
 std::vector<uint32_t> rec_word;
 int divisor = 434;
@@ -193,14 +192,10 @@ void core_cycle() {
     core_cycles++;
     if (top->cpu_idle) idle_cycles++;
     if (top->cpu_trap) trap_cycles++;
-    // I/O bus monitor: RESULT reads
-    if (top->monitor___05Faddr_strobe && top->monitor___05Fread_strobe &&
-        top->monitor___05Faddress == result_addr) {
-        result_pending = true;
-    } else if (result_pending && top->monitor___05Fready) {
+    // the records into the band summary unit
+    if (top->record_valid) {
         rec_cycle.push_back(core_cycles);
-        rec_word.push_back(top->monitor___05Fread_data);
-        result_pending = false;
+        rec_word.push_back(top->record_word);
     }
     if (!video_on && top->monitor___05Faddr_strobe && top->monitor___05Fwrite_strobe &&
         top->monitor___05Faddress == video_addr && (top->monitor___05Fwrite_data & 1)) {
@@ -281,7 +276,7 @@ extern "C" {
 
 int sys_init(const uint8_t* left, uint64_t left_len, const uint8_t* right, uint64_t right_len,
              int64_t core_ps, int64_t cam0_ps, int64_t cam1_ps, int64_t cam0_phase_ps,
-             int64_t cam1_phase_ps, uint32_t result_address, uint32_t video_address,
+             int64_t cam1_phase_ps, uint32_t video_address,
              int uart_divisor, int nack_mask) {
     ctx = std::make_unique<VerilatedContext>();
     top = std::make_unique<Vsoc>(ctx.get());
@@ -300,11 +295,9 @@ int sys_init(const uint8_t* left, uint64_t left_len, const uint8_t* right, uint6
     dev_sda_low = 0;
     now_ps = 0;
     core_cycles = idle_cycles = trap_cycles = 0;
-    result_addr = result_address;
     video_addr = video_address;
     video_on = false;
     video_on_ps = -1;
-    result_pending = false;
     rec_cycle.clear(); rec_word.clear();
     divisor = uart_divisor;
     tx_state = -1; tx_bytes.clear(); tx_cycle.clear();
@@ -333,7 +326,7 @@ void sys_run_until(int64_t until_ps) {
     while (now_ps < until_ps) step();
 }
 
-// Move up to `max` logged RESULT reads into the buffers; returns how many.
+// Move up to `max` logged records into the buffers; returns how many.
 uint64_t sys_take_records(uint64_t* cycles, uint32_t* words, uint64_t max) {
     uint64_t n = rec_word.size() < max ? rec_word.size() : max;
     for (uint64_t i = 0; i < n; i++) { cycles[i] = rec_cycle[i]; words[i] = rec_word[i]; }
