@@ -74,9 +74,12 @@ install-check: setup
 	mkdir -p build/install-run
 	cd build/install-run && ../install-venv/bin/python -m sim run --scene mixed --out out
 
-# ECP5 bitstream of the SoC on the ULX3S 25F (YoWASP tools; not part of make test)
+# ECP5 bitstream of the SoC on the ULX3S 25F, standalone: the CPU and its firmware inside
+# (YoWASP tools; not part of make test). `make bitstream BITSTREAM_ARGS=--bridge`: no CPU, the
+# UART register bridge on the USB serial port drives the bus instead.
+BITSTREAM_ARGS ?=
 bitstream: setup
-	$(PY) -m sim.flows.bitstream --out build/bitstream
+	$(PY) -m sim.flows.bitstream --out build/bitstream $(BITSTREAM_ARGS)
 
 clean:
 	rm -rf build

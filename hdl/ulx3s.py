@@ -5,9 +5,11 @@ Clocks: the board's 25 MHz oscillator feeds an EHXPLLL that makes the 50 MHz cor
 (VCO 600 MHz: CLKI_DIV 1, CLKFB_DIV 2, CLKOP_DIV 12); the two decoders' 27 MHz LLC clocks come in
 on the GPIO header.
 
-CPU: the UART register bridge (``hdl/bridge.py``, protocol ``golden/bridge.py``) on the board's
-USB serial port (FTDI, UART 0) drives the I/O bus; the host runs the firmware's host build
-through it (``sim/system/bridge_host.py``).
+CPU: the SoC's own (``soc`` with ``cpu="picorv32"``: PicoRV32 and its block RAM with the
+firmware image, :class:`hdl.cpu.RiscvCPU`), so the board runs standalone; the USB serial port
+is then unused. Without a CPU in ``soc`` the UART register bridge (``hdl/bridge.py``, protocol
+``golden/bridge.py``) on the board's USB serial port (FTDI, UART 0) drives the I/O bus, and a
+host runs the firmware's host build through it (``sim/system/bridge_host.py``).
 
 PIN-OUT: EXAMPLE, on the GPIO header J1 (amaranth-boards connector ``gpio 0``, 3.3 V):
 
@@ -93,7 +95,8 @@ def add_core_pll(m, platform, *, freq=CORE_HZ):
 
 
 def ulx3s_top(**soc):
-    """The SoC board top for :class:`RobotULX3SPlatform`: bridge on the USB UART (0), radio on
-    UART 1 (GPIO), core clock from the PLL."""
+    """The SoC board top for :class:`RobotULX3SPlatform` (``soc``: keyword arguments of
+    :class:`hdl.soc.SystemSoC`): radio on UART 1 (GPIO), core clock from the PLL; without
+    ``cpu`` in ``soc`` the bridge on the USB UART (0) drives the bus."""
     return BoardTop(soc=soc, radio_uart=1, bridge_uart=0, core_hz=CORE_HZ,
                     core_clock=add_core_pll)

@@ -15,6 +15,7 @@ other ``In`` port is a run-time parameter set before reset is released, every ot
 a status output read at the end. Amaranth names them in Verilog by joining the member path with
 ``__`` (``i__valid``, ``i__ready``, ``i__payload``; ``errors``), clock ``clk`` and reset ``rst``.
 """
+import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -27,7 +28,7 @@ from sim.units import UNITS, unit_name
 
 __all__ = ["StreamPort", "PlainPort", "Ports", "ports", "silenced", "Case", "UnitDesign",
            "DESIGNS", "SystemDesign", "SYSTEM_DESIGNS", "all_designs", "design", "elaborate",
-           "registered"]
+           "registered", "firmware_image", "cpu_verilog"]
 
 
 @dataclass(frozen=True)
@@ -229,6 +230,13 @@ class SystemDesign:
     #: that domain)``; a clock or reset that is not a port of the signature (a domain Amaranth
     #: adds, e.g. ``cam_clk``) is still an input of the exported module (``sim/flows/timing.py``).
     clocks: dict = field(default_factory=dict)
+    #: ``(component) -> str``: Verilog of modules the design instantiates but Amaranth does not
+    #: write (a CPU core's own source), appended to the exported file so that it is complete
+    #: (:func:`sim.flows.verilog.export_verilog`); None: nothing to add.
+    foreign_verilog: Callable = None
+    #: Module names of :attr:`foreign_verilog` that the resource estimate keeps as their own
+    #: modules, its level check applying outside them (``sim/flows/synth.py``).
+    cores: tuple = ()
 
     def build(self, **overrides):
         return self.make(**{**self.params, **overrides})
@@ -261,6 +269,47 @@ def _soc(**params):
     return SystemSoC(**params)
 
 
+def firmware_image(firmware):
+    """The words of the CPU's RAM image: with ``firmware`` true, the cross-compiled firmware
+    (``make -C firmware rv32``, rebuilt when its sources changed:
+    :func:`sim.system.firmware.build_image`); without, or when it cannot be built (no cross
+    compiler), None, an empty RAM (a warning on stderr says so)."""
+    if not firmware:
+        return None
+    from sim.system.firmware import FirmwareBuildError, build_image, image_words
+    try:
+        return image_words(build_image())
+    except (FirmwareBuildError, OSError) as e:
+        first = str(e).splitlines()[0] if str(e) else repr(e)
+        print(f"warning: no firmware image ({first}): the CPU's RAM starts empty; "
+              "`make setup` installs the cross compiler", file=sys.stderr)
+        return None
+
+
+def _soc_cpu(*, firmware=True, **params):
+    from hdl.soc import SystemSoC
+    return SystemSoC(cpu="picorv32", image=firmware_image(firmware), **params)
+
+
+def _cpu(*, firmware=True, **params):
+    from hdl.cpu import RiscvCPU
+    return RiscvCPU(image=firmware_image(firmware), **params)
+
+
+def cpu_verilog(component):
+    """The PicoRV32 core's Verilog (:func:`hdl.cpu.verilog_text`) headed by a note of the
+    image in the RAM of ``component`` (a design with :class:`hdl.cpu.RiscvCPU` inside)."""
+    import hashlib
+    from hdl.cpu import verilog_text
+    image = getattr(component, "_image", None) or []
+    data = b"".join(int(w).to_bytes(4, "little") for w in image)
+    note = (f"RAM image: {len(data)} bytes, sha256 {hashlib.sha256(data).hexdigest()[:16]} "
+            "(build/firmware/firmware.bin)" if image else "RAM image: none (the RAM starts at 0)")
+    return ("// The PicoRV32 core (picorv32.v of the pythondata-cpu-picorv32 package, its register\n"
+            "// file marked ram_style distributed: hdl/cpu.py verilog_text), instantiated by the\n"
+            f"// CPU above. {note}.\n" + verilog_text())
+
+
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
     "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=16),
@@ -271,10 +320,21 @@ SYSTEM_DESIGNS = {
     "uart": SystemDesign(_uart, dict(divisor=434), "radio UART on the I/O bus (hdl/uart.py)"),
     "bridge": SystemDesign(_bridge, dict(divisor=434),
                            "UART register bridge, the CPU's stand-in on boards (hdl/bridge.py)"),
-    "soc": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240),
-                        "the SoC: two BT.656 camera ports, pairing, pipeline, registers and "
-                        "result FIFO, IIC master, radio UART on the I/O bus (hdl/soc.py)",
-                        clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
+    "cpu": SystemDesign(_cpu, dict(firmware=True),
+                        "the soft CPU alone: PicoRV32 RV32IC, its 8 KB block RAM with the "
+                        "firmware image, timer, I/O bus bridge (hdl/cpu.py)",
+                        foreign_verilog=cpu_verilog, cores=("picorv32",)),
+    "soc": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240, firmware=True),
+                        "the chip: the SoC with its CPU inside (PicoRV32 and its block RAM "
+                        "with the firmware image), two BT.656 camera ports, pairing, "
+                        "pipeline, registers and result FIFO, IIC master, radio UART on the "
+                        "I/O bus (hdl/soc.py, hdl/cpu.py)",
+                        clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
+                        foreign_verilog=cpu_verilog, cores=("picorv32",)),
+    "soc_bus": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240),
+                            "the SoC without a CPU, its I/O bus a port for an external CPU "
+                            "(a MicroBlaze MCS in EDK/ISE, the UART bridge on the ECP5 board)",
+                            clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
 }
 
 

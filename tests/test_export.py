@@ -48,7 +48,7 @@ def test_read_registers_start_at_zero():
 
 
 def test_unknown_design():
-    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, freespace, frontend, matcher, pipeline, bands, floor, rectify, camera, pairing, uart, bridge, soc$"):
+    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, freespace, frontend, matcher, pipeline, bands, floor, rectify, camera, pairing, uart, bridge, cpu, soc, soc_bus$"):
         elaborate("nope")
 
 
@@ -67,6 +67,30 @@ def test_every_design_exports(name, tmp_path):
     text = export_verilog(name, out_dir=tmp_path).read_text()
     assert f"module {name}(" in text
     assert f"// design {name}:" in text
+
+
+def test_cpu_design_is_one_self_contained_file(tmp_path):
+    """A design with the CPU inside is exported with the core's Verilog appended, once, and
+    the file elaborates on its own."""
+    import shutil
+    text = export_verilog("cpu", out_dir=tmp_path).read_text()
+    assert text.count("module cpu(") == 1 and text.count("\nmodule picorv32 #(") == 1
+    assert "// CPU above. RAM image: " in text
+    assert '(* ram_style = "distributed" *) reg [31:0] cpuregs' in text
+    if shutil.which("iverilog"):
+        r = subprocess.run(["iverilog", "-g2012", "-s", "cpu", "-o", str(tmp_path / "cpu.vvp"),
+                            str(tmp_path / "cpu.v")], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+
+
+def test_soc_is_the_chip_with_its_cpu():
+    """Design ``soc`` is the SoC with the CPU inside (no bus port); ``soc_bus`` keeps the bus
+    as a port for an external CPU."""
+    names = {p.name for p in ports(registered("soc")[0]).plain}
+    assert {"cpu_idle", "cpu_trap", "uart_tx"} <= names and not any(n.startswith("bus__") for n in names)
+    names = {p.name for p in ports(registered("soc_bus")[0]).plain}
+    assert "bus__addr_strobe" in names and "cpu_trap" not in names
+    assert registered("soc")[0]._image          # the firmware image is in its RAM
 
 
 def test_command_line(tmp_path):

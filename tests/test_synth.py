@@ -1,6 +1,7 @@
 """Spartan-3 targets: Yosys resource estimates (sim/flows/synth.py), the reference board platform
 and its ISE build tree, the camera input adapter (hdl/platform.py)."""
 import json
+import re
 
 import pytest
 
@@ -80,8 +81,11 @@ def test_color_estimate(color_counts):
 def test_report(tmp_path):
     color_counts = {"LUT4": 380, "LUT_sites": 400, "FF": 222, "RAMB16": 1, "MULT18X18": 5,
                     "levels": 10, "ltp": 33, "breakdown": {"track": 300, "conv": 100}}
-    soc_counts = dict(color_counts, LUT_sites=12500, RAMB16=20)
-    path = write_report({"color": color_counts, "soc": soc_counts}, tmp_path)
+    bus_counts = dict(color_counts, LUT_sites=12500, RAMB16=20)
+    soc_counts = dict(color_counts, LUT4=13000, RAMB16=23, levels=7, core_levels={"picorv32": 9},
+                      core_carry_bits={"picorv32": 31})
+    path = write_report({"color": color_counts, "soc": soc_counts, "soc_bus": bus_counts},
+                        tmp_path)
     report = json.loads(path.read_text())
     assert "ESTIMATES" in report["note"]
     assert report["budget"] == BUDGET
@@ -90,7 +94,25 @@ def test_report(tmp_path):
     assert md.startswith("# Spartan-3 resource ESTIMATES")
     assert f"| color | {color_counts['LUT4']} | 400 | {color_counts['FF']} |" in md
     assert "- **color**: track 300, conv 100" in md
-    assert "LUT_sites 12500 of 12000 (over by 500), RAMB16 20 of 20: DOES NOT FIT" in md
+    assert ("Budget of soc_bus (the chip less an external MicroBlaze's share): LUT_sites 12500 "
+            "of 12000 (over by 500), RAMB16 20 of 20: DOES NOT FIT.") in md
+    assert "Budget of soc (the whole chip, CPU inside): LUT4 13000 of 14000, RAMB16 23 of 24: fits." in md
+    assert ("The core's own paths, not checked: picorv32 9 levels and a 31-bit carry chain." in md)
+    assert "soc: `levels`, `carry_bits` and `timing_ok` count the paths outside the CPU core" in md
+
+
+def test_cpu_core_paths_are_reported_apart(tmp_path):
+    """The CPU alone: the core is kept as its own module, its cells counted, its own deep
+    paths reported apart from the level check, which applies to the rest."""
+    c = synthesize("cpu", tmp_path)
+    assert c["RAMB16"] == 4                      # 8 KB of RAM; the register file in LUT RAM
+    assert c["LUTRAM"] > 0 and 1000 < c["LUT4"] < 4000
+    assert c["levels_outside"] == ["picorv32"]
+    assert c["core_levels"]["picorv32"] > 8 and c["core_carry_bits"]["picorv32"] > 16
+    assert c["levels"] <= 8 and c["carry_bits"] <= 16 and c["timing_ok"]
+    core = c["breakdown"]["picorv32 (core)"]
+    assert core > c["LUT_sites"] / 2 and sum(c["breakdown"].values()) == pytest.approx(
+        c["LUT_sites"], abs=len(c["breakdown"]))
 
 
 def test_platform_pins_are_distinct():
@@ -105,9 +127,16 @@ def test_platform_pins_are_distinct():
 
 
 def test_ise_tree(tmp_path):
-    out = build_ise("soc", tmp_path)
+    """The tree has the CPU: the core's Verilog beside the SoC's, both in the project, and the
+    RAM's initial words (here a short image) in the SoC's Verilog."""
+    image = [0x0000_0537, 0x1234_5678, 0x0000_006F]
+    out = build_ise("soc", tmp_path, image=image)
     names = {p.name for p in out.iterdir()}
-    assert {"top.v", "top.ucf", "top.xst", "top.prj", "build_top.sh"} <= names
+    assert {"top.v", "top.ucf", "top.xst", "top.prj", "build_top.sh", "picorv32.v"} <= names
+    assert "verilog work picorv32.v" in (out / "top.prj").read_text()
+    top = (out / "top.v").read_text()
+    assert "picorv32 #(" in top and "module picorv32" not in top
+    assert re.search(r"ram\[1\] = 32'd305419896;", top)      # 0x12345678
     assert "-p xc3s1000ft256-4" in (out / "top.xst").read_text()
     ucf = (out / "top.ucf").read_text()
     assert 'NET "clk50_0__io" LOC=T9;' in ucf and 'NET "bt656_0__llc__io" LOC=C9;' in ucf

@@ -112,3 +112,11 @@ def test_command_line(tmp_path):
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "color.vhd").exists()
+
+
+def test_designs_with_the_cpu_are_refused(tmp_path, capsys):
+    """The CPU core is third-party Verilog with no VHDL: asked for by name, one error line."""
+    from sim.flows.vhdl import main
+    assert main(["--out", str(tmp_path), "soc"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: soc: the CPU core inside is third-party Verilog") and err.count("\n") == 1

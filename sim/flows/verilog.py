@@ -16,7 +16,7 @@ from sim.designs import all_designs, ports, registered
 from sim.units import DEPRECATED_UNITS, unit_name
 from sim.paths import BUILD, ROOT
 
-__all__ = ["verilog_source", "export_verilog", "source_key", "write_if_changed",
+__all__ = ["verilog_source", "export_verilog", "foreign_verilog", "source_key", "write_if_changed",
            "design_arguments", "chosen_designs", "tool_versions", "text_hash",
            "SIMULATION_PASSES", "main"]
 
@@ -125,14 +125,26 @@ def verilog_source(name, component, params, passes=()):
 _converted = {}     # (name, id(component), passes) -> (component, text): each converts once
 
 
+def foreign_verilog(name, component):
+    """The Verilog that registered design ``name`` instantiates but Amaranth does not write
+    (:attr:`sim.designs.SystemDesign.foreign_verilog`: the CPU core's source), for
+    ``component``; "" for the others (and for names that are not registered)."""
+    if name not in all_designs():
+        return ""
+    extra = getattr(all_designs()[name], "foreign_verilog", None)
+    return "\n" + extra(component) if extra else ""
+
+
 def export_verilog(name, component=None, params=None, out_dir=None):
     """Write ``<out_dir>/<name>.v`` (default ``build/verilog``) and return its path. Without
     ``component`` the registered design ``name`` is built with ``params`` overriding its
-    defaults. The file is rewritten only when its text changes."""
+    defaults. The file is self-contained: a design that instantiates foreign Verilog (the SoC's
+    CPU core) gets it appended (:func:`foreign_verilog`). The file is rewritten only when its
+    text changes."""
     if component is None:
         component, params = registered(name, params)
     params = params or {}
-    text = verilog_source(name, component, params)
+    text = verilog_source(name, component, params) + foreign_verilog(name, component)
     return write_if_changed(Path(out_dir or BUILD / "verilog") / f"{name}.v", text)
 
 

@@ -29,6 +29,9 @@ Ports keep their Verilog names with ``__`` collapsed to ``_`` (``i__valid`` beco
 ``i_valid``): VHDL forbids doubled underscores. GHDL analyses and elaborates every file in
 VHDL-93 and VHDL-2008 (``check_ghdl``).
 
+Designs with the CPU inside (``cpu``, ``soc``) are not converted: the core is third-party
+Verilog that ``iverilog -tvhdl`` does not take; ``soc_bus`` (the SoC for an external CPU) is.
+
 Command line (``make vhdl``)::
 
     python -m sim.flows.vhdl --out build/vhdl [NAME ...]
@@ -382,12 +385,30 @@ def check_ghdl(path, top, std="08", workdir=None):
                                       f"{(r.stdout + r.stderr).strip()}")
 
 
+def has_foreign_verilog(name):
+    """Whether registered design ``name`` instantiates Verilog that Amaranth does not write
+    (the CPU core: :attr:`sim.designs.SystemDesign.foreign_verilog`), which the VHDL flow
+    cannot convert (``iverilog -tvhdl`` does not take the core's ``initial`` blocks and
+    tasks)."""
+    from sim.designs import design
+    return getattr(design(name), "foreign_verilog", None) is not None
+
+
 def main(argv=None):
     ap = design_arguments("python -m sim.flows.vhdl", __doc__.split("\n")[0], "build/vhdl")
     ap.add_argument("--check", action="store_true", help="analyse and elaborate with GHDL (93 and 08)")
     args = ap.parse_args(argv)
+    names = chosen_designs(ap, args)
+    foreign = [n for n in names if has_foreign_verilog(n)]
+    if foreign and args.names:
+        print(f"error: {', '.join(foreign)}: the CPU core inside is third-party Verilog "
+              "(picorv32.v), which has no VHDL; soc_bus is the SoC without it", file=sys.stderr)
+        return 2
+    for name in foreign:
+        print(f"note: {name} not converted: the CPU core inside is third-party Verilog "
+              "(picorv32.v) with no VHDL; soc_bus is the SoC without it", file=sys.stderr)
     try:
-        for name in chosen_designs(ap, args):
+        for name in (n for n in names if n not in foreign):
             path = export_vhdl(name, out_dir=args.out)
             if args.check:
                 for std in ("93", "08"):
