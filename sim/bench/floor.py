@@ -42,8 +42,8 @@ __all__ = ["MODES", "DEFAULT_MODE", "LIMITS", "scene_frames", "score", "run", "m
            "check", "main"]
 
 MODES = ("off", "appearance", "geometry", "both")
-#: The mode the must-holds are checked on: geometry alone. (``python -m sim run`` without
-#: ``--ground`` still runs the appearance model, beside the floor flag: the ``both`` rows.)
+#: The mode the must-holds are checked on: geometry alone, what ``python -m sim run`` does
+#: without ``--ground`` (``both``: with ``--ground hue`` or ``luma``).
 DEFAULT_MODE = "geometry"
 LIMITS = dict(good_ratio=0.95, floor_done=0.80, moto_unflagged=0.20)
 FRAMES = 3
