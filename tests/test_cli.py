@@ -148,11 +148,20 @@ def test_run_on_amaranth_compares_the_statistics(pair, tmp_path):
     assert summary["stats_match"] and summary["stats_rtl"] == summary["stats"]
 
 
-def test_grayscale_pair_runs_in_luminance_mode(pair, tmp_path):
+def test_run_decides_the_floor_by_geometry_by_default(pair, tmp_path):
+    """Without --ground, run has the appearance model off and the floor line on (a grey pair
+    too); --ground luma adds the appearance model."""
     r = sim("run", "--left", str(pair["grey"]), "--right", str(pair["grey"]), "--out",
             str(tmp_path), "--backend", "verilator")
     assert r.returncode == 0, r.stderr
-    assert json.loads((tmp_path / "summary.json").read_text())["ground"] == "luma"
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["ground"] == "off" and summary["floor"]["mode"] == "learn"
+    assert len(summary["floor"]["free_space"]) == 16
+    r = sim("run", "--left", str(pair["grey"]), "--right", str(pair["grey"]), "--out",
+            str(tmp_path), "--backend", "verilator", "--ground", "luma", "--frames", "1")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["ground"] == "luma" and summary["floor"]["mode"] == "learn"
 
 
 def test_help_has_examples_and_every_register(pair):
@@ -321,5 +330,5 @@ def test_default_pairs_bring_their_camera_truth_and_obstacles():
     assert camera.cx == pytest.approx(311.193 - 200) and camera.doffs_px == pytest.approx(31.086)
     assert obstacles == () and np.isfinite(truth).mean() > 0.5
     _, _, ground, camera, truth, obstacles = cli.default_pair("boxes")
-    assert ground == "hue" and camera.fx == 600 and len(obstacles) == 3
+    assert ground == "off" and camera.fx == 600 and len(obstacles) == 3
     assert camera.depth_range(0, 63)[0] == pytest.approx(72 / 63)

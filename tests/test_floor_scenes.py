@@ -70,3 +70,16 @@ def test_floor_bench_one_scene(tmp_path, capsys):
     assert len(bf.check(bad)) == 3
     assert bf.main(["--out", str(tmp_path), "--scene", "nowhere"]) == 2
     assert capsys.readouterr().err.startswith("error: unknown scene")
+
+
+def test_beside_obstacle_finds_the_obstacle_of_the_same_disparity():
+    """A floor match carries the depth of an obstacle within 2 columns, or it does not."""
+    import sim.bench.floor as bf
+    from golden.matcher import RECORD_DTYPE_V2
+    floor = np.ones((2, 12), bool)
+    floor[0, 6] = False
+    gt = np.full((2, 12), 4.0)
+    gt[0, 6] = 10.0
+    rec = np.zeros(5, RECORD_DTYPE_V2)
+    rec["x"], rec["y"], rec["d16"] = [4, 3, 4, 8, 6], [0, 0, 0, 1, 0], [160, 160, 16 * 13, 160, 4]
+    assert bf.beside_obstacle(gt, floor, rec).tolist() == [True, False, False, False, False]

@@ -233,7 +233,7 @@ def test_sim_run_writes_the_rtl_free_space(tmp_path):
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "sim", "run", "--left", str(tmp_path / "l.png"),
                         "--right", str(tmp_path / "r.png"), "--out", str(out), "--frames", "3",
-                        "--band-w", "9", "--run-r", "3", "--stalls", "1"],
+                        "--band-w", "9", "--run-r", "3", "--stalls", "1", "--ground", "hue"],
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "BIT-EXACT (records, free space and statistics)" in r.stdout
@@ -251,3 +251,8 @@ def test_sim_run_writes_the_rtl_free_space(tmp_path):
             ["" if v == FREE_NONE else str(v) for v in getattr(last, side).free[:15]]
         assert (mine[0]["x0"], mine[-1]["x0"], mine[-1]["x1"]) == ("0", "126", "127")
         assert len({row["obstacle_row"] for row in mine}) > 3              # not uniform
+    # the bands of the matches that are not floor points, as the summary gives them
+    points = [row for row in rows if row["camera"] == "points"]
+    assert [row["source"] for row in points] == ["golden"] * 15
+    assert [None if row["obstacle_row"] == "" else int(row["obstacle_row"]) for row in points] \
+        == summary["floor"]["free_space"][:15]

@@ -83,7 +83,8 @@ def test_sim_run_near_scene_is_bit_exact_with_the_box_in_matches_csv(tmp_path, n
     frame, _, last = near
     out = tmp_path / "near"
     r = subprocess.run([sys.executable, "-m", "sim", "run", "--scene", "near", "--frames", "2",
-                        "--out", str(out)], capture_output=True, text=True, timeout=900)
+                        "--ground", "hue", "--out", str(out)], capture_output=True, text=True,
+                       timeout=900)
     assert r.returncode == 0, r.stderr[-2000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["bit_exact"] and summary["stats_match"]

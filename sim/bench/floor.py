@@ -17,7 +17,9 @@ Figures per scene and mode (records of the last frame; each record's truth is th
 surface among its row neighbours, :func:`contour_truth`, as the project scores depth at edges):
 obstacle points (records off the floor truth, not flagged) and those within 2 px of the true
 disparity (``d16 / 16``), as a share of ``off``'s; floor matches (records on the floor truth) and the share of ``off``'s floor matches
-that the mode removed or flagged (the rest reach the radio summary as obstacles); census window
+that the mode removed or flagged (the rest reach the radio summary as obstacles), and the share
+left unflagged with no obstacle of their disparity within 2 columns (:func:`beside_obstacle`:
+the others carry the depth of the obstacle whose outline the matching window reached); census window
 evaluations and their saving against ``off`` (and, for ``geometry``, the share a matcher
 whose window started above the floor line on each row would save, :func:`window_saving`);
 the free-space bands from the points and the
@@ -42,8 +44,8 @@ __all__ = ["MODES", "DEFAULT_MODE", "LIMITS", "scene_frames", "score", "run", "m
            "check", "main"]
 
 MODES = ("off", "appearance", "geometry", "both")
-#: The mode the must-holds are checked on: geometry alone. (``python -m sim run`` without
-#: ``--ground`` still runs the appearance model, beside the floor flag: the ``both`` rows.)
+#: The mode the must-holds are checked on: geometry alone, what ``python -m sim run`` does
+#: without ``--ground`` (``both``: with ``--ground hue`` or ``luma``).
 DEFAULT_MODE = "geometry"
 LIMITS = dict(good_ratio=0.95, floor_done=0.80, moto_unflagged=0.20)
 FRAMES = 3
@@ -136,10 +138,31 @@ def contour_truth(gt, floor, records):
     return np.where(g >= 0, g, np.nan), on_floor & (g >= 0)
 
 
+def beside_obstacle(gt, floor, records, reach=2, tol=2.0):
+    """Whether each record has a pixel off the floor truth within ``reach`` columns in its row
+    whose true disparity is within ``tol`` px of the record's (``d16 / 16``): a match that
+    carries the disparity of the obstacle beside it (the matching window reaches across the
+    obstacle's outline). Such a floor match left unflagged puts a point at that obstacle's
+    depth, not an obstacle where there is none."""
+    h, w = floor.shape
+    off = ~floor & np.isfinite(gt)
+    d = records["d16"] / 16.0
+    out = np.zeros(len(records), bool)
+    for k in range(-reach, reach + 1):
+        x = records["x"] + k
+        inside = (x >= 0) & (x < w)
+        xc = np.clip(x, 0, w - 1)
+        hit = off[records["y"], xc] & (np.abs(np.where(off[records["y"], xc],
+                                                       gt[records["y"], xc], 0) - d) <= tol)
+        out |= inside & hit
+    return out
+
+
 def score(records, stats, flags, gt, floor):
     """The figures of one mode's last frame (see the module docstring)."""
     g, on_floor = contour_truth(gt, floor, records)
     flagged = flags.astype(bool)
+    beside = beside_obstacle(gt, floor, records)
     known = np.isfinite(g)
     good = known & (np.abs(records["d16"] / 16.0 - np.nan_to_num(g)) <= 2.0)
     obstacle = ~on_floor & ~flagged
@@ -156,6 +179,7 @@ def score(records, stats, flags, gt, floor):
             "good_obstacle": int((obstacle & good).sum()),
             "floor_matches": int(on_floor.sum()),
             "floor_unflagged": int((on_floor & ~flagged).sum()),
+            "floor_phantom": int((on_floor & ~flagged & ~beside).sum()),
             "evaluations": int(stats["evaluations"]),
             "edge_pixels": int(stats["edge_pixels"])}
 
@@ -179,6 +203,8 @@ def scene_figures(name, params=None):
         v["accuracy"] = round(v["good_obstacle"] / max(1, v["obstacle_points"]), 4)
         v["floor_done"] = round(1 - v["floor_unflagged"] / ref["floor_matches"], 4) \
             if ref["floor_matches"] else 1.0
+        v["phantom_share"] = round(v["floor_phantom"] / ref["floor_matches"], 4) \
+            if ref["floor_matches"] else 0.0
         v["work_saved"] = round(1 - v["evaluations"] / max(1, ref["evaluations"]), 4)
     out["appearance_mode"] = appearance
     return out
@@ -216,7 +242,9 @@ def markdown(rep):
     lines = ["### Floor decision (golden/floor.py) against ground off", "",
              "Last of three frames. Good obstacle points: records off the floor truth, not "
              "flagged, within 2 px of the truth, as a share of ground off's; floor done: the "
-             "share of ground off's floor matches removed or flagged; work saved: census window "
+             "share of ground off's floor matches removed or flagged (in brackets: the share "
+             "left unflagged with no obstacle of their disparity within 2 columns, which would "
+             "put an obstacle where there is none); work saved: census window "
              "evaluations against ground off (geometry: in brackets, the share under the floor "
              "line, which a window starting above the line on each row would save); "
              "free-space rows off: the bands from the points and the flag against the truth's, "
@@ -232,7 +260,8 @@ def markdown(rep):
                 else mode
             lines.append(f"| {name} | {label} | {v['obstacle_points']} | "
                          f"{v['good_obstacle']} ({v['good_ratio']:.3f}) | {v['accuracy']:.3f} | "
-                         f"{v['floor_matches']} | {v['floor_done']:.3f} | "
+                         f"{v['floor_matches']} | {v['floor_done']:.3f} "
+                         f"({v['phantom_share']:.3f}) | "
                          f"{100 * v['work_saved']:.1f} %"
                          + (f" ({100 * v['window_saving']:.1f} %)" if "window_saving" in v else "")
                          + f" | {v['free_rows_off']} |")

@@ -40,8 +40,10 @@ CLI_META = {
     ("matcher", "window"): dict(help="matching window side (odd); the matcher RTL is elaborated for it",
                                 unit="px", range=(3, 15)),
     ("frontend", "ground", "mode"): dict(
-        aliases=("--ground",), default_text="hue for colour images, luma for grayscale ones, "
-                                            "off for the motorcycle pair"),
+        aliases=("--ground",), default_text="run: off, the floor decision by geometry "
+                                            "(--floor; hue or luma add the appearance model, off "
+                                            "given means no floor decision); compare: hue for "
+                                            "colour images, luma for grayscale ones"),
 }
 #: Unit of a register field, from the first of these words in its doc.
 _UNITS = ((r"(1/\d+)", None), (r"\bJND\b", "JND"), (r"saturation", "saturation codes"),

@@ -38,6 +38,12 @@ BACKENDS = ("amaranth", "verilator", "icarus", "ghdl")
 TARGET_CLOCK_HZ = 50_000_000
 REFERENCE_SIZE = (752, 480)
 DEFAULT_SCENE = "mixed"
+#: The appearance model's mode of ``run`` when ``--ground`` is not given: off. The floor
+#: decision is by stereo geometry (``--floor``, golden/floor.py); the appearance model removes
+#: the pixels of every obstacle that shares the floor's colour before matching, so it is
+#: opt-in (``--ground hue`` or ``luma``, beside the floor flag). ``--ground off`` given means
+#: no floor decision at all. Why: docs/floor.md.
+RUN_GROUND = "off"
 #: Frames per command: every frame's golden planes and stream words are held in memory (about
 #: 80 MB per 1024x1024 stereo frame), and every frame is simulated cycle by cycle (slow on
 #: the Python simulator).
@@ -161,7 +167,8 @@ def load_pair(left_path, right_path, crop_spec=None, need_right=True):
 def default_pair(scene, crop_spec=None):
     """The embedded default stereo pairs: a synthetic robot's-eye scene (``--scene NAME`` of
     :mod:`sim.scenes.rendered`, default 'mixed') or the Middlebury motorcycle pair (``motorcycle``).
-    Returns (left, right, ground mode, camera, true depth map or None, obstacles)."""
+    Returns (left, right, ground mode (:data:`RUN_GROUND`), camera, true depth map or None,
+    obstacles)."""
     from sim.scenes.camera import MOTORCYCLE, scene_camera
     from sim.scenes.rendered import SCENES, NEAR_SCENES, make_scene, scene_names
     box = _crop_box(crop_spec) if crop_spec else None
@@ -169,11 +176,11 @@ def default_pair(scene, crop_spec=None):
     if scene == "motorcycle":
         from sim.scenes.data import motorcycle
         left, right, disparity = motorcycle()
-        camera, ground = MOTORCYCLE, "off"
+        camera, ground = MOTORCYCLE, RUN_GROUND
         truth = camera.depth(np.where(np.isfinite(disparity), disparity, np.nan))
     elif scene in scene_names() or scene in NEAR_SCENES:
         frame = make_scene(scene, *REFERENCE_SIZE)
-        left, right, ground, truth = frame.left, frame.right, "hue", frame.depth
+        left, right, ground, truth = frame.left, frame.right, RUN_GROUND, frame.depth
         camera = scene_camera(*REFERENCE_SIZE)
         obstacles = {**SCENES, **NEAR_SCENES}[scene].obstacles
     else:
@@ -396,7 +403,7 @@ def _run_inputs(args):
         h, w = left.shape[:2]
         camera = replace(scene_camera(w, h), source="assumed: the default rig scaled to this "
                                                     "width (give --camera FILE.json)")
-        return left, right, grey, "luma" if grey else "hue", camera, None, (), \
+        return left, right, grey, RUN_GROUND, camera, None, (), \
             {"left": args.left, "right": args.right}
     left, right, ground, camera, truth, obstacles = default_pair(args.scene, args.crop)
     return left, right, False, ground, camera, truth, obstacles, {"scene": args.scene}
@@ -489,6 +496,12 @@ def cmd_run(args, flags):
     summary["views_show"] = "RTL records" if len(rtl_frames) >= len(golden) else \
         f"golden records from frame {len(rtl_frames)} on (the RTL delivered {len(rtl_frames)})"
     floor_flags, summary["floor"] = floor_decision(args, camera, shown)
+    points_free = None
+    if floor_flags is not None:
+        from golden.freespace import FREE_NONE, free_space_points
+        fp = params.frontend.free
+        points_free = free_space_points(shown[-1].records, floor_flags, h, fp.band_w, fp.run_r)
+        summary["floor"]["free_space"] = [None if r == FREE_NONE else int(r) for r in points_free]
     if truth is not None:
         summary["depth_error"] = depth_error(camera, shown[-1].records, truth)
     run = SimpleNamespace(args=args, params=params, job=job, golden=golden, frames=shown,
@@ -500,7 +513,8 @@ def cmd_run(args, flags):
     # Further outputs of a run hook in here: they get ``run`` (the last frame's golden data in
     # run.golden[-1], the RTL's in run.result) and write into args.out.
     paths.update(write_raw_outputs(args.out, run.golden[-1], free=_rtl_free_space(result),
-                                   band_w=params.frontend.free.band_w))   # masks, edges, free space
+                                   band_w=params.frontend.free.band_w,
+                                   points=points_free))   # masks, edges, free space
     progress("done")
     _print_run(summary, last, failure, paths, args)
     return EXIT_BIT_EXACT if bit_exact else EXIT_MISMATCH
@@ -564,7 +578,8 @@ def _print_run(summary, last, failure, paths, args):
         where = "no line yet" if fl["line"] is None else \
             f"line slope {fl['line']['slope']}/256 px per row, offset {fl['line']['offset']}/256 px"
         print(f"  floor ({fl['mode']}): {fl['floor_points']} of {fl['points']} matches flagged "
-              f"(matches.csv column floor; {where})")
+              f"(matches.csv column floor; {where}); free space of the other matches in "
+              f"free_space.csv (camera points)")
     e = summary.get("depth_error")
     if e and e["points"]:
         print(f"  depth vs the pair's ground truth: median relative error {100 * e['median_rel_contour']:.1f}% "
