@@ -32,6 +32,17 @@ the rig's centre line.
 * distance ahead on the ground plane: ``forward = z cos(tilt) - (y - cy) z / fy sin(tilt)``;
 * height above the ground: ``up = height_m - (y - cy) z / fy cos(tilt) - z sin(tilt)``.
 
+Points in the left camera's own frame (:meth:`Camera.points`, ``matches.csv``'s ``cam_x_m
+cam_y_m cam_z_m``): x right, y down, z forward, metres, OpenCV's convention. Without ``rig``
+they are the ideal rig's, ``(x - cx) z / fx, (y - cy) z / fy, z``; with it, the calibration's
+(:func:`golden.rig.triangulate`: the left lens' distortion removed, the right pixel taken
+through the module's rectification with the rig's ``doffs`` and ``focus``), so a point is where
+the left camera as calibrated, before rectification, sees it. The rig-centre and ground-plane
+coordinates (:meth:`Camera.robot_frame`: ``x_m``, ``forward_m``, ``up_m``, the top view) are
+taken from these points: ``x_m = cam_x - baseline_m / 2``, ``forward = cam_z cos(tilt) - cam_y
+sin(tilt)``, ``up = height_m - cam_y cos(tilt) - cam_z sin(tilt)``; without ``rig`` they equal
+the formulas above.
+
 The station only receives a band's disparity and its columns, not the image row, so it
 places the nearest point of a band at camera height: ``forward = z / cos(tilt)``, bearing
 ``atan2((cx - u) cos(tilt), fx)`` (:meth:`Camera.column_to_point`,
@@ -313,6 +324,37 @@ class Camera:
         t = math.radians(self.tilt_deg)
         yc = (np.asarray(y, dtype=np.float64) - self.cy) * z / self.fy
         return self.height_m - yc * math.cos(t) - z * math.sin(t)
+
+    def points(self, x, y, d):
+        """Points (N x 3, metres; NaN at infinity) in the left camera's own frame of matches at
+        left pixel ``(x, y)`` with disparity ``d`` (see the module text). With a calibrated
+        ``rig`` the pixels are the left camera's as captured, shifted back by a crop
+        (:meth:`cropped` moves ``cx``, ``cy`` but not the rig's lens)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        d = np.asarray(d, dtype=np.float64)
+        rig = self.rectified
+        if rig is None:
+            z = self.depth(d)
+            return np.stack(np.broadcast_arrays((x - self.cx) * z / self.fx,
+                                                (y - self.cy) * z / self.fy, z), axis=-1)
+        from .rig import triangulate
+        focus = self.rig.get("focus")
+        p = triangulate(rig, x + (rig.left.cx - self.cx), y + (rig.left.cy - self.cy), d,
+                        float(self.rig.get("doffs", 0.0)),
+                        None if focus is None else float(focus))
+        return np.where(np.isfinite(p[..., 2:3]) & (p[..., 2:3] > 0), p, np.nan)
+
+    def robot_frame(self, points):
+        """``(x_m, forward_m, up_m)`` of points in the left camera's frame: the offset to the
+        right of the rig's centre line, the distance ahead on the ground plane and the height
+        above the ground (NaN when the camera's height is unknown)."""
+        p = np.asarray(points, dtype=np.float64)
+        t = math.radians(self.tilt_deg)
+        cx, cy, cz = p[..., 0], p[..., 1], p[..., 2]
+        up = (np.full(cz.shape, np.nan) if self.height_m is None
+              else self.height_m - cy * math.cos(t) - cz * math.sin(t))
+        return cx - self.baseline_m / 2, cz * math.cos(t) - cy * math.sin(t), up
 
     def column_to_point(self, u, depth):
         """(forward, left) in metres, relative to the left camera, of a point at camera height

@@ -130,7 +130,8 @@ def test_run_writes_the_views(pair, tmp_path):
     with open(out / "matches.csv") as f:
         rows = list(csv.DictReader(f))
     # the default matcher (golden.matcher.RTL) has subpixel d (decimal) and the confidence
-    assert list(rows[0]) == ["x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid"]
+    assert list(rows[0]) == ["x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid",
+                            "cam_x_m", "cam_y_m", "cam_z_m"]
     assert len(rows) == summary["matches"] > 0
     assert any(float(row["d"]) % 1 for row in rows)
     for row in rows:

@@ -414,7 +414,8 @@ def test_v2_matches_csv(tmp_path):
     paths = write_outputs(tmp_path, [f], [s.left], [s.right], camera=scene_camera(160, 120),
                           params=params, summary={})
     rows = list(csv.reader(open(paths["matches"])))
-    assert rows[0] == ["x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid"]
+    assert rows[0] == ["x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid",
+                       "cam_x_m", "cam_y_m", "cam_z_m"]
     assert len(rows) == len(f.records) + 1
     got = np.array([[float(v) for v in row[:5]] for row in rows[1:]])
     assert np.array_equal(got[:, 2], f.records["d16"] / 16)

@@ -6,10 +6,11 @@ Per rig: the calibration's figures (views, RMS, Bouguet's and the module's verti
 residual, the map's vertical warp in rows), then the matches, the points within 2 px of the
 ground truth and bad-2 (the share of matches with ground truth that are more than 2 px off),
 unrectified and rectified. Scoring goes through the points in the left camera's frame: a
-rectified match is triangulated with the calibration (:func:`golden.rig.triangulate`, the
-left lens' distortion removed), projected into the original left image with its documented
-camera, and its disparity there (``f B / z - doffs``) compared with the ground truth at the
-nearest pixel. An unrectified match is what the module gives today: its pixel and disparity
+rectified match's ``cam_x_m cam_y_m cam_z_m``, as ``matches.csv`` has them
+(:func:`sim.scenes.camera.match_table` with the calibration's camera file: the left lens'
+distortion removed), is projected into the original left image with its documented camera,
+and its disparity there (``f B / z - doffs``) compared with the ground truth at the nearest
+pixel. An unrectified match is what the module gives today: its pixel and disparity
 taken as the original image's.
 
 ``python -m sim.bench.rig [--rigs NAME,...] [--views N] [--span ROWS] [--horizontal
@@ -28,16 +29,20 @@ import numpy as np
 __all__ = ["score", "run_rig", "run", "markdown"]
 
 
-def score(records, gt, camera=None, rig=None, doffs=0.0, focus=None):
+def score(records, gt, camera=None, calibrated=None):
     """``(matches, within2, bad2)`` of records against the original left image's ground
-    truth ``gt`` (see the module text; ``rig`` None: unrectified, pixels taken as they are)."""
+    truth ``gt`` (see the module text): through the points ``cam_*_m`` of the calibrated
+    camera file ``calibrated`` (a :class:`golden.camera.Camera` with its ``rig``), projected
+    with the original pair's ``camera``; ``calibrated`` None: unrectified, pixels taken as they
+    are."""
     from golden.matcher import record_disparity
-    from golden.rig import triangulate
+    from sim.scenes.camera import match_table
     d = record_disparity(records)
     x = records["x"].astype(np.float64)
     y = records["y"].astype(np.float64)
-    if rig is not None:
-        p = triangulate(rig, x, y, d, doffs, focus)
+    if calibrated is not None:
+        t = match_table(calibrated, records)
+        p = np.stack([t["cam_x_m"], t["cam_y_m"], t["cam_z_m"]], axis=-1)
         z = p[:, 2]
         with np.errstate(invalid="ignore", divide="ignore"):
             x = camera.fx * p[:, 0] / z + camera.cx
@@ -83,7 +88,7 @@ def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workd
     rect = RectifyParams(nodes, lo, span, horizontal)
     rectified = rectified_pipeline_frames([l2], [r2], params, rect)[0]
     u = score(unrect.records, gt)
-    r = score(rectified.records, gt, MOTORCYCLE, crig, doffs, focus)
+    r = score(rectified.records, gt, MOTORCYCLE, cam)
     return {"rig": name, "views": cal["views"], "rms_px": cal["rms_px"],
             "residual_px": cal["residual_px"], "module_residual_px": cal["module_residual_px"],
             "warp_rows": cal["vertical_span_rows"], "lo": lo, "span": span,

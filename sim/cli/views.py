@@ -14,8 +14,11 @@ pixel per screen pixel, undimmed, with a colour bar or legend beside it:
 - ``topview.png``: bird's-eye map in metres, robot at the bottom, the matched points, the
   field of view and the blind zone nearer than the largest disparity reaches;
 - ``frames.png`` (runs of several frames): a contact sheet, one panel per frame;
-- ``matches.csv``: ``x, y, d, cost, z_m, x_m, forward_m, valid`` (and ``floor``, 1 = on the
-  floor, with a floor decision); ``summary.json``.
+- ``matches.csv``: ``x, y, d, cost, z_m, x_m, forward_m, valid, cam_x_m, cam_y_m, cam_z_m``
+  (and ``floor``, 1 = on the floor, with a floor decision); ``cam_*_m`` is the point in the
+  left camera's own frame (x right, y down, z forward, before rectification:
+  :meth:`golden.camera.Camera.points`), from which ``z_m``, ``x_m``, ``forward_m`` and the top
+  view's positions are taken; ``summary.json``.
 """
 import csv
 import json
@@ -29,11 +32,15 @@ import numpy as np
 from sim.cli import draw
 from sim.scenes.camera import disparity, match_table
 
-__all__ = ["write_outputs", "write_camera_views", "topview_points", "MATCH_COLUMNS", "MATCH_COLUMNS_V2"]
+__all__ = ["write_outputs", "write_camera_views", "topview_points", "MATCH_COLUMNS", "MATCH_COLUMNS_V2",
+           "CAMERA_COLUMNS"]
 
-MATCH_COLUMNS = ("x", "y", "d", "cost", "z_m", "x_m", "forward_m", "valid")
+#: The point in the left camera's own frame (golden.camera.Camera.points), after ``valid``.
+CAMERA_COLUMNS = ("cam_x_m", "cam_y_m", "cam_z_m")
+MATCH_COLUMNS = ("x", "y", "d", "cost", "z_m", "x_m", "forward_m", "valid") + CAMERA_COLUMNS
 #: With matcher version 2's records: d is the subpixel disparity (decimal), conf the confidence.
-MATCH_COLUMNS_V2 = ("x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid")
+MATCH_COLUMNS_V2 = ("x", "y", "d", "cost", "conf", "z_m", "x_m", "forward_m", "valid") \
+    + CAMERA_COLUMNS
 MIN_SHOWN_WIDTH = 480    # smaller images (crops) are shown enlarged by a whole factor
 POINT_RADIUS = 2         # matched points: 5 x 5 px squares (a 1 px black rim)
 TOP_VIEW_REACH_M = 10.0  # the top view shows the near field, where the robot has to act
@@ -211,7 +218,9 @@ def _band(centre, half, n, wrap):
 
 def topview_points(table, camera, params):
     """Which matches the top view draws (valid, at most its reach ahead), and its reach in
-    metres: the far end of the disparity window, at most TOP_VIEW_REACH_M."""
+    metres: the far end of the disparity window, at most TOP_VIEW_REACH_M. The top view places
+    each match by its point in the left camera's frame (``cam_*_m``) on the ground plane
+    (:meth:`golden.camera.Camera.robot_frame`)."""
     mp = params.matcher
     reach = min(camera.depth_range(mp.d_min, mp.d_max)[1], TOP_VIEW_REACH_M)
     return table["valid"] & (table["forward_m"] <= reach), reach
@@ -222,7 +231,10 @@ def _topview(path, table, camera, params, width, obstacles=()):
     near = camera.depth_range(mp.d_min, mp.d_max)[0]
     ok, reach = topview_points(table, camera, params)
     beyond = int((table["valid"] & (table["forward_m"] > reach)).sum())
-    fwd, lat = table["forward_m"][ok], table["x_m"][ok]
+    # the points in the left camera's frame, placed on the ground plane (equal to the table's
+    # x_m and forward_m, which are taken from them)
+    cam = np.stack([table[c][ok] for c in CAMERA_COLUMNS], axis=-1)
+    lat, fwd, _ = camera.robot_frame(cam)
     canvas = draw.Canvas(640, 720)
     # the plot area (metres at one scale on both axes), as matplotlib's box (0.11, 0.08, 0.72,
     # 0.86) of the figure
@@ -422,6 +434,7 @@ def write_outputs(out, frames, lefts, rights, *, camera, params, summary, obstac
         w.writerows(zip(rec["x"].tolist(), rec["y"].tolist(), d, rec["cost"].tolist(),
                         *([rec["conf"].tolist()] if v2 else []), *metres,
                         table["valid"].astype(int).tolist(),
+                        *([_metres(v) for v in table[c].tolist()] for c in CAMERA_COLUMNS),
                         *([np.asarray(floor).astype(int).tolist()] if floor is not None else [])))
     paths["summary"] = p("summary.json")
     with open(paths["summary"], "w") as f:

@@ -48,13 +48,16 @@ def disparity(records):
 
 
 def match_table(camera, records):
-    """Per match: z_m, x_m, forward_m, up_m (NaN at infinity) and valid (inside the rectified
-    region and at a finite depth)."""
-    z = camera.depth(disparity(records))
+    """Per match: the point in the left camera's own frame ``cam_x_m``, ``cam_y_m``,
+    ``cam_z_m`` (:meth:`Camera.points`: the calibration's when the camera has one), and from
+    it z_m (= cam_z_m), x_m, forward_m, up_m (:meth:`Camera.robot_frame`; NaN at infinity), and
+    valid (inside the rectified region and at a finite depth)."""
+    p = camera.points(records["x"], records["y"], disparity(records))
+    z = p[:, 2]
+    x_m, forward, up = camera.robot_frame(p)
     valid = camera.inside(records["x"], records["y"]) & np.isfinite(z)
-    return {"z_m": z, "x_m": camera.lateral(records["x"], z),
-            "forward_m": camera.forward(records["y"], z), "up_m": camera.up(records["y"], z),
-            "valid": valid}
+    return {"z_m": z, "x_m": x_m, "forward_m": forward, "up_m": up, "valid": valid,
+            "cam_x_m": p[:, 0], "cam_y_m": p[:, 1], "cam_z_m": z}
 
 
 def contour_depth(depth, records):
