@@ -42,7 +42,8 @@ import numpy as np
 
 __all__ = ["GRID", "FRAC", "MAP_DTYPE", "grid_shape", "build_map", "source_positions",
            "rectify", "fits", "row_window", "valid_region", "RectifyParams", "node_words",
-           "RectifiedPipelineModel", "rectified_pipeline_frames"]
+           "RectifiedPipelineModel", "rectified_pipeline_frames", "SPAN", "MAX_SPAN",
+           "needs_rectification", "params_for_rig"]
 
 #: Pixels between map nodes (a power of two).
 GRID = 32
@@ -52,6 +53,10 @@ FRAC = 4
 MAP_DTYPE = np.dtype([("dx", np.int16), ("dy", np.int16)])
 #: Width of a node's signed offsets in 1/16 px: up to +-32 px of warp.
 OFFSET_BITS = 10
+#: The line buffer's default readable rows less one (``span``), and the most its ``lo``
+#: register (-span .. 0, 6 bits signed) allows.
+SPAN = 8
+MAX_SPAN = 30
 
 
 def grid_shape(width, height, grid=GRID):
@@ -196,6 +201,36 @@ def valid_region(rig, doffs, grid=GRID, focus=None):
     raise ValueError("no pixel of the rectified image has its source inside the right image")
 
 
+def needs_rectification(nodes):
+    """Whether a map moves any pixel (a map of zeros is the identity)."""
+    return bool(np.any(nodes["dx"]) or np.any(nodes["dy"]))
+
+
+def params_for_rig(camera, width, height, span=SPAN, horizontal="nearest", max_span=MAX_SPAN):
+    """The :class:`RectifyParams` of a calibrated camera (:class:`golden.camera.Camera` with
+    ``rig``, as ``python -m sim calibrate`` writes it) for width x height images: the map of
+    its rig with its ``doffs`` and ``focus``, ``span`` the least even number of rows from
+    ``span`` up to ``max_span`` that holds the map's vertical warp, ``lo`` fitted to it.
+    ValueError when the camera has no calibration, its map grid is not :data:`GRID`, its size
+    is not the images', or its warp needs more than ``max_span`` rows."""
+    cal = camera.rig
+    if cal is None:
+        raise ValueError("the camera has no calibration (rig): nothing to rectify")
+    rig = camera.rectified
+    if (rig.width, rig.height) != (width, height):
+        raise ValueError(f"the calibration is of {rig.width}x{rig.height} images, not "
+                         f"{width}x{height}")
+    if cal.get("grid", GRID) != GRID:
+        raise ValueError(f"the calibration's map grid is {cal['grid']} px; the module's is {GRID}")
+    nodes = build_map(rig, cal.get("doffs", 0.0), focus=cal.get("focus"))
+    for s in range(max(2, span + span % 2), max_span + 1, 2):
+        lo = row_window(nodes, width, height, s)
+        if fits(nodes, width, height, lo, s):
+            return RectifyParams(nodes, lo, s, horizontal)
+    raise ValueError(f"the rig's vertical warp needs more than the {max_span + 1} rows a "
+                     f"rectifier's line buffer can hold")
+
+
 @dataclass(frozen=True)
 class RectifyParams:
     """What the right camera's rectifier runs with: the map ``nodes`` (:data:`MAP_DTYPE`
@@ -204,7 +239,7 @@ class RectifyParams:
     pass unchanged)."""
     nodes: np.ndarray
     lo: int = 0
-    span: int = 8
+    span: int = SPAN
     horizontal: str = "linear"
     enable: bool = True
 

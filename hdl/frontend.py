@@ -1,14 +1,16 @@
 """Per-camera front end: colour conversion -> ground classifier -> Sobel vertical edges, and the
 free space per column band of the ground mask (specification: ``golden/frontend.py``)."""
-from amaranth.hdl import Cat, Module
+from amaranth.hdl import Cat, Module, Signal, signed
 from amaranth.lib import wiring, stream
 from amaranth.lib.wiring import In, Out
 
+from golden.rectify import OFFSET_BITS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .color import ColorConvert
 from .freespace import FreeSpace, free_config_ports
 from .ground import GroundClassifier, SharedGroundClassifier, GroundConfig
 from .ground_search import GroundSearchBus
+from .rectify import Rectify
 from .sobel import SobelEdges
 from .framing import FramedUnit
 from .skid import SkidBuffer
@@ -49,11 +51,31 @@ class FrontEnd(FramedUnit):
     frame_abort, in_frame : In(1), Out(1)
         To and from every unit (:class:`hdl.framing.FramedUnit`): end the frame at once; some
         unit is inside a frame.
+
+    With ``rectify``, the signals ``rect_lo``, ``rect_enable``, ``rect_map_addr``,
+    ``rect_map_data`` and ``rect_map_we`` (attributes, not ports: the enclosing component drives
+    them) are the rectifier's registers and map memory write port (:class:`hdl.rectify.Rectify`'s
+    ``lo``, ``enable``, ``map_*``).
+
+    Elaboration parameters: ``max_width``, ``max_height``; ``census`` (the Sobel unit sends
+    census words); ``rectify`` (None, or a dict of :class:`hdl.rectify.Rectify`'s ``span``,
+    ``horizontal`` and optional ``nodes``): a rectifier between the classifier and the Sobel
+    unit, on the luminance and the ground bit (golden
+    :class:`golden.rectify.RectifiedPipelineModel`); free space stays the classifier's. It
+    delays the edges by ``lo + span`` rows and a few pixels, and costs four block RAMs of line
+    buffer and one of map.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, census=False):
+    def __init__(self, *, max_width=1024, max_height=1024, census=False, rectify=None):
         self._census = census
+        self._rectify = dict(rectify) if rectify is not None else None
         super().__init__(max_width=max_width, max_height=max_height)
+        if self._rectify is not None:
+            self.rect_lo = Signal(signed(6))
+            self.rect_enable = Signal()
+            self.rect_map_addr = Signal(12)
+            self.rect_map_data = Signal(2 * OFFSET_BITS)
+            self.rect_map_we = Signal()
 
     i: In(stream.Signature(RGBPixel))
     o: Out(stream.Signature(EdgePixel))
@@ -89,7 +111,19 @@ class FrontEnd(FramedUnit):
         wiring.connect(m, color.o, skid_cg.i)
         wiring.connect(m, skid_cg.o, ground.i)
         wiring.connect(m, ground.o, skid_gs.i)
-        wiring.connect(m, skid_gs.o, sobel.i)
+        units = (color, ground, sobel)
+        if self._rectify is None:
+            wiring.connect(m, skid_gs.o, sobel.i)
+        else:
+            m.submodules.rectify = rect = Rectify(**size, **self._rectify)
+            m.submodules.skid_rs = skid_rs = SkidBuffer(GroundPixel)
+            wiring.connect(m, skid_gs.o, rect.i)
+            wiring.connect(m, rect.o, skid_rs.i)
+            wiring.connect(m, skid_rs.o, sobel.i)
+            m.d.comb += [rect.lo.eq(self.rect_lo), rect.enable.eq(self.rect_enable),
+                         rect.map_addr.eq(self.rect_map_addr),
+                         rect.map_data.eq(self.rect_map_data), rect.map_we.eq(self.rect_map_we)]
+            units += (rect,)
         wiring.connect(m, sobel.o, skid_out.i)
         wiring.connect(m, skid_out.o, wiring.flipped(self.o))
         # free space observes the classifier's transfers (it never applies backpressure)
@@ -101,7 +135,7 @@ class FrontEnd(FramedUnit):
         wiring.connect(m, free.o, wiring.flipped(self.free))
         # an abandoned pair ends the frame in every unit at once (hdl.framing); the front end is
         # inside a frame while any of them is
-        units = (color, ground, sobel, free)
+        units += (free,)
         m.d.comb += [unit.frame_abort.eq(self.frame_abort) for unit in units]
         m.d.comb += self.in_frame.eq(Cat(unit.in_frame for unit in units).any())
         m.d.comb += [

@@ -1,17 +1,19 @@
 """Stereo pipeline top: two per-camera front ends and the census matcher
 (specification: ``golden/pipeline.py``)."""
-from amaranth.hdl import Cat, Module
+from amaranth.hdl import Cat, Module, signed
 from amaranth.lib import wiring, stream
 from amaranth.lib.wiring import In, Out
 
 from amaranth.utils import bits_for
 
+from golden.rectify import OFFSET_BITS
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS
 from golden.sobel import THRESHOLD_BITS, RATIO_BITS
 from .freespace import free_config_ports
 from .frontend import SharedSearchFrontEnd
 from .ground import GroundConfig
 from .ground_search import GroundSearch
+from .rectify import Rectify
 from .matcher import MATCHER_WIDEN, Matcher, match_record_layout
 from .types import RGBPixel, FreeBand
 
@@ -67,11 +69,36 @@ class StereoPipeline(wiring.Component):
     ``"census"`` (the default: the front ends' Sobel units send census words, the matcher sums
     their Hamming distances) or ``"sad"`` (luminance, sum of absolute differences); it must
     equal the golden ``matcher.cost`` the pipeline is compared with.
+
+    ``rectify`` (None, or a dict of :class:`hdl.rectify.Rectify`'s ``span``, ``horizontal`` and
+    optional ``nodes``, the map memory's initial contents): the right camera's luminance and
+    ground bit rectified between its classifier and its Sobel unit (golden
+    :class:`golden.rectify.RectifiedPipelineModel`), with the ports
+
+    rect_lo, rect_enable : In(signed(6)), In(1)
+        The rectifier's ``lo`` and ``enable`` (sampled at each right frame's start).
+    rect_map_addr, rect_map_data, rect_map_we : In(12), In(20), In(1)
+        The map memory's write port (node ``(j, k)`` at ``j * rect_node_stride + k``, word
+        :func:`golden.rectify.node_words`); write it between frames.
+
+    The right camera's edges then reach the matcher ``lo + span`` rows after the left's: the
+    left stalls for them (with ``drop_mode`` and cameras that cannot stall, ``extra_rows`` must
+    cover them). The default build has no rectifier.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, extra_rows=0, cost="census"):
+                 queue_depth=16, extra_rows=0, cost="census", rectify=None):
         self._size = dict(max_width=max_width, max_height=max_height)
+        self.rectify = None if rectify is None else dict(rectify)
+        if rectify is not None:
+            # plain values: what the Verilog depends on (a cached simulator build is found by
+            # them, sim.backends.verilator.construction_params)
+            nodes = self.rectify.get("nodes")
+            self._rect_span = self.rectify.get("span", 8)
+            self._rect_horizontal = self.rectify.get("horizontal", "linear")
+            self._rect_nodes = None if nodes is None else (
+                nodes.shape, tuple(int(v) for v in nodes["dx"].ravel()),
+                tuple(int(v) for v in nodes["dy"].ravel()))
         self._matcher = dict(max_disparity=max_disparity, window=window,
                              queue_depth=queue_depth, extra_rows=extra_rows, cost=cost)
         self.max_width, self.max_height = max_width, max_height
@@ -104,7 +131,13 @@ class StereoPipeline(wiring.Component):
             ports[f"{side}_free_lost"] = Out(16)
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
+        if rectify is not None:
+            ports.update(rect_lo=In(signed(6)), rect_enable=In(1), rect_map_addr=In(12),
+                         rect_map_data=In(2 * OFFSET_BITS), rect_map_we=In(1))
         super().__init__(ports)
+        #: the map memory's row stride (rect_map_addr of node (j, k): j * stride + k)
+        self.rect_node_stride = None if rectify is None else \
+            Rectify.node_stride_for(max_width, max_height)
 
     def elaborate(self, platform):
         m = Module()
@@ -115,8 +148,14 @@ class StereoPipeline(wiring.Component):
         m.submodules.ground_search = search = GroundSearch(units=2)
         m.d.comb += search.config.eq(self.ground)
         for k, side in enumerate(("left", "right")):
-            fe = SharedSearchFrontEnd(**self._size, census=self._matcher["cost"] == "census")
+            fe = SharedSearchFrontEnd(**self._size, census=self._matcher["cost"] == "census",
+                                      rectify=self.rectify if side == "right" else None)
             m.submodules[f"{side}_frontend"] = fe
+            if side == "right" and self.rectify is not None:
+                m.d.comb += [fe.rect_lo.eq(self.rect_lo), fe.rect_enable.eq(self.rect_enable),
+                             fe.rect_map_addr.eq(self.rect_map_addr),
+                             fe.rect_map_data.eq(self.rect_map_data),
+                             fe.rect_map_we.eq(self.rect_map_we)]
             wiring.connect(m, fe.search, getattr(search, f"unit{k}"))
             wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
             wiring.connect(m, fe.o, getattr(matcher, side))

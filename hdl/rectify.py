@@ -97,16 +97,21 @@ class Rectify(FramedUnit):
             raise ValueError(f"span {span} exceeds the lo register's range")
         self.span = span
         self.slots = span + 2
-        rows, cols = grid_shape(max_width, max_height)
-        self.node_rows = rows
-        self.node_stride = 1 << ceil_log2(cols + 3)
-        self.map_depth = rows * self.node_stride
+        self.node_rows = grid_shape(max_width, max_height)[0]
+        self.node_stride = self.node_stride_for(max_width, max_height)
+        self.map_depth = self.node_rows * self.node_stride
         self.bank_stride = (max_width + 1) // 2
         self.bank_depth = self.slots // 2 * self.bank_stride
         if self.map_depth > 1 << 12:
             raise ValueError(f"{max_width}x{max_height} needs {self.map_depth} map words: more "
                              f"than the 12-bit map address reaches")
         super().__init__(max_width=max_width, max_height=max_height)
+
+    @staticmethod
+    def node_stride_for(max_width, max_height):
+        """The map memory's row stride for a ``max_width`` x ``max_height`` build: node
+        columns, plus the three the row's walk may fetch past the last, to a power of two."""
+        return 1 << ceil_log2(grid_shape(max_width, max_height)[1] + 3)
 
     def node_address(self, j, k):
         return j * self.node_stride + k

@@ -33,9 +33,15 @@ async def apply_config(ctx, dut, params):
         if cfg is not None and hasattr(cfg, "ref_x"):
             for name, _ in GroundParams.FIELDS:
                 ctx.set(getattr(cfg, name), int(getattr(gp, name)))
-    for name, value in _scalar_values(params):
+    for name, value in [*_scalar_values(params), *_fixed(dut)]:
         if hasattr(dut, name):
             ctx.set(getattr(dut, name), value)
+
+
+def _fixed(dut):
+    """(port, value) of the registers a unit was built with beside the parameters: its
+    ``fixed_config`` dict (for example the rectifier's ``rect_lo`` and ``rect_enable``)."""
+    return list(getattr(dut, "fixed_config", {}).items())
 
 
 def config_values(dut, params):
@@ -50,4 +56,6 @@ def config_values(dut, params):
     for name, value in _scalar_values(params):
         if hasattr(dut, name):
             values[name] = int(value)
+    for name, value in _fixed(dut):     # two's complement in the port's width
+        values[name] = int(value) & ((1 << len(getattr(dut, name))) - 1)
     return values

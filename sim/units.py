@@ -22,16 +22,23 @@ __all__ = ["Job", "Unit", "StereoUnit", "UNITS", "DEPRECATED_UNITS", "unit_name"
 
 @dataclass
 class Job:
-    """What to run: consecutive RGB frames of one or two cameras and the parameters."""
+    """What to run: consecutive RGB frames of one or two cameras and the parameters;
+    ``rect`` (a :class:`golden.rectify.RectifyParams`): the right camera rectified (the
+    pipeline's golden model is then :func:`golden.rectify.rectified_pipeline_frames` and its
+    RTL is elaborated with the rectifier, the map in its memory's initial contents)."""
     left: list
     right: list
     params: PipelineParams
     max_width: int = 1024
     max_height: int = 1024
     max_disparity: int = MAX_DISPARITY
+    rect: object = None
 
     @cached_property
     def golden(self):
+        if self.right and self.rect is not None:
+            from golden.rectify import rectified_pipeline_frames
+            return rectified_pipeline_frames(self.left, self.right, self.params, self.rect)
         if self.right:
             return pipeline_frames(self.left, self.right, self.params)
         # one camera: frames with only the left front end's result
@@ -211,11 +218,18 @@ def _matcher(job):
 
 def pipeline_for(job, *, extra_rows=0):
     """The pipeline RTL elaborated for ``job`` (``extra_rows``: the matcher's, see
-    :class:`hdl.pipeline.StereoPipeline`)."""
+    :class:`hdl.pipeline.StereoPipeline`); with ``job.rect`` the rectifier, its map the map
+    memory's initial contents and its registers among the run-time parameters
+    (``fixed_config``, :func:`sim.config.config_values`)."""
     from hdl.pipeline import StereoPipeline
     mp = _rtl_matcher(job)
-    return StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window,
-                          extra_rows=extra_rows, cost=mp.cost)
+    r = job.rect
+    rectify = None if r is None else dict(span=r.span, horizontal=r.horizontal, nodes=r.nodes)
+    dut = StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window,
+                         extra_rows=extra_rows, cost=mp.cost, rectify=rectify)
+    if r is not None:
+        dut.fixed_config = {"rect_lo": r.lo, "rect_enable": int(r.enable)}
+    return dut
 
 
 def _frontend(job):

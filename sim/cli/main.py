@@ -409,6 +409,33 @@ def _run_inputs(args):
     return left, right, False, ground, camera, truth, obstacles, {"scene": args.scene}
 
 
+def rectification(args, camera, w, h):
+    """``(RectifyParams or None, summary entry)`` of ``run``: a calibrated camera (``--camera``
+    with ``rig``) whose map moves pixels has its right image rectified, golden and RTL, with the
+    least line buffer that holds its warp (``--rectify off``: never). CliError when the rig
+    cannot be rectified here."""
+    from golden.rectify import GRID, needs_rectification, params_for_rig
+    if camera.rig is None or args.rectify == "off":
+        why = "--rectify off" if camera.rig is not None else "the camera has no calibration"
+        return None, {"on": False, "why": why}
+    if args.crop:
+        raise CliError("--crop with a calibrated camera: the rectification map is of the "
+                       "whole image (give uncropped images, or --rectify off)")
+    try:
+        rect = params_for_rig(camera, w, h)
+    except ValueError as e:
+        raise CliError(f"cannot rectify with {args.camera!r}: {e}") from None
+    if not needs_rectification(rect.nodes):
+        return None, {"on": False, "why": "the rig's map is the identity"}
+    dy = rect.nodes["dy"]
+    return rect, {"on": True, "side": "right", "span": rect.span, "lo": rect.lo,
+                  "horizontal": rect.horizontal, "grid": GRID,
+                  "node_rows_cols": list(rect.nodes.shape),
+                  "node_dy_px": [round(int(dy.min()) / 16, 3), round(int(dy.max()) / 16, 3)],
+                  "warp_rows": camera.rig.get("vertical_span_rows"),
+                  "valid": list(camera.valid) if camera.valid is not None else None}
+
+
 def cmd_run(args, flags):
     from sim.scenes.camera import load_camera, depth_error
     from golden.matcher import record_dtype
@@ -429,9 +456,10 @@ def cmd_run(args, flags):
         raise CliError(str(e)) from None
     check_size(w, h, args)
     params = build_params(args, flags, w, h, grey, ground_default)
+    rect, rectified = rectification(args, camera, w, h)
     unit = UNITS["pipeline"]
     job = Job([left] * args.frames, [right] * args.frames, params, max_width=args.max_width,
-              max_height=args.max_height, max_disparity=args.max_disparity)
+              max_height=args.max_height, max_disparity=args.max_disparity, rect=rect)
     dut = make_dut(unit, job)
     prepare_out(args.out)
     ground = params.frontend.ground
@@ -488,6 +516,7 @@ def cmd_run(args, flags):
         "eval_fraction_of_dense": round(last.stats["evaluations"]
                                             / (pixels * DISPARITIES), 5),
         "camera": camera.summary(mp.d_min, mp.d_max),
+        "rectified": rectified,
         "parameters": {f.names[0][2:]: _plain(flag_value(params, f)) for f in flags},
         "simulation_seconds": round(seconds, 1),
     }
@@ -573,6 +602,13 @@ def _print_run(summary, last, failure, paths, args):
     near, far = cam["depth_range_m"]
     print(f"  measurable depth {near:.3g} m to {far:.3g} m (disparity {cam['disparity_range_px'][1]}"
           f" to {cam['far_disparity_px']} px; camera: {cam['source']})")
+    rc = summary.get("rectified")
+    if rc and rc["on"]:
+        print(f"  right camera rectified into the left's geometry (line buffer of "
+              f"{rc['span'] + 1} rows, lo {rc['lo']}, {rc['horizontal']} columns; "
+              f"summary.json 'rectified')")
+    elif rc and args.camera:
+        print(f"  not rectified: {rc['why']}")
     fl = summary.get("floor")
     if fl and fl["mode"] != "off":
         where = "no line yet" if fl["line"] is None else \
@@ -607,6 +643,10 @@ def _add_pair_options(p, *, run):
                             "[x, y, w, h], doffs_px, width, height, mount_forward_m, mount_left_m "
                             "(see golden/camera.py; default: the scenes' rig, or the motorcycle "
                             "pair's calibration)")
+        p.add_argument("--rectify", choices=("auto", "off"), default="auto",
+                       help="with a calibrated --camera (python -m sim calibrate): rectify the "
+                            "right image on the chip when the rig's map moves pixels (auto), "
+                            "or never (off) [default: auto]")
     else:
         p.add_argument("--left", required=True, help="left image (PNG or any format Pillow "
                                                      "reads, 8 bits per sample)")

@@ -1,0 +1,181 @@
+"""The stereo pipeline with the right camera's rectifier (``StereoPipeline(rectify=...)``)
+against the golden rectified pipeline (golden.rectify.RectifiedPipelineModel): an identity map
+gives the unrectified pipeline's records, a random map and a misaligned rig's map the rectified
+golden records, with stalls."""
+import numpy as np
+import pytest
+
+from golden.matcher import record_dtype
+from golden.pipeline import default_params, pipeline_frames
+from golden.rectify import MAP_DTYPE, RectifyParams, build_map, fits, grid_shape, row_window
+from sim.backends.run import run_unit
+from sim.scenes.data import crop, motorcycle
+from sim.units import UNITS, Job, records_from_words
+
+
+def _records(job, backend, stalls):
+    result = run_unit(UNITS["pipeline"], job, backend=backend, stall_seed=stalls,
+                      timeout=2_000_000)
+    got = records_from_words(result["dut"].o.payload.shape(), result["words"]["o"],
+                             record_dtype(job.params.matcher))
+    return result, got
+
+
+def _check(job, backend, stalls):
+    result, got = _records(job, backend, stalls)
+    assert len(got) == len(job.left)
+    for k, (g, frame) in enumerate(zip(got, job.golden)):
+        assert np.array_equal(g, frame.records), f"frame {k}: records differ"
+    assert result["mismatches"] == 0
+    return sum(len(g) for g in got)
+
+
+def _crop_pair(w=48, h=20):
+    left, right, _ = motorcycle()
+    return crop(left, w, h, 500, 300), crop(right, w, h, 500, 300)
+
+
+def _random_nodes(w, h, seed, reach=2.0, vreach=1.5):
+    rng = np.random.default_rng(seed)
+    shape = grid_shape(w, h)
+    n = np.zeros(shape, MAP_DTYPE)
+    n["dx"] = np.rint(rng.uniform(-reach, reach, shape) * 16)
+    n["dy"] = np.rint(rng.uniform(-vreach, vreach, shape) * 16)
+    return n
+
+
+def test_identity_map_equals_the_unrectified_pipeline():
+    """Rectification on with a zero map: golden and RTL give the unrectified records."""
+    l, r = _crop_pair()
+    h, w = l.shape[:2]
+    params = default_params(w, h, ground="off", d_max=31, window=5)
+    rect = RectifyParams(np.zeros(grid_shape(w, h), MAP_DTYPE), lo=-4, span=8,
+                         horizontal="nearest")
+    job = Job([l, l], [r, r], params, max_width=64, max_height=32, max_disparity=31, rect=rect)
+    plain = pipeline_frames([l, l], [r, r], params)
+    for a, b in zip(job.golden, plain):
+        assert np.array_equal(a.records, b.records)
+    assert _check(job, "amaranth", 3) > 0
+
+
+@pytest.mark.parametrize("seed, horizontal", [(1, "nearest"), (2, "linear")])
+def test_random_map_amaranth_with_stalls(seed, horizontal):
+    """A random map (up to 1.5 rows up or down): the RTL equals the rectified golden pipeline,
+    whose records differ from the unrectified ones."""
+    l, r = _crop_pair()
+    h, w = l.shape[:2]
+    params = default_params(w, h, ground="luma", d_max=31, window=5)
+    nodes = _random_nodes(w, h, seed)
+    lo = row_window(nodes, w, h, 4)
+    rect = RectifyParams(nodes, lo=lo, span=4, horizontal=horizontal)
+    assert fits(nodes, w, h, lo, 4)
+    job = Job([l, l], [r, r], params, max_width=64, max_height=32, max_disparity=31, rect=rect)
+    plain = pipeline_frames([l], [r], params)[0]
+    assert not np.array_equal(job.golden[0].records, plain.records)
+    assert _check(job, "amaranth", seed) > 0
+
+
+def test_disabled_rectifier_passes_the_image():
+    """The enable bit off: the unrectified pipeline's records, whatever the map."""
+    l, r = _crop_pair()
+    h, w = l.shape[:2]
+    params = default_params(w, h, ground="off", d_max=31, window=5)
+    rect = RectifyParams(_random_nodes(w, h, 5), lo=-2, span=4, horizontal="nearest",
+                         enable=False)
+    job = Job([l], [r], params, max_width=64, max_height=32, max_disparity=31, rect=rect)
+    plain = pipeline_frames([l], [r], params)[0]
+    assert np.array_equal(job.golden[0].records, plain.records)
+    assert _check(job, "amaranth", 4) > 0
+
+
+def _rig_job(name, frames=1):
+    from sim.scenes.camera import MOTORCYCLE
+    from sim.scenes.rig import motorcycle_rig, reshoot_pair, rig_named
+    left, right, _ = motorcycle()
+    rig = rig_named(name)
+    l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
+    h, w = l2.shape[:2]
+    nodes = build_map(rig, MOTORCYCLE.doffs_px)
+    lo = row_window(nodes, w, h, 8)
+    rect = RectifyParams(nodes, lo=lo, span=8, horizontal="nearest")
+    params = default_params(w, h, ground="off")
+    return Job([l2] * frames, [r2] * frames, params, rect=rect), (l2, r2, params)
+
+
+@pytest.mark.parametrize("stalls", [None, 7])
+def test_misaligned_rig_verilator(stalls):
+    """The motorcycle pair re-shot through every test error together, rectified with the rig's
+    own map: bit-exact with golden on Verilator, and more matches than without rectification."""
+    job, (l2, r2, params) = _rig_job("all together")
+    matches = _check(job, "verilator", stalls)
+    assert matches > len(pipeline_frames([l2], [r2], params)[0].records)
+
+
+# ---------------------------------------------------------------------------------------------
+# python -m sim run --camera rig.json
+# ---------------------------------------------------------------------------------------------
+
+def _small_rig_file(path, w=96, h=48, **errors):
+    """A calibrated camera file (as ``python -m sim calibrate`` writes it) of a small rig with
+    the given right-camera errors, its map centred on disparity 8."""
+    from golden.camera import Camera
+    from golden.rig import Lens, Rig
+    lens = Lens(120.0, 120.0, (w - 1) / 2, (h - 1) / 2)
+    rig = Rig(lens, lens, T=(-0.1, 0.0, 0.0), width=w, height=h).with_errors(**errors)
+    cal = {**rig.to_dict(), "doffs": 0.0, "focus": 8.0, "grid": 32, "window": [0, 31]}
+    Camera(fx=120.0, fy=120.0, cx=lens.cx, cy=lens.cy, baseline_m=0.1, width=w, height=h,
+           rig=cal).to_json(path)
+    return rig
+
+
+def _write_pair(folder, w=96, h=48):
+    from PIL import Image
+    left, right, _ = motorcycle()
+    paths = []
+    for side, im in (("left", left), ("right", right)):
+        p = folder / f"{side}.png"
+        Image.fromarray(crop(im, w, h, 470, 290)).save(p)
+        paths.append(str(p))
+    return paths
+
+
+def _run_cli(tmp_path, *extra):
+    import json
+    from sim.cli.main import main
+    left, right = _write_pair(tmp_path)
+    out = tmp_path / "out"
+    code = main(["run", "--left", left, "--right", right, "--backend", "amaranth",
+                 "--frames", "1", "--max-width", "128", "--max-height", "64",
+                 "--max-disparity", "31", "--d-max", "31", "--window", "5", "--ground", "off",
+                 "--out", str(out), *extra])
+    return code, json.loads((out / "summary.json").read_text())
+
+
+def test_run_rectifies_a_calibrated_rig(tmp_path, capsys):
+    """``run --camera rig.json`` with a rolled, row-offset rig: the right image is rectified in
+    golden and RTL (bit-exact, with stalls) and the outputs say so; ``--rectify off`` does not."""
+    _small_rig_file(tmp_path / "rig.json", row_offset=1.0, roll_deg=1.0)
+    code, summary = _run_cli(tmp_path, "--camera", str(tmp_path / "rig.json"), "--stalls", "2")
+    assert code == 0 and summary["bit_exact"]
+    rc = summary["rectified"]
+    assert rc["on"] and rc["side"] == "right" and rc["span"] == 8 and -8 <= rc["lo"] <= 0
+    assert "right camera rectified" in capsys.readouterr().out
+    code, off = _run_cli(tmp_path, "--camera", str(tmp_path / "rig.json"), "--rectify", "off")
+    assert code == 0 and off["rectified"] == {"on": False, "why": "--rectify off"}
+    assert off["matches"] != summary["matches"]
+
+
+def test_run_rejects_what_it_cannot_rectify(tmp_path, capsys):
+    """A crop with a calibrated camera, and a warp beyond every line buffer: one error line."""
+    from sim.cli.main import main
+    _small_rig_file(tmp_path / "rig.json", roll_deg=1.0)
+    left, right = _write_pair(tmp_path)
+    base = ["run", "--left", left, "--right", right, "--camera", str(tmp_path / "rig.json"),
+            "--out", str(tmp_path / "out")]
+    assert main([*base, "--crop", "64x32+0+0"]) == 2
+    assert capsys.readouterr().err.startswith("error: --crop with a calibrated camera")
+    _small_rig_file(tmp_path / "steep.json", roll_deg=30.0)
+    base[base.index(str(tmp_path / "rig.json"))] = str(tmp_path / "steep.json")
+    assert main(base) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: cannot rectify") and len(err.splitlines()) == 1
