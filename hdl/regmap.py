@@ -443,3 +443,22 @@ BANDS_WINDOW = 0x400          #: bytes decoded by the band summary
 #: TOP (ro): from 0x100, ceil(slots / 4) words per band, band 0 first: the published frame's
 #: largest disparities of the band, the largest in bits 7..0, then 15..8, 23..16, 31..24.
 BANDS_REGS = {"CFG": 0x000, "STATUS": 0x004, "DROPS": 0x008, "RECORDS": 0x00C, "TOP": 0x100}
+#: (kind, reset, description) of each register of the band summary's window, for
+#: docs/registers.md (sim/flows/gen_regs.py).
+BANDS_DOCS = {
+    "CFG": ("rw", 720 | 32 << 16, "width bits 10..0 (columns, n_bands..1024), n_bands bits "
+            "22..16 (1..64). A write refills the band table (width cycles, STATUS.built 0 "
+            "meanwhile; records then are dropped): write it between frames."),
+    "STATUS": ("ro", 0, "frames bits 15..0 (frames published, wraps), built bit 16 (the band "
+               "table matches CFG), bad_cfg bit 17 (CFG out of range: every record dropped), "
+               "lost bit 18 (the published frame lost records)."),
+    "DROPS": ("ro", 0, "records dropped bits 15..0 (saturating), aborted frames bits 31..16 "
+              "(wraps)."),
+    "RECORDS": ("rw", 0, "fifo bit 0: in the SoC with its CPU inside, 1 sends the records to "
+                "the result FIFO (RESULT) as well; 0 spares it (it neither fills nor "
+                "overflows). A write leaves the band table alone."),
+    "TOP": ("ro", 0, "from 0x100, one word per band (band 0 first) of the published frame: its "
+            "four largest disparities, the largest in bits 7..0, then 15..8, 23..16, 31..24 "
+            "(0: fewer matches). Read STATUS, the words, STATUS again: the frame is whole when "
+            "both frame counts agree."),
+}

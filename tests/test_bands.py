@@ -383,6 +383,7 @@ def test_firmware_header_matches_regmap():
     for name, offset in REGS.items():
         assert defs[f"BANDS_HW_{name}_OFFSET"] == offset
     assert defs["BANDS_HW_SLOTS"] == SLOTS and defs["BANDS_HW_MAX_WIDTH"] == 1024
+    assert list(regmap.BANDS_DOCS) == list(REGS)       # docs/registers.md: every register
 
 
 def test_rtl_latency_and_bad_configuration():

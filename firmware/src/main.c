@@ -103,7 +103,6 @@ int main(void)
 #endif
     start = hal_ticks();
     for (;;) {
-        uint32_t frame;
         if (st_pipe != FW_OK) {
             st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);      /* wrong bitstream? */
         } else if (st_video != FW_OK) {
@@ -129,16 +128,17 @@ int main(void)
 #ifdef FIRMWARE_BANDS_HW
         /* the report right after the end of the frame in progress (its summary merged), at
          * most FRAME_WAIT_US later */
-        (void)frame;
         while (step() == 0u && (uint32_t)(hal_ticks() - start) < FRAME_WAIT_CYCLES) {
         }
 #else
         /* the report's work in the vertical blanking, when no records come: after the end
          * of the frame in progress (FRAME_COUNT steps), at most FRAME_WAIT_US later */
-        frame = STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET);
-        while (STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET) == frame &&
-               (uint32_t)(hal_ticks() - start) < FRAME_WAIT_CYCLES) {
-            step();
+        {
+            uint32_t frame = STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET);
+            while (STEREO_ReadReg(STEREO_BASEADDR, STEREO_FRAME_COUNT_OFFSET) == frame &&
+                   (uint32_t)(hal_ticks() - start) < FRAME_WAIT_CYCLES) {
+                step();
+            }
         }
 #endif
         /* flags 0 (not locked, not enabled) when the register block does not answer */

@@ -134,6 +134,14 @@ def render_markdown() -> str:
         for f in sorted(reg.fields, key=lambda f: -f.lsb):
             bits = f"{f.lsb}" if f.width == 1 else f"{f.lsb + f.width - 1}:{f.lsb}"
             out.append(f"| {bits} | `{f.name}` | {f.reset} | {f.doc} |")
+    out += ["", "## Band summary unit", "",
+            f"At `0x{regmap.BANDS_BASEADDR:08X}` ({regmap.BANDS_WINDOW} bytes) in the SoC with "
+            "its CPU inside (`hdl/bands.py`, rule `golden/bands.py`, firmware "
+            "`firmware/include/bands_hw.h`); whole-word access, byte enables ignored.", "",
+            "| Offset | Register | Kind | Reset | Description |", "|---|---|---|---|---|"]
+    for name, offset in regmap.BANDS_REGS.items():
+        kind, reset, doc = regmap.BANDS_DOCS[name]
+        out.append(f"| `0x{offset:03X}` | {name} | {kind} | `0x{reset:08X}` | {doc} |")
     out.append("")
     return "\n".join(out)
 

@@ -22,7 +22,8 @@ Checks (the JSON line):
     each frame's :func:`~golden.bands.frame_top`) over the frames that ended (their marker
     reached the unit) between the previous packet's first byte and this one's: the firmware
     merges each frame's summary as the unit publishes it and closes its summary right before
-    sending. A frame it missed, or merged twice, makes a packet differ.
+    sending. A frame it missed, or merged twice, makes a packet differ. ``radio_frames``: the
+    frames each packet covers.
 ``cpu``
     ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
     ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
@@ -266,6 +267,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
         "radio_packets": len(packets),
         "radio_exact": bool(packets) and all(exact_packets),
         "radio_bands": [list(p.bands) for _c, p, _n in packets],
+        "radio_frames": [n for _c, _p, n in packets],
         "radio_flags": flags,
         "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
                 "instructions": int(instructions),
