@@ -47,7 +47,7 @@ vhdl: setup
 	$(PY) -m sim.flows.vhdl --out build/vhdl
 
 synth: setup
-	$(PY) -m sim.flows.synth --out build/synth
+	$(PY) -m sim.flows.synth --out build/synth --ise
 
 timing: setup
 	$(PY) -m sim.flows.timing --out build/timing
