@@ -20,16 +20,16 @@ truth the robust plane of :func:`sim.bench.ground.motorcycle_truth`. The golden 
 Figures per scene and mode (records of the last frame; each record's truth is the nearer
 surface among its row neighbours, :func:`contour_truth`, as the project scores depth at edges):
 obstacle points (records off the floor truth, not flagged) and those within 2 px of the true
-disparity (``d16 / 16``), as a share of ``off``'s; floor matches (records on the floor truth) and the share of ``off``'s floor matches
-that the mode removed or flagged (the rest reach the radio summary as obstacles), and the share
-left unflagged with no obstacle of their disparity within 2 columns (:func:`beside_obstacle`:
-the others carry the depth of the obstacle whose outline the matching window reached); census window
-evaluations and their saving against ``off`` (and, for ``geometry``, the share at or under
-the floor threshold, :func:`window_saving`, which a window starting above it would save but
-whose floor pixels would then be matched elsewhere);
-the free-space bands from the points and the
-flag (:func:`golden.freespace.free_space_points`): the mean distance in rows from the bands of
-the truth (the same rule on the truth's obstacle pixels), over the bands both have.
+disparity (``d16 / 16``), as a share of ``off``'s; floor matches (records on the floor truth)
+and the share of ``off``'s floor matches that the mode removed or flagged (the rest reach the
+radio summary as obstacles), and the share left unflagged with no obstacle of their disparity
+within 2 columns (:func:`beside_obstacle`: the others carry the depth of the obstacle whose
+outline the matching window reached); census window evaluations and their saving against
+``off`` (and, for ``geometry``, the share at or under the floor threshold,
+:func:`window_saving`, which a window starting above it would save but whose floor pixels
+would then be matched elsewhere); the free-space bands from the points and the flag
+(:func:`golden.freespace.free_space_points`): the mean distance in rows from the bands of the
+truth (the same rule on the truth's obstacle pixels), over the bands both have.
 
 Must hold (checked on :data:`DEFAULT_MODE`): good obstacle points >= 95 % of ``off``'s
 and floor matches removed or flagged >= 80 % on every scene (``grey_room`` in luminance mode;
