@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "learn_line", "line16",
+           "search_start16",
            "SLOPE_BITS", "OFFSET_BITS", "LINE_FRAC", "BIN_SHIFT", "TOL_BITS", "TOL_SHIFT_BITS",
            "MODES"]
 
@@ -246,6 +247,17 @@ def line_score(y, d16, line, params):
     kl = np.array([[(line.offset - (1 << (BIN_SHIFT - 1))) >> BIN_SHIFT]], np.int64)
     return int(_scores(np.asarray(y, np.int64), np.asarray(d16, np.int64),
                        np.array([line.slope], np.int64), kl, params)[2][0, 0])
+
+
+def search_start16(line, height, margin=32):
+    """Per image row ``0 .. height - 1``, the lowest disparity worth searching (1/16 px,
+    int64): ``line16(y) - margin``. Nothing the camera sees is farther than the floor at its
+    row, so a disparity further under the line than ``margin`` can only be a mismatch (the
+    argument ``lowest16`` of :func:`golden.matcher.match`; not in the RTL). None without a
+    line."""
+    if line is None:
+        return None
+    return line16(line, np.arange(height, dtype=np.int64)) - np.int64(margin)
 
 
 class FloorModel:

@@ -274,10 +274,15 @@ def _spread(a, k):
     return out
 
 
-def candidates(left, right, params):
+def candidates(left, right, params, lowest16=None):
     """Left edge coordinates and candidate matrix: ``(ys, xs, inside, cand)`` where ``ys, xs`` are
     all left edges in raster order, ``inside`` marks those whose window is inside the image and
-    ``cand[n, k]`` says whether ``d = d_min + k`` is a candidate of edge ``n``."""
+    ``cand[n, k]`` says whether ``d = d_min + k`` is a candidate of edge ``n``.
+
+    ``lowest16``: None, or per image row the lowest disparity tried, in 1/16 px: ``d`` is a
+    candidate of an edge of row ``y`` only when ``16 d >= lowest16[y]`` (the search starting
+    under the floor line of ``golden/floor.py``, where nothing nearer than the floor can be;
+    not in the RTL, whose window is one per frame)."""
     p = params
     el, nl = _field(left, "edge").astype(bool), _field(left, "neg").astype(bool)
     er, nr = _field(right, "edge").astype(bool), _field(right, "neg").astype(bool)
@@ -305,7 +310,11 @@ def candidates(left, right, params):
         accept <<= nl[ys, xs].view(np.uint8)
     cand = windows[ys, xs - p.d_max + pad][:, ::-1]             # k = d - d_min
     cand &= accept[:, None]
-    return ys, xs, inside, cand != 0
+    cand = cand != 0
+    if lowest16 is not None:
+        d16 = (p.d_min + np.arange(nd, dtype=np.int64)) * 16
+        cand &= d16[None, :] >= np.asarray(lowest16, dtype=np.int64)[ys][:, None]
+    return ys, xs, inside, cand
 
 
 # ------------------------------------------------------------------ window costs
@@ -591,17 +600,19 @@ def unique_right(ys, xs, ds, costs):
 
 # ------------------------------------------------------------------ the matcher
 
-def match(left, right, params=MatcherParams(), form="auto"):
+def match(left, right, params=MatcherParams(), form="auto", *, lowest16=None):
     """Match one frame. Returns ``(records, stats)``: a structured array of
     :func:`record_dtype` in raster order and a dict over :data:`STAT_KEYS`. ``form`` chooses how
-    window costs are computed (:func:`window_costs`); every form gives the same result."""
+    window costs are computed (:func:`window_costs`); every form gives the same result.
+    ``lowest16``: the per-row lowest disparity of :func:`candidates` (None: the whole window,
+    what the RTL does)."""
     p = params.validate()
     yl, yr = _field(left, "y"), _field(right, "y")
     if yl.shape != yr.shape:
         raise ValueError(f"left {yl.shape} and right {yr.shape} frames differ in size")
     vl, vr = matched_values(yl, p), matched_values(yr, p)
     h, w = yl.shape
-    ys, xs, inside, cand = candidates(left, right, p)
+    ys, xs, inside, cand = candidates(left, right, p, lowest16)
     n, nd = cand.shape
     lin = np.flatnonzero(cand)                 # row-major: grouped by edge, increasing d
     ck = (lin % nd).astype(np.int32)

@@ -100,3 +100,30 @@ def test_free_space_from_points_ignores_floor_points():
     assert rows[0] == 53 and rows[2] == FREE_NONE and rows[4] == FREE_NONE
     assert free_space_points(rec, np.zeros(9), 120, band_w=10, run_r=4)[2] == 93
     assert free_space_points(rec, np.zeros(9), 120, band_w=10, run_r=1)[4] == 100
+
+
+def test_search_starting_under_the_floor_line():
+    """search_start16 is the line less the margin per row; the golden matcher tries no
+    disparity under it, and with a bound under the whole window it matches as without one."""
+    from golden.floor import search_start16
+    from golden.matcher import candidates, match
+    from golden.pipeline import default_params, pipeline_frames
+    from sim.scenes.rendered import make_scene
+    line = FloorLine(64, -256 * 10)                        # d = y / 4 - 10
+    lo = search_start16(line, 64, margin=32)
+    assert lo.shape == (64,) and lo[0] == -160 - 32 and lo[60] == 16 * 5 - 32
+    assert search_start16(None, 64) is None
+    scene = make_scene("boxes", 96, 64)
+    params = default_params(96, 64, ground="off")
+    frame = pipeline_frames([scene.left], [scene.right], params)[-1]
+    left, right, mp = frame.left.output(), frame.right.output(), params.matcher
+    ys, _, _, full = candidates(left, right, mp)
+    bound = np.arange(64, dtype=np.int64) * 8              # 16 d >= y / 2 * 16
+    _, _, _, cut = candidates(left, right, mp, bound)
+    d16 = (mp.d_min + np.arange(full.shape[1])) * 16
+    assert np.array_equal(cut, full & (d16[None, :] >= bound[ys][:, None]))
+    assert cut.sum() < full.sum()
+    rec, stats = match(left, right, mp, lowest16=bound)
+    assert (rec["d"] * 16 >= bound[rec["y"]]).all() and stats["evaluations"] == cut.sum()
+    same, same_stats = match(left, right, mp, lowest16=np.full(64, -1 << 20))
+    assert np.array_equal(same, frame.records) and same_stats == frame.stats

@@ -11,20 +11,25 @@ truth the robust plane of :func:`sim.bench.ground.motorcycle_truth`. The golden 
   ``grey_room``) removing pixels before matching, no floor decision;
 * ``geometry``: ground model off, the floor flag of ``golden/floor.py`` (the line learned
   frame to frame, starting from the rig's line where the scene has a rig);
-* ``both``: the ground model and the floor flag.
+* ``both``: the ground model and the floor flag;
+* ``scan``: ``geometry`` with each frame's search starting :data:`SCAN_MARGIN` under the
+  frame's floor line (``lowest16`` of :func:`golden.matcher.match`): nothing is farther than
+  the floor at its row, so the disparities further under the line can only be mismatches.
+  Not built: the RTL matcher's window is one per frame.
 
 Figures per scene and mode (records of the last frame; each record's truth is the nearer
 surface among its row neighbours, :func:`contour_truth`, as the project scores depth at edges):
 obstacle points (records off the floor truth, not flagged) and those within 2 px of the true
-disparity (``d16 / 16``), as a share of ``off``'s; floor matches (records on the floor truth) and the share of ``off``'s floor matches
-that the mode removed or flagged (the rest reach the radio summary as obstacles), and the share
-left unflagged with no obstacle of their disparity within 2 columns (:func:`beside_obstacle`:
-the others carry the depth of the obstacle whose outline the matching window reached); census window
-evaluations and their saving against ``off`` (and, for ``geometry``, the share a matcher
-whose window started above the floor line on each row would save, :func:`window_saving`);
-the free-space bands from the points and the
-flag (:func:`golden.freespace.free_space_points`): the mean distance in rows from the bands of
-the truth (the same rule on the truth's obstacle pixels), over the bands both have.
+disparity (``d16 / 16``), as a share of ``off``'s; floor matches (records on the floor truth)
+and the share of ``off``'s floor matches that the mode removed or flagged (the rest reach the
+radio summary as obstacles), and the share left unflagged with no obstacle of their disparity
+within 2 columns (:func:`beside_obstacle`: the others carry the depth of the obstacle whose
+outline the matching window reached); census window evaluations and their saving against
+``off`` (and, for ``geometry``, the share at or under the floor threshold,
+:func:`window_saving`, which a window starting above it would save but whose floor pixels
+would then be matched elsewhere); the free-space bands from the points and the flag
+(:func:`golden.freespace.free_space_points`): the mean distance in rows from the bands of the
+truth (the same rule on the truth's obstacle pixels), over the bands both have.
 
 Must hold (checked on :data:`DEFAULT_MODE`): good obstacle points >= 95 % of ``off``'s
 and floor matches removed or flagged >= 80 % on every scene (``grey_room`` in luminance mode;
@@ -43,7 +48,9 @@ from sim.bench.common import write_table
 __all__ = ["MODES", "DEFAULT_MODE", "LIMITS", "scene_frames", "score", "run", "markdown",
            "check", "main"]
 
-MODES = ("off", "appearance", "geometry", "both")
+MODES = ("off", "appearance", "geometry", "both", "scan")
+#: The ``scan`` mode's margin under the floor line, 1/16 px (2 px).
+SCAN_MARGIN = 32
 #: The mode the must-holds are checked on: geometry alone, what ``python -m sim run`` does
 #: without ``--ground`` (``both``: with ``--ground hue`` or ``luma``).
 DEFAULT_MODE = "geometry"
@@ -84,17 +91,26 @@ def _noisy(img, rng, sigma=2.0):
     return np.clip(np.rint(img + rng.normal(0, sigma, img.shape)), 0, 255).astype(np.uint8)
 
 
-def run_mode(lefts, rights, ground, floor_params, window=None):
+def run_mode(lefts, rights, ground, floor_params, window=None, scan_margin=None):
     """(last frame's records, its statistics, its floor flags) of the golden pipeline and the
     floor decision over the frames from reset; with a ``window`` dict, its ``"saving"`` becomes
-    :func:`window_saving` of the last frame."""
-    from golden.pipeline import PipelineModel, default_params
+    :func:`window_saving` of the last frame. With a ``scan_margin`` (1/16 px) each frame's
+    search starts that far under the frame's floor line
+    (:func:`golden.floor.search_start16`; the whole window while there is no line)."""
+    from golden.floor import search_start16
+    from golden.matcher import match
+    from golden.pipeline import PipelineFrame, PipelineModel, default_params
     h, w = lefts[0].shape[:2]
     params = default_params(w, h, ground=ground)
     model = PipelineModel(params)
     floor = FloorModel(floor_params)
     for left, right in zip(lefts, rights):
-        f = model.step(left, right)
+        if scan_margin is None:
+            f = model.step(left, right)
+        else:
+            lf, rf = model.left.step(left), model.right.step(right)
+            f = PipelineFrame(lf, rf, *match(lf.output(), rf.output(), params.matcher,
+                                             lowest16=search_start16(floor.line, h, scan_margin)))
         flags = floor.step(f.records)
     if window is not None:
         window["saving"] = window_saving(f, params, floor.used, floor_params)
@@ -190,11 +206,12 @@ def scene_figures(name, params=None):
     geo = replace(base, initial=line)
     off = FloorParams(mode="off")
     runs = {"off": ("off", off), "appearance": (appearance, off),
-            "geometry": ("off", geo), "both": (appearance, geo)}
+            "geometry": ("off", geo), "both": (appearance, geo), "scan": ("off", geo)}
     out = {}
     for mode, (ground, fp) in runs.items():
         window = {} if mode == "geometry" else None
-        out[mode] = score(*run_mode(lefts, rights, ground, fp, window), gt, floor)
+        margin = SCAN_MARGIN if mode == "scan" else None
+        out[mode] = score(*run_mode(lefts, rights, ground, fp, window, margin), gt, floor)
         if window is not None:
             out[mode]["window_saving"] = window["saving"]
     ref = out["off"]
