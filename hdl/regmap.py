@@ -46,7 +46,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 9
+MAP_VERSION = 10
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -290,6 +290,16 @@ REGISTERS: tuple[Register, ...] = (
         F("left_hue_fallback", 1, 1, 0, "1: too few reliable hues: classified by luminance"),
         F("right_learned", 2, 1, 0, "as left_learned, right camera"),
         F("right_hue_fallback", 3, 1, 0, "as left_hue_fallback, right camera"),
+    )),
+    Register("HEALTH_SKEW", 0x7C, "ro", "Capture skew (hdl/skew.py, golden/skew.py): the time "
+             "between the two cameras' field starts, measured for every pair of starts at the "
+             "camera ports (a start pairs with the other camera's next start within "
+             "8,000 us, under half an NTSC field: the nearest; cleared by "
+             "CTRL.restart_video).", (
+        F("us", 0, 16, 0, "right field start minus left field start of the last pair, whole "
+                          "microseconds, two's complement (negative: the right camera was first)"),
+        F("pairs", 16, 16, 0, "pairs of field starts measured (wraps): a new us since the last "
+                              "read when it moved"),
     )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one whole record, whose "
              "second half (d16, conf) RESULT_EXT then shows.", (

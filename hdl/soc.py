@@ -33,12 +33,17 @@ from .pairing import FramePairing
 from .pipeline import StereoPipeline
 from .regs import (IOBusSignature, RegisterBlock, ResultLayout, check_result_limits,
                    status_port_name)
+from .skew import SkewCounter
 from .types import RGBPixel
 from .uart import UART
 
 __all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR", "CPUS", "CPU_FIFO_DEPTH",
            "bus_monitor_signature"]
 
+#: The capture skew counter (hdl/skew.py, register HEALTH_SKEW): core cycles a microsecond at
+#: 50 MHz, and the microseconds a field start waits for its partner (under half an NTSC field).
+SKEW_UNIT_CYCLES = 50
+SKEW_WINDOW_US = 8000
 #: Bus address of the radio UART (hdl/uart.py).
 UART_BASEADDR = 0xC002_0000
 #: The CPU choices of :class:`SystemSoC`: None (the bus is a port) or a core inside.
@@ -188,6 +193,10 @@ class SystemSoC(wiring.Component):
     once; its per-frame work, the ground search and the Sobel flush, falls in the 22 lines of
     vertical blanking, and that of a pair abandoned in the middle of its frames, the ground
     clear and the matcher's last rows, runs at once: ``golden.pairing`` rule 4).
+
+    Capture skew: :class:`hdl.skew.SkewCounter` takes each camera port's ``sof`` handshake
+    and measures, for every pair of field starts, the right start minus the left in whole
+    microseconds (:data:`SKEW_UNIT_CYCLES` core cycles), into HEALTH_SKEW.
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
@@ -328,6 +337,12 @@ class SystemSoC(wiring.Component):
                                                      Const(0, 1), 1))]
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
                                   reset=video_rst)
+        # capture skew: each camera's field start as its port hands it over (the ports'
+        # latencies are equal, so their difference is the cameras')
+        skew = SkewCounter(unit=SKEW_UNIT_CYCLES, window=SKEW_WINDOW_US)
+        m.submodules.camera_skew = ResetInserter(video_rst)(skew)
+        m.d.comb += [s.eq(p.o.valid & p.o.ready & p.o.payload.sof)
+                     for s, p in ((skew.a, ports[0]), (skew.b, ports[1]))]
         match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
         m.d.sync += match_errors.eq(pipe.match_errors)
         status.update({
@@ -343,6 +358,8 @@ class SystemSoC(wiring.Component):
             "health_status_right_locked": ports[1].locked,
             "health_status_enabled": regs.video_enable,
             "health_status_pairing": pairing.pairing,
+            "health_skew_us": skew.skew.as_unsigned(),
+            "health_skew_pairs": skew.count,
         })
         for reg, f in regmap.status_fields():
             name = status_port_name(reg, f)

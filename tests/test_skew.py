@@ -134,3 +134,14 @@ def test_parameters_are_checked():
         SkewCounter(bits=40)
     with pytest.raises(ValueError, match="window"):
         SkewCounter(bits=8, window=128)
+
+
+def test_meets_the_timing_rule(tmp_path):
+    """The SoC's counter (microseconds at 50 MHz, an 8 ms window): at most 8 LUT levels, one
+    carry chain of at most 16 bits, a few dozen LUTs."""
+    from hdl.soc import SKEW_UNIT_CYCLES, SKEW_WINDOW_US
+    from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
+    c = synthesize_component("skew", SkewCounter(unit=SKEW_UNIT_CYCLES, window=SKEW_WINDOW_US),
+                             tmp_path)
+    assert c["levels"] <= MAX_LEVELS and c["carry_bits"] <= MAX_CARRY, c
+    assert c["RAMB16"] == 0 and c["LUT4"] < 150, c

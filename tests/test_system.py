@@ -36,6 +36,26 @@ def test_clean_run_is_bit_exact_with_records():
     assert res["firmware"]["flags"] == 7            # both locked, enabled
 
 
+#: One NTSC line, microseconds: the capture skew must match the cameras' phase within it.
+LINE_US = 1716 / 27.0
+
+
+@pytest.mark.parametrize("lead", [301, -350])
+def test_capture_skew_is_the_phase_of_the_cameras(lead):
+    """The right camera's stream starts ``lead`` bytes after the left's (negative: before):
+    the skew the SoC measures for every pair of field starts, as the firmware's health record
+    carries it, is the phase the simulation gives the cameras (within the microsecond the
+    counter truncates to and the few clocks of the ports' clock-domain crossings)."""
+    res = run_system(*pair(), frames=FRAMES, timing="short", params=PARAMS, right_lead=lead)
+    assert res["bit_exact"], res
+    skew, phase = res["camera_skew_us"], res["camera_phase_us"]
+    assert len(skew) == len(phase) == FRAMES
+    assert all(abs(p - lead / 27.0) < 1 for p in phase)        # 40 ppm over a few fields
+    assert all(abs(s - p) < LINE_US for s, p in zip(skew, phase))
+    assert all(abs(s - p) <= 1.5 for s, p in zip(skew, phase)), (skew, phase)
+    assert all((s > 0) == (lead > 0) for s in skew)
+
+
 @pytest.mark.parametrize("fault", FAULTS)
 def test_fault_is_counted_and_pairs_resynchronise(fault):
     res = run_system(*pair(), frames=FRAMES, fault=fault, timing="short", params=PARAMS)
@@ -74,6 +94,10 @@ def test_command_line_errors_are_one_line():
     r = subprocess.run([sys.executable, "-m", "sim", "system", "--left", "x.png"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.startswith("error:")
+    for bad in (["--right-lead", "5", "--cpu", "picorv32"], ["--right-lead", "200000"]):
+        r = subprocess.run([sys.executable, "-m", "sim", "system", *bad], capture_output=True,
+                           text=True)
+        assert r.returncode == 2 and r.stderr.startswith("error:") and "--right-lead" in r.stderr
 
 
 def test_hue_fallback_reaches_the_radio_flags():

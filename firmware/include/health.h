@@ -12,7 +12,7 @@
 /** Raw 16-bit counter values at the last report (the hardware counters wrap or saturate). */
 typedef struct {
     uint16_t frames, pairs_ok, mispaired, drops, cam_errors[2], matcher_errors, overflow[2],
-        result_overflow;
+        result_overflow, skew_pairs;
 } health_snapshot_t;
 
 #endif /* HEALTH_H */

@@ -34,6 +34,10 @@ typedef struct {
     uint8_t flags;  /**< RADIO_HEALTH_LEFT_LOCKED, _RIGHT_LOCKED, _PIPELINE_ENABLED, _HUE_FALLBACK
                          (bit0 left decoder locked, bit1 right, bit2 pipeline enabled, bit3
                          hue fallback to luma) */
+    int16_t camera_skew_us;      /**< HEALTH_SKEW.us: right field start minus left of the last
+                                      pair of field starts, microseconds (docs/camera.md) */
+    uint16_t camera_skew_pairs;  /**< pairs of field starts measured since the last report
+                                      (0: camera_skew_us is not new) */
 } radio_health_t;
 
 typedef struct {

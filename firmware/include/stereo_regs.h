@@ -10,15 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           9u           /**< ID.version value */
+#define STEREO_MAP_VERSION                           10u          /**< ID.version value */
 #define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x53540009u  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x5354000Au  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      9u           /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      10u          /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -479,6 +479,16 @@
 #define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_SHIFT 3u           /**< right_hue_fallback: as left_hue_fallback, right camera */
 #define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK 0x8u         /**< right_hue_fallback mask (1 bits) */
 #define STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_RESET 0u           /**< right_hue_fallback reset value */
+
+/* HEALTH_SKEW (read-only): Capture skew (hdl/skew.py, golden/skew.py): the time between the two cameras' field starts, measured for every pair of starts at the camera ports (a start pairs with the other camera's next start within 8,000 us, under half an NTSC field: the nearest; cleared by CTRL.restart_video). */
+#define STEREO_HEALTH_SKEW_OFFSET                    0x7Cu        /**< Capture skew (hdl/skew.py, golden/skew.py): the time between the two cameras' field starts, measured for every pair of starts at the camera ports (a start pairs with the other camera's next start within 8,000 us, under half an NTSC field: the nearest; cleared by CTRL.restart_video). */
+#define STEREO_HEALTH_SKEW_RESET                     0x0u         /**< HEALTH_SKEW value after reset */
+#define STEREO_HEALTH_SKEW_US_SHIFT                  0u           /**< us: right field start minus left field start of the last pair, whole microseconds, two's complement (negative: the right camera was first) */
+#define STEREO_HEALTH_SKEW_US_MASK                   0xFFFFu      /**< us mask (16 bits) */
+#define STEREO_HEALTH_SKEW_US_RESET                  0u           /**< us reset value */
+#define STEREO_HEALTH_SKEW_PAIRS_SHIFT               16u          /**< pairs: pairs of field starts measured (wraps): a new us since the last read when it moved */
+#define STEREO_HEALTH_SKEW_PAIRS_MASK                0xFFFF0000u  /**< pairs mask (16 bits) */
+#define STEREO_HEALTH_SKEW_PAIRS_RESET               0u           /**< pairs reset value */
 
 /* RESULT (read pops): Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
 #define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */

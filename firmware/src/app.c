@@ -250,7 +250,7 @@ static uint16_t since(uint16_t now, uint16_t *last)
 
 fw_status_t app_read_health(app_t *app, radio_health_t *h)
 {
-    uint32_t cam, ovf, pairs, drops, status, level, errm, frames, ground;
+    uint32_t cam, ovf, pairs, drops, status, level, errm, frames, ground, skew;
     uint32_t overflow;
     health_snapshot_t *l;
     if (app == NULL || h == NULL) {
@@ -269,6 +269,7 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
     level = STEREO_ReadReg(app->regs_base, STEREO_RESULT_LEVEL_OFFSET);
     errm = STEREO_ReadReg(app->regs_base, STEREO_ERR_MATCH_OFFSET);
     ground = STEREO_ReadReg(app->regs_base, STEREO_GROUND_STATUS_OFFSET);
+    skew = STEREO_ReadReg(app->regs_base, STEREO_HEALTH_SKEW_OFFSET);
     /* the ground model reports hue fallback in every mode; it means something only in hue mode */
     if (STEREO_GET(GROUND, MODE, STEREO_ReadReg(app->regs_base, STEREO_GROUND_OFFSET)) != APP_GROUND_MODE_HUE) {
         ground = 0u;
@@ -288,6 +289,8 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
              + since(field16(ovf, STEREO_HEALTH_OVERFLOW_RIGHT_SHIFT), &l->overflow[1])
              + since(field16(level, STEREO_RESULT_LEVEL_OVERFLOW_SHIFT), &l->result_overflow);
     h->fifo_overflow = (uint16_t)(overflow > 0xFFFFu ? 0xFFFFu : overflow);
+    h->camera_skew_us = (int16_t)field16(skew, STEREO_HEALTH_SKEW_US_SHIFT);
+    h->camera_skew_pairs = since(field16(skew, STEREO_HEALTH_SKEW_PAIRS_SHIFT), &l->skew_pairs);
     h->flags = (uint8_t)(((status & STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK) ? RADIO_HEALTH_LEFT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK) ? RADIO_HEALTH_RIGHT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_PIPELINE_ENABLED : 0u)
@@ -320,10 +323,12 @@ static const fw_field_t fw_fields[] = {
     FW_FIELD(radio_health_t, mispaired), FW_FIELD(radio_health_t, drops),
     FW_FIELD(radio_health_t, cam_errors), FW_FIELD(radio_health_t, matcher_errors),
     FW_FIELD(radio_health_t, fifo_overflow), FW_FIELD(radio_health_t, flags),
+    FW_FIELD(radio_health_t, camera_skew_us), FW_FIELD(radio_health_t, camera_skew_pairs),
     FW_FIELD(health_snapshot_t, frames), FW_FIELD(health_snapshot_t, pairs_ok),
     FW_FIELD(health_snapshot_t, mispaired), FW_FIELD(health_snapshot_t, drops),
     FW_FIELD(health_snapshot_t, cam_errors), FW_FIELD(health_snapshot_t, matcher_errors),
     FW_FIELD(health_snapshot_t, overflow), FW_FIELD(health_snapshot_t, result_overflow),
+    FW_FIELD(health_snapshot_t, skew_pairs),
     FW_FIELD(app_t, regs_base), FW_FIELD(app_t, iic), FW_FIELD(app_t, dec),
     FW_FIELD(app_t, dec_status), FW_FIELD(app_t, cfg), FW_FIELD(app_t, seq),
     FW_FIELD(app_t, n_bands), FW_FIELD(app_t, min_support), FW_FIELD(app_t, width),

@@ -176,6 +176,14 @@ static void test_health_counts_since_last_read(void)
     FWT_CHECK(h.frames == 10 && h.pairs_ok == 9 && h.mispaired == 1 && h.drops == 2);
     FWT_CHECK(h.cam_errors[0] == 3 && h.cam_errors[1] == 4 && h.matcher_errors == 5);
     FWT_CHECK(h.fifo_overflow == 7 && h.flags == 0x7u);
+    FWT_CHECK(h.camera_skew_us == 0 && h.camera_skew_pairs == 0);
+    /* the capture skew: the last pair's, signed, and the pairs measured since the last read */
+    sim.regfile[STEREO_HEALTH_SKEW_OFFSET / 4] = 0xFFF5u | 3u << 16;      /* -11 us, 3 pairs */
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.camera_skew_us == -11 && h.camera_skew_pairs == 3);
+    sim.regfile[STEREO_HEALTH_SKEW_OFFSET / 4] = 250u | 4u << 16;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK(h.camera_skew_us == 250 && h.camera_skew_pairs == 1);
     /* differences since the last read, across a wrap of the 16-bit counter */
     sim.regfile[STEREO_HEALTH_PAIRS_OFFSET / 4] = 2u | 1u << 16;
     app.health_last.pairs_ok = 0xFFF0u;

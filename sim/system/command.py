@@ -44,6 +44,9 @@ def main(argv=None):
     ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc",
                     help="camera timing: NTSC 525/60, or short vertical blanking (tests)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the noise-left fault's bytes")
+    ap.add_argument("--right-lead", dest="right_lead", type=int, default=_run.RIGHT_LEAD_BYTES,
+                    help="bytes (27 MHz clocks) the right camera's stream starts after the "
+                         "left's; negative: the left's after the right's (host firmware only)")
     try:
         args = ap.parse_args(argv)
         if (args.left is None) != (args.right is None):
@@ -61,6 +64,10 @@ def main(argv=None):
                 args.frames < FAULT_FIELD + LOST_FIELDS + 3:
             raise SystemError_(f"--fault camera-lost-left needs --frames at least "
                                f"{FAULT_FIELD + LOST_FIELDS + 3}")
+        if args.cpu is not None and args.right_lead != _run.RIGHT_LEAD_BYTES:
+            raise SystemError_("--right-lead runs with the host firmware: drop --cpu")
+        if abs(args.right_lead) > 100_000:
+            raise SystemError_("--right-lead must be within -100000..100000 bytes")
         if args.frames < (FAULT_FIELD + 4 if args.fault else 1):
             raise SystemError_(f"--frames must be at least {FAULT_FIELD + 4 if args.fault else 1}")
         if args.left:
@@ -73,7 +80,7 @@ def main(argv=None):
                                  timing=args.timing, seed=args.seed)
         else:
             res = run_system(left, right, frames=args.frames, fault=args.fault,
-                             timing=args.timing, seed=args.seed)
+                             timing=args.timing, seed=args.seed, right_lead=args.right_lead)
     except SystemError_ as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -14,7 +14,14 @@ and its even rows taken, as an interlaced camera's field), converted to YCbCr 4:
 timing (``golden.bt656.ntsc_stream``: 1716 bytes a line, 262/263 lines a field) or, with
 ``--timing short`` (tests), the same line blanking and 4 blanking lines a field. The two cameras
 run at independent phases: the right camera's clock is 40 ppm fast, starts a fraction of a
-cycle later and its stream starts :data:`RIGHT_LEAD_BYTES` bytes later.
+cycle later and its stream starts :data:`RIGHT_LEAD_BYTES` bytes later (``--right-lead
+BYTES``; negative: the left stream starts that much later).
+
+Capture skew: ``camera_phase_us`` lists, per field, the right camera's field start (the SAV
+of its first active line) minus the left's in the simulated time the cameras are given;
+``camera_skew_us`` lists what the SoC measured (HEALTH_SKEW, ``hdl/skew.py``) for each pair
+of field starts, as the firmware's health record carries it (``camera_skew_us`` when its
+``camera_skew_pairs`` moved).
 
 CPU: ``build/firmware/libfirmware.so`` with its HAL bus hook pointed at the Verilated bus
 (``sim/system/harness/system.cpp``): ``app_init_pipeline`` (ID check, defaults), ``pipeline_configure``
@@ -254,8 +261,24 @@ def record_fields(params):
     return ("x", "y", "d", "d16", "conf") if params.matcher.subpixel else ("x", "y", "d")
 
 
-def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None, seed=1):
-    """Simulate; returns the result dict (the JSON line's fields)."""
+def _lead(data, n):
+    """``data`` after ``n`` bytes of blanking (Cb/Cr 0x80, Y 0x10)."""
+    return bytes([0x80, 0x10] * (n // 2)) + b"\x80" * (n & 1) + data
+
+
+def camera_phases_us(ldata, rdata, cam0=(CAM_PS, 0), cam1=(CAM1_PS, 12_345)):
+    """Per field of both streams: the right field start minus the left (microseconds), a
+    field start being the SAV of its first active line, sampled at its byte's rising clock
+    edge (``period / 2 + phase + index * period`` picoseconds, as the harness clocks them)."""
+    def starts(data, period, phase):
+        return [phase + period // 2 + f["sav"][0] * period for f in _field_spans(data) if f["sav"]]
+    return [float(round((r - l) / 1e6, 3)) for l, r in zip(starts(ldata, *cam0), starts(rdata, *cam1))]
+
+
+def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None, seed=1,
+               right_lead=RIGHT_LEAD_BYTES):
+    """Simulate; returns the result dict (the JSON line's fields). ``right_lead``: bytes the
+    right stream starts after the left (negative: the left after the right)."""
     from sim.system.cosim import fwlib
     h, w = left.shape[:2]
     params = params or default_params(w, h)
@@ -270,7 +293,12 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
         restart_at = sav[len(sav) // 2] * CAM_PS          # ps
     elif fault is not None:
         raise SystemError_(f"unknown fault {fault!r}: choose from {', '.join(FAULTS)}")
-    rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
+    if right_lead >= 0:
+        rdata = _lead(rdata, right_lead)
+    else:
+        ldata = _lead(ldata, -right_lead)
+        if restart_at is not None:
+            restart_at += -right_lead * CAM_PS
 
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
                       cost=params.matcher.cost)
@@ -305,6 +333,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     health = {k: 0 for k in ("frames", "pairs_ok", "mispaired", "drops", "matcher_errors",
                              "fifo_overflow")}
     health["cam_errors"] = [0, 0]
+    skews = []
     out_frames, current, aborted = [], [], 0
     status = {}
     try:
@@ -325,6 +354,8 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                     else:
                         health[k] += getattr(hb, k)
                 status["flags"] = hb.flags
+                if hb.camera_skew_pairs:
+                    skews.append(int(hb.camera_skew_us))
 
         while sysl.sys_time_ps() < end_ps and len(out_frames) < frames:
             if restart_at is not None and sysl.sys_time_ps() >= restart_at:
@@ -382,6 +413,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                    "matcher": health["matcher_errors"]},
         "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
         "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
+        "camera_skew_us": skews, "camera_phase_us": camera_phases_us(ldata, rdata),
         "record_fields": list(fields),
         "firmware": status, "core_cycles": cycles, "sim_seconds": round(seconds, 1),
         "build_seconds": round(build_s, 1),

@@ -41,7 +41,8 @@ class RadioHealthC(C.Structure):
     _fields_ = [("frames", C.c_uint16), ("pairs_ok", C.c_uint16), ("mispaired", C.c_uint16),
                 ("drops", C.c_uint16), ("cam_errors", C.c_uint16 * 2),
                 ("matcher_errors", C.c_uint16), ("fifo_overflow", C.c_uint16),
-                ("flags", C.c_uint8)]
+                ("flags", C.c_uint8), ("camera_skew_us", C.c_int16),
+                ("camera_skew_pairs", C.c_uint16)]
 
 
 class RadioSummaryC(C.Structure):
@@ -74,7 +75,7 @@ class PipelineConfigC(C.Structure):
 class HealthSnapshotC(C.Structure):
     _fields_ = [(n, C.c_uint16) for n in ("frames", "pairs_ok", "mispaired", "drops")] + [
         ("cam_errors", C.c_uint16 * 2), ("matcher_errors", C.c_uint16),
-        ("overflow", C.c_uint16 * 2), ("result_overflow", C.c_uint16)]
+        ("overflow", C.c_uint16 * 2), ("result_overflow", C.c_uint16), ("skew_pairs", C.c_uint16)]
 
 
 class AppC(C.Structure):
