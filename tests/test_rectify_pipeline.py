@@ -181,10 +181,10 @@ def test_run_rejects_what_it_cannot_rectify(tmp_path, capsys):
     assert err.startswith("error: cannot rectify") and len(err.splitlines()) == 1
 
 
-@pytest.mark.parametrize("backend", ["icarus", "ghdl"])
-def test_random_map_cocotb_with_stalls(backend):
-    """The exported Verilog (Icarus) and VHDL (GHDL) of the rectified pipeline, one frame of a
-    crop with a random map, with stalls: equal to the rectified golden pipeline."""
+def test_random_map_icarus_with_stalls():
+    """The exported Verilog of the rectified pipeline on Icarus, one frame of a crop with a
+    random map, with stalls: equal to the rectified golden pipeline."""
+    backend = "icarus"
     l, r = _crop_pair()
     h, w = l.shape[:2]
     params = default_params(w, h, ground="luma", d_max=31, window=5)
