@@ -37,7 +37,8 @@ from golden.pipeline import default_params
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
            "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "MAX_WIDTH", "MAX_HEIGHT", "DISPARITY_SPAN",
            "register", "field", "parameter_fields", "config_fields", "param_value",
-           "status_fields", "tables", "encode_params"]
+           "status_fields", "tables", "encode_params", "RECT_BASEADDR", "RECT_WINDOW",
+           "RECT_MAP_OFFSET", "RECT_REGISTERS", "rect_register", "rect_map_check"]
 
 #: MCS I/O bus addresses: the I/O bus occupies 0xC0000000..0xFFFFFFFF on the MCS.
 REGS_BASEADDR = 0xC000_0000
@@ -472,3 +473,78 @@ BANDS_DOCS = {
             "(0: fewer matches). Read STATUS, the words, STATUS again: the frame is whole when "
             "both frame counts agree."),
 }
+
+
+# Right-camera rectifier (hdl/rectify.py, golden/rectify.py): a peripheral of its own on the I/O
+# bus, present only in a build with the rectifier (StereoSoC / SystemSoC ``rectify=``); a build
+# without it leaves its window unanswered (reads 0: RECT_INFO.span = 0, no rectifier).
+RECT_BASEADDR = 0xC006_0000
+RECT_WINDOW = 0x8000          #: bytes decoded by the rectifier
+#: Byte offset of the map words: node (j, k) at RECT_MAP_OFFSET + 4 (j * 2^stride_log2 + k),
+#: write-only, word dx | dy << 10 (golden.rectify.node_words), 4096 words at most.
+RECT_MAP_OFFSET = 0x4000
+
+RECT_REGISTERS: tuple[Register, ...] = (
+    Register("RECT_CTRL", 0x00, "rw", "Rectifier control; change it between frames (the "
+             "rectifier samples it at each right frame's start).", (
+        F("enable", 0, 1, 0, "1: the right image is rectified through the map; 0: it passes "
+                             "unchanged"),
+        F("lo", 8, 6, 0, "first buffered source row relative to the output row, two's "
+                         "complement, -span..0 (golden.rectify.row_window)"),
+    )),
+    Register("RECT_VALID_POS", 0x04, "rw", "Rectified valid region of the right image (every "
+             "pixel inside has its source inside the image): top-left corner, as the "
+             "calibration gives it; kept for the firmware's report.", (
+        F("x", 0, 11, 0, "first column"),
+        F("y", 16, 11, 0, "first row"),
+    )),
+    Register("RECT_VALID_SIZE", 0x08, "rw", "Rectified valid region: size (0: not set).", (
+        F("w", 0, 11, 0, "width in pixels"),
+        F("h", 16, 11, 0, "height in rows"),
+    )),
+    Register("RECT_INFO", 0x0C, "ro", "What this build's rectifier takes (0: no rectifier).", (
+        F("span", 0, 6, 0, "line buffer rows less one: the largest vertical warp across the "
+                           "image is span - 1 rows"),
+        F("stride_log2", 8, 4, 0, "log2 of the map's row stride in words"),
+        F("node_rows", 12, 6, 0, "map node rows the build holds"),
+        F("linear", 18, 1, 0, "1: bilinear in both directions; 0: nearest column"),
+        F("preloaded", 19, 1, 0, "1: the map memory was initialised in the bitstream"),
+    )),
+    Register("RECT_MAP_CHECK", 0x10, "ro", "XOR of every map word the memory received, each "
+             "as word | node address << 20: the bitstream's initial map (when preloaded) and "
+             "every write since. The firmware compares it with its table's.", (
+        F("check", 0, 32, 0, "XOR of word | address << 20"),
+    )),
+)
+
+
+def _check_rect():
+    offsets = set()
+    for reg in RECT_REGISTERS:
+        if reg.offset % 4 or not 0 <= reg.offset < RECT_MAP_OFFSET or reg.offset in offsets:
+            raise ValueError(f"bad offset for {reg.name}")
+        offsets.add(reg.offset)
+        used = 0
+        for f in reg.fields:
+            if f.lsb + f.width > 32 or used & f.mask:
+                raise ValueError(f"bad field {reg.name}.{f.name}")
+            used |= f.mask
+
+
+_check_rect()
+
+
+def rect_register(name: str) -> Register:
+    for reg in RECT_REGISTERS:
+        if reg.name == name:
+            return reg
+    raise KeyError(name)
+
+
+def rect_map_check(words) -> int:
+    """RECT_MAP_CHECK after the map memory received ``words`` (``(address, word)`` pairs,
+    :func:`golden.rectify.node_words`) from zero."""
+    check = 0
+    for addr, word in words:
+        check ^= word | addr << 20
+    return check

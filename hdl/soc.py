@@ -12,6 +12,8 @@ The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/system/cosim``).
 """
+import hashlib
+
 from amaranth.hdl import Cat, ClockDomain, ClockSignal, Const, Module, ResetInserter, Signal, Mux
 from amaranth.lib import wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
@@ -80,9 +82,10 @@ class StereoSoC(wiring.Component):
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=256, clk_div=125,
-                 cost="census"):
+                 cost="census", rectify=None):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
+        self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
         super().__init__({
@@ -98,15 +101,16 @@ class StereoSoC(wiring.Component):
         m.submodules.pipeline = pipe = StereoPipeline(**self._pipeline)
         m.submodules.regs = regs = RegisterBlock(fifo_depth=self._fifo_depth)
         m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
+        slaves = (regs, iic, *_rectifier(m, pipe, self._rectify))
 
-        # Bus: both slaves see every transfer; the one whose window it is answers.
-        for slave in (regs, iic):
+        # Bus: every slave sees every transfer; the one whose window it is answers.
+        for slave in slaves:
             for name in ("addr_strobe", "address", "read_strobe", "write_strobe", "write_data",
                          "byte_enable"):
                 m.d.comb += getattr(slave.bus, name).eq(getattr(self.bus, name))
         m.d.comb += [
-            self.bus.read_data.eq(regs.bus.read_data | iic.bus.read_data),
-            self.bus.ready.eq(regs.bus.ready | iic.bus.ready),
+            self.bus.read_data.eq(_or(s.bus.read_data for s in slaves)),
+            self.bus.ready.eq(_or(s.bus.ready for s in slaves)),
         ]
         for pin in ("scl_o", "scl_oe", "sda_o", "sda_oe"):
             m.d.comb += getattr(self, pin).eq(getattr(iic, pin))
@@ -202,7 +206,7 @@ class SystemSoC(wiring.Component):
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
-                 monitor=False):
+                 monitor=False, rectify=None):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
@@ -211,6 +215,7 @@ class SystemSoC(wiring.Component):
         self._image = image
         self._monitor = bool(monitor) and cpu is not None
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
+        self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
         if not isinstance(buffer_depth, int) or buffer_depth < 4 or buffer_depth & (buffer_depth - 1):
@@ -253,7 +258,8 @@ class SystemSoC(wiring.Component):
         m.submodules.regs = regs = RegisterBlock(fifo_depth=self._fifo_depth)
         m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
         m.submodules.uart = uart = UART(divisor=self._uart_divisor, base=UART_BASEADDR)
-        slaves = (regs, iic, uart)
+        pipe = StereoPipeline(**self._pipeline)
+        slaves = (regs, iic, uart, *_rectifier(m, pipe, self._rectify))
         if self._cpu is not None:
             m.submodules.bands = bands = BandSummary(max_width=self._pipeline["max_width"],
                                                      base=regmap.BANDS_BASEADDR)
@@ -289,7 +295,6 @@ class SystemSoC(wiring.Component):
 
         pairing = FramePairing(skew=self._skew, max_width=self._pipeline["max_width"],
                                max_height=self._pipeline["max_height"])
-        pipe = StereoPipeline(**self._pipeline)
         m.submodules.pairing = ResetInserter(video_rst)(pairing)
         m.submodules.pipeline = ResetInserter(video_rst)(pipe)
         # the cameras' 4:2:2 words wait in the buffer two to a word (36 bits: 512 x 36, one
@@ -365,6 +370,58 @@ class SystemSoC(wiring.Component):
             name = status_port_name(reg, f)
             m.d.comb += getattr(regs, name).eq(status.get(name, 0))
         return m
+
+
+def _or(values):
+    """The OR of the slaves' answers."""
+    out = 0
+    for v in values:
+        out = out | v
+    return out
+
+
+def _rectify_option(component, rectify, pipeline):
+    """The ``rectify`` option of a SoC (None, or a dict of :class:`hdl.rectify.Rectify`'s
+    ``span``, ``horizontal`` and optional ``nodes``, the map in the bitstream, and
+    ``extra_rows``, the matcher's further line slots: cameras that cannot stall need ``span``
+    more, for the right camera's rows the rectifier holds back) put into the pipeline's
+    parameters; the options as kept, for the register peripheral."""
+    if rectify is None:
+        return None
+    opt = dict(rectify)
+    unknown = set(opt) - {"span", "horizontal", "nodes", "extra_rows"}
+    if unknown:
+        component._MustUse__silence = True
+        raise ValueError(f"unknown rectify option {sorted(unknown)[0]!r}")
+    extra = opt.pop("extra_rows", 0)
+    opt.setdefault("span", 8)
+    opt.setdefault("horizontal", "nearest")
+    pipeline.update(rectify=opt, extra_rows=extra)
+    # plain values: what the Verilog depends on (sim.backends.verilator.construction_params)
+    nodes = opt.get("nodes")
+    component._rect_build = (opt["span"], opt["horizontal"], extra, None if nodes is None else
+                             hashlib.sha256(nodes.tobytes()).hexdigest())
+    return opt
+
+
+def _rectifier(m, pipe, opt):
+    """The rectifier's bus registers (:class:`hdl.rectify_regs.RectifyRegs`) driving the
+    pipeline's ``rect_*`` ports: ``[]`` without the option, else the one bus slave."""
+    if opt is None:
+        return []
+    from golden.rectify import grid_shape, node_words
+    from .rectify_regs import RectifyRegs
+    w, h = pipe.max_width, pipe.max_height
+    stride = pipe.rect_node_stride
+    nodes = opt.get("nodes")
+    check = None if nodes is None else regmap.rect_map_check(node_words(nodes, stride))
+    m.submodules.rect_regs = rr = RectifyRegs(
+        span=opt["span"], stride_log2=stride.bit_length() - 1,
+        node_rows=grid_shape(w, h)[0], linear=opt["horizontal"] == "linear", check_init=check)
+    m.d.comb += [pipe.rect_lo.eq(rr.lo), pipe.rect_enable.eq(rr.enable),
+                 pipe.rect_map_addr.eq(rr.map_addr), pipe.rect_map_data.eq(rr.map_data),
+                 pipe.rect_map_we.eq(rr.map_we)]
+    return [rr]
 
 
 def _records_and_markers(m, o, results, video_rst):

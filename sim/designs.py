@@ -335,6 +335,14 @@ SYSTEM_DESIGNS = {
                             "the SoC without a CPU, its I/O bus a port for an external CPU "
                             "(a MicroBlaze MCS in EDK/ISE, the UART bridge on the ECP5 board)",
                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
+    # a build option for the ECP5-25F target: the XC3S1000 has no block RAM to spare for it
+    "soc_rect": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
+                                        rectify=dict(span=8, horizontal="nearest",
+                                                     extra_rows=8)),
+                             "the SoC with the right camera's rectifier (hdl/rectify.py, its "
+                             "registers hdl/rectify_regs.py) and 8 more matcher line slots for "
+                             "the rows it holds back: the ECP5-25F build option",
+                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
 }
 
 

@@ -179,3 +179,16 @@ def test_run_rejects_what_it_cannot_rectify(tmp_path, capsys):
     assert main(base) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: cannot rectify") and len(err.splitlines()) == 1
+
+
+def test_random_map_icarus_with_stalls():
+    """The exported Verilog of the rectified pipeline on Icarus, one frame of a crop with a
+    random map, with stalls: equal to the rectified golden pipeline."""
+    backend = "icarus"
+    l, r = _crop_pair()
+    h, w = l.shape[:2]
+    params = default_params(w, h, ground="luma", d_max=31, window=5)
+    nodes = _random_nodes(w, h, 6)
+    rect = RectifyParams(nodes, lo=row_window(nodes, w, h, 4), span=4, horizontal="nearest")
+    job = Job([l], [r], params, max_width=64, max_height=32, max_disparity=31, rect=rect)
+    assert _check(job, backend, 5) > 0

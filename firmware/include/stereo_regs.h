@@ -586,4 +586,46 @@
 
 #define STEREO_CONFIG_NREGS 10u /**< registers in STEREO_CONFIG_REGS */
 
+#define STEREO_RECT_BASEADDR                         0xC0060000u  /**< rectifier base address (a build without one leaves it unanswered) */
+#define STEREO_RECT_MAP_OFFSET                       0x4000u      /**< map words: node (j, k) at + 4 (j << stride_log2 | k), write-only */
+
+/* RECT_CTRL (read/write): Rectifier control; change it between frames (the rectifier samples it at each right frame's start). */
+#define STEREO_RECT_CTRL_OFFSET                      0x00u        /**< Rectifier control; change it between frames (the rectifier samples it at each right frame's start). */
+#define STEREO_RECT_CTRL_ENABLE_SHIFT                0u           /**< enable: 1: the right image is rectified through the map; 0: it passes unchanged */
+#define STEREO_RECT_CTRL_ENABLE_MASK                 0x1u         /**< enable mask (1 bits) */
+#define STEREO_RECT_CTRL_LO_SHIFT                    8u           /**< lo: first buffered source row relative to the output row, two's complement, -span..0 (golden.rectify.row_window) */
+#define STEREO_RECT_CTRL_LO_MASK                     0x3F00u      /**< lo mask (6 bits) */
+
+/* RECT_VALID_POS (read/write): Rectified valid region of the right image (every pixel inside has its source inside the image): top-left corner, as the calibration gives it; kept for the firmware's report. */
+#define STEREO_RECT_VALID_POS_OFFSET                 0x04u        /**< Rectified valid region of the right image (every pixel inside has its source inside the image): top-left corner, as the calibration gives it; kept for the firmware's report. */
+#define STEREO_RECT_VALID_POS_X_SHIFT                0u           /**< x: first column */
+#define STEREO_RECT_VALID_POS_X_MASK                 0x7FFu       /**< x mask (11 bits) */
+#define STEREO_RECT_VALID_POS_Y_SHIFT                16u          /**< y: first row */
+#define STEREO_RECT_VALID_POS_Y_MASK                 0x07FF0000u  /**< y mask (11 bits) */
+
+/* RECT_VALID_SIZE (read/write): Rectified valid region: size (0: not set). */
+#define STEREO_RECT_VALID_SIZE_OFFSET                0x08u        /**< Rectified valid region: size (0: not set). */
+#define STEREO_RECT_VALID_SIZE_W_SHIFT               0u           /**< w: width in pixels */
+#define STEREO_RECT_VALID_SIZE_W_MASK                0x7FFu       /**< w mask (11 bits) */
+#define STEREO_RECT_VALID_SIZE_H_SHIFT               16u          /**< h: height in rows */
+#define STEREO_RECT_VALID_SIZE_H_MASK                0x07FF0000u  /**< h mask (11 bits) */
+
+/* RECT_INFO (read-only): What this build's rectifier takes (0: no rectifier). */
+#define STEREO_RECT_INFO_OFFSET                      0x0Cu        /**< What this build's rectifier takes (0: no rectifier). */
+#define STEREO_RECT_INFO_SPAN_SHIFT                  0u           /**< span: line buffer rows less one: the largest vertical warp across the image is span - 1 rows */
+#define STEREO_RECT_INFO_SPAN_MASK                   0x3Fu        /**< span mask (6 bits) */
+#define STEREO_RECT_INFO_STRIDE_LOG2_SHIFT           8u           /**< stride_log2: log2 of the map's row stride in words */
+#define STEREO_RECT_INFO_STRIDE_LOG2_MASK            0xF00u       /**< stride_log2 mask (4 bits) */
+#define STEREO_RECT_INFO_NODE_ROWS_SHIFT             12u          /**< node_rows: map node rows the build holds */
+#define STEREO_RECT_INFO_NODE_ROWS_MASK              0x0003F000u  /**< node_rows mask (6 bits) */
+#define STEREO_RECT_INFO_LINEAR_SHIFT                18u          /**< linear: 1: bilinear in both directions; 0: nearest column */
+#define STEREO_RECT_INFO_LINEAR_MASK                 0x00040000u  /**< linear mask (1 bits) */
+#define STEREO_RECT_INFO_PRELOADED_SHIFT             19u          /**< preloaded: 1: the map memory was initialised in the bitstream */
+#define STEREO_RECT_INFO_PRELOADED_MASK              0x00080000u  /**< preloaded mask (1 bits) */
+
+/* RECT_MAP_CHECK (read-only): XOR of every map word the memory received, each as word | node address << 20: the bitstream's initial map (when preloaded) and every write since. The firmware compares it with its table's. */
+#define STEREO_RECT_MAP_CHECK_OFFSET                 0x10u        /**< XOR of every map word the memory received, each as word | node address << 20: the bitstream's initial map (when preloaded) and every write since. The firmware compares it with its table's. */
+#define STEREO_RECT_MAP_CHECK_CHECK_SHIFT            0u           /**< check: XOR of word | address << 20 */
+#define STEREO_RECT_MAP_CHECK_CHECK_MASK             0xFFFFFFFFu  /**< check mask (32 bits) */
+
 #endif /* STEREO_REGS_H */

@@ -71,11 +71,54 @@ def render_header() -> str:
         "",
     ]
     out += _config_table()
+    out += _rect_header()
     out += [
         "#endif /* STEREO_REGS_H */",
         "",
     ]
     return "\n".join(out)
+
+
+def _rect_header() -> list[str]:
+    """The rectifier's peripheral (hdl/rectify_regs.py): its window and registers, offsets
+    relative to STEREO_RECT_BASEADDR."""
+    out = [_define("STEREO_RECT_BASEADDR", _hex(regmap.RECT_BASEADDR),
+                   "rectifier base address (a build without one leaves it unanswered)"),
+           _define("STEREO_RECT_MAP_OFFSET", f"0x{regmap.RECT_MAP_OFFSET:X}u",
+                   "map words: node (j, k) at + 4 (j << stride_log2 | k), write-only"),
+           ""]
+    for reg in regmap.RECT_REGISTERS:
+        p = f"STEREO_{reg.name}"
+        out.append(f"/* {reg.name} ({_KIND_TEXT[reg.kind]}): {reg.doc} */")
+        out.append(_define(f"{p}_OFFSET", f"0x{reg.offset:02X}u", reg.doc))
+        for f in reg.fields:
+            q = f"{p}_{f.name.upper()}"
+            out.append(_define(f"{q}_SHIFT", f"{f.lsb}u", f"{f.name}: {f.doc}"))
+            out.append(_define(f"{q}_MASK", _hex(f.mask), f"{f.name} mask ({f.width} bits)"))
+        out.append("")
+    return out
+
+
+def _rect_markdown() -> list[str]:
+    out = ["", "# Rectifier", "",
+           f"A build with the right camera's rectifier (`StereoSoC` / `SystemSoC` `rectify=`, "
+           f"[camera.md](camera.md)) has its registers at `0x{regmap.RECT_BASEADDR:08X}` "
+           f"({regmap.RECT_WINDOW} bytes), latency 1; a build without it leaves the window "
+           "unanswered. The map's node words are write-only from offset "
+           f"`0x{regmap.RECT_MAP_OFFSET:X}`: node `(j, k)` at `0x{regmap.RECT_MAP_OFFSET:X} + "
+           "4 (j * 2^stride_log2 + k)`, word `dx | dy << 10` (1/16 px, two's complement, "
+           "`golden.rectify.node_words`). Write the map and RECT_CTRL between frames.", "",
+           "| Offset | Register | Kind | Description |", "|---|---|---|---|"]
+    for reg in regmap.RECT_REGISTERS:
+        out.append(f"| `0x{reg.offset:02X}` | {reg.name} | {reg.kind} | {reg.doc} |")
+    for reg in regmap.RECT_REGISTERS:
+        out += ["", f"## {reg.name}", "",
+                f"Offset `0x{reg.offset:02X}`, {_KIND_TEXT[reg.kind]}. {reg.doc}", "",
+                "| Bits | Field | Description |", "|---|---|---|"]
+        for f in sorted(reg.fields, key=lambda f: -f.lsb):
+            bits = f"{f.lsb}" if f.width == 1 else f"{f.lsb + f.width - 1}:{f.lsb}"
+            out.append(f"| {bits} | `{f.name}` | {f.doc} |")
+    return out
 
 
 def c_type(width: int) -> str:
@@ -142,6 +185,7 @@ def render_markdown() -> str:
     for name, offset in regmap.BANDS_REGS.items():
         kind, reset, doc = regmap.BANDS_DOCS[name]
         out.append(f"| `0x{offset:03X}` | {name} | {kind} | `0x{reset:08X}` | {doc} |")
+    out += _rect_markdown()
     out.append("")
     return "\n".join(out)
 

@@ -1,0 +1,159 @@
+"""The SoC with the right camera's rectifier (``StereoSoC(rectify=...)``): the rectifier's
+registers on the I/O bus (hdl/rectify_regs.py), the map written over the bus, and the records
+read from the result FIFO against the golden rectified pipeline."""
+import random
+
+import numpy as np
+from amaranth.hdl import ClockDomain, Module
+from amaranth.sim import Simulator
+
+from golden.freespace import FreeSpaceParams
+from golden.frontend import FrontEndParams
+from golden.ground import GroundMode, GroundParams
+from golden.matcher import RTL, MatcherParams
+from golden.pipeline import PipelineParams, pipeline_frames
+from golden.rectify import (MAP_DTYPE, RectifyParams, fits, grid_shape, node_words,
+                            rectified_pipeline_frames, row_window)
+from golden.sobel import SobelParams
+from hdl import regmap
+from hdl.soc import StereoSoC
+from hdl.types import RGBPixel
+from sim.scenes.data import crop, motorcycle
+from sim.streams import Packer, frames_words, stream_put
+from sim.system.cosim.iobus import BusTimeout, io_read, io_write
+
+
+def _addr(name):
+    return regmap.REGS_BASEADDR + regmap.register(name).offset
+
+
+def _rect(name):
+    return regmap.RECT_BASEADDR + regmap.rect_register(name).offset
+
+
+def _fields(reg, value):
+    return {f.name: (value >> f.lsb) & ((1 << f.width) - 1) for f in reg.fields}
+
+
+def _simulate(soc, cpu, cameras):
+    m = Module()
+    m.domains.sync = ClockDomain("sync")
+    m.submodules.soc = soc
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    sim.add_testbench(cpu)
+    for c in cameras:
+        sim.add_testbench(c, background=True)
+    sim.run()
+
+
+def test_registers_without_pipeline_traffic():
+    """RECT_INFO tells what the build takes, RECT_CTRL and the valid region read back, map words
+    read 0 and update RECT_MAP_CHECK; the default SoC leaves the window unanswered."""
+    soc = StereoSoC(clk_div=4, max_width=64, max_height=32,
+                    rectify=dict(span=6, horizontal="linear"))
+    got = {}
+
+    async def cpu(ctx):
+        info = _fields(regmap.rect_register("RECT_INFO"),
+                       await io_read(ctx, soc.bus, _rect("RECT_INFO")))
+        got["info"] = info
+        await io_write(ctx, soc.bus, _rect("RECT_CTRL"), 1 | (0x3C << 8))      # lo = -4
+        got["ctrl"] = await io_read(ctx, soc.bus, _rect("RECT_CTRL"))
+        await io_write(ctx, soc.bus, _rect("RECT_VALID_POS"), 3 | 2 << 16)
+        got["pos"] = await io_read(ctx, soc.bus, _rect("RECT_VALID_POS"))
+        words = [(0, 0x12345), (9, 0xABCDE)]
+        for a, w in words:
+            await io_write(ctx, soc.bus, regmap.RECT_BASEADDR + regmap.RECT_MAP_OFFSET + 4 * a, w)
+        got["map"] = await io_read(ctx, soc.bus, regmap.RECT_BASEADDR + regmap.RECT_MAP_OFFSET)
+        got["check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK"))
+        got["want"] = regmap.rect_map_check(words)
+
+    _simulate(soc, cpu, [])
+    assert got["info"] == {"span": 6, "stride_log2": 3, "node_rows": 2, "linear": 1,
+                           "preloaded": 0}
+    assert got["ctrl"] == 1 | 0x3C << 8 and got["pos"] == 3 | 2 << 16
+    assert got["map"] == 0 and got["check"] == got["want"] != 0
+
+    plain = StereoSoC(clk_div=4, max_width=64, max_height=32)
+    seen = {}
+
+    async def probe(ctx):
+        try:
+            await io_read(ctx, plain.bus, _rect("RECT_INFO"), timeout=16)
+        except BusTimeout:
+            seen["unanswered"] = True
+
+    _simulate(plain, probe, [])
+    assert seen == {"unanswered": True}
+
+
+def test_map_over_the_bus_equals_golden():
+    """The map written over the bus, lo and enable set: the records read from the FIFO are the
+    golden rectified pipeline's, and differ from the unrectified pipeline's."""
+    left, right, _ = motorcycle()
+    w, h = 48, 20
+    lf, rf = crop(left, w, h, 500, 300), crop(right, w, h, 500, 300)
+    params = PipelineParams(
+        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
+                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
+        MatcherParams(d_max=15, window=7, **RTL))
+    rng = np.random.default_rng(3)
+    nodes = np.zeros(grid_shape(w, h), MAP_DTYPE)
+    nodes["dx"] = np.rint(rng.uniform(-1.5, 1.5, nodes.shape) * 16)
+    nodes["dy"] = np.rint(rng.uniform(-1.5, 1.5, nodes.shape) * 16)
+    span = 4
+    lo = row_window(nodes, w, h, span)
+    assert fits(nodes, w, h, lo, span)
+    rect = RectifyParams(nodes, lo, span, "nearest")
+    golden = rectified_pipeline_frames([lf, lf], [rf, rf], params, rect)
+    plain = pipeline_frames([lf], [rf], params)[0]
+    assert len(golden[0].records) > 0
+    assert not np.array_equal(golden[0].records, plain.records)
+
+    soc = StereoSoC(clk_div=4, max_width=64, max_height=32, fifo_depth=256,
+                    rectify=dict(span=span, horizontal="nearest"))
+    packer = Packer(RGBPixel)
+    state = {"configured": False, "results": []}
+    stride = 1 << 3
+
+    async def cpu(ctx):
+        for name, value in regmap.encode_params(params.frontend.ground, params.frontend.sobel,
+                                                params.matcher,
+                                                free=params.frontend.free).items():
+            await io_write(ctx, soc.bus, _addr(name), value)
+        words = node_words(nodes, stride)
+        for a, word in words:
+            await io_write(ctx, soc.bus, regmap.RECT_BASEADDR + regmap.RECT_MAP_OFFSET + 4 * a,
+                           word)
+        state["check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK"))
+        state["want"] = regmap.rect_map_check(words)
+        await io_write(ctx, soc.bus, _rect("RECT_CTRL"), 1 | (lo & 63) << 8)
+        state["configured"] = True
+        for _ in range(40000):
+            if await io_read(ctx, soc.bus, _addr("FRAME_COUNT")) == 2:
+                break
+            await ctx.tick().repeat(20)
+        else:
+            raise AssertionError("the pipeline did not finish two frames")
+        reg = regmap.register("RESULT")
+        while True:
+            word = _fields(reg, await io_read(ctx, soc.bus, _addr("RESULT")))
+            await io_read(ctx, soc.bus, _addr("RESULT_EXT"))    # the record's second half
+            if not word["valid"]:
+                break
+            state["results"].append((word["x"], word["y"], word["d"]))
+
+    def camera(port, frames, seed):
+        async def run(ctx):
+            while not state["configured"]:
+                await ctx.tick()
+            words = frames_words(packer, [dict(r=f[..., 0], g=f[..., 1], b=f[..., 2])
+                                          for f in frames])
+            await stream_put(ctx, port, words, rng=random.Random(seed), idle=0.2)
+        return run
+
+    _simulate(soc, cpu, [camera(soc.left, [lf, lf], 1), camera(soc.right, [rf, rf], 2)])
+    assert state["check"] == state["want"]
+    assert state["results"] == [(int(r["x"]), int(r["y"]), int(r["d"]))
+                                for g in golden for r in g.records]
