@@ -16,8 +16,8 @@ class SkewCounter(wiring.Component):
     -------------------------
     unit : int
         Core cycles a count: 50 at the SoC's 50 MHz makes the skew microseconds. A prescaler
-        of ``unit`` states divides the cycles, so the count's adder stays ``bits - 1`` bits
-        (the timing rule's carry chain) whatever the span measured.
+        of ``unit`` states divides the cycles, so the count's adder stays ``bits`` bits (the
+        timing rule's carry chain) whatever the span measured.
     bits : int
         Width of the skew (two's complement) and of the count.
     window : int or None
@@ -39,8 +39,9 @@ class SkewCounter(wiring.Component):
     pending : Out(1)
         A start waits for its partner.
 
-    Cost: a prescaler of ``ceil(log2(unit))`` bits, the ``bits - 1``-bit count, the
-    ``bits``-bit skew and count registers, and the two flags; a start is a registered event
+    Cost: a prescaler of ``ceil(log2(unit))`` bits, a ``bits``-bit up/down count (up from a
+    left start, down from a right one: the skew without a negation), the ``bits``-bit skew
+    and count registers, and the two flags; a start is a registered event
     (latency 1 cycle, no combinational path from ``a``, ``b`` to the outputs).
     """
 
@@ -63,35 +64,40 @@ class SkewCounter(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         unit, bits = self._unit, self._bits
-        limit = self._window
+        window = self._window
         first_b = Signal()                       # the pending start is the right camera's
         pre = Signal(range(max(unit, 2)))        # cycles within the current unit
-        cnt = Signal(bits - 1)                   # whole units since the pending start
+        # whole units since the pending start, signed as the skew will be: counting up from a
+        # left start, down from a right one, so that no negation follows
+        cnt = Signal(signed(bits))
         live = Signal()                          # pending and not timed out (rule 5)
-        m.d.comb += live.eq(self.pending & (cnt != limit))
+        m.d.comb += live.eq(self.pending & (cnt != window) & (cnt != -window))
         other = Mux(first_b, self.a, self.b)
         same = Mux(first_b, self.b, self.a)
-        # a start: the pending count restarts at one cycle
-        start = [pre.eq(1 % unit), cnt.eq(1 // unit)]
+        step = Mux(first_b, -1, 1)
+
+        def start(right):
+            # a start: the pending count restarts at one cycle
+            return [pre.eq(1 % unit), cnt.eq(Mux(right, -1, 1) if unit == 1 else 0)]
 
         with m.If(live):
             if unit == 1:
-                m.d.sync += cnt.eq(cnt + 1)
+                m.d.sync += cnt.eq(cnt + step)
             else:
                 with m.If(pre == unit - 1):
-                    m.d.sync += [pre.eq(0), cnt.eq(cnt + 1)]
+                    m.d.sync += [pre.eq(0), cnt.eq(cnt + step)]
                 with m.Else():
                     m.d.sync += pre.eq(pre + 1)
         with m.Elif(self.pending):
             m.d.sync += self.pending.eq(0)       # rule 5: no partner in time
 
         with m.If(live & other):                 # rule 2 (and 4 with one pending)
-            m.d.sync += [self.skew.eq(Mux(first_b, -cnt, cnt)), self.count.eq(self.count + 1),
+            m.d.sync += [self.skew.eq(cnt), self.count.eq(self.count + 1),
                          self.pending.eq(same)]
             with m.If(same):
-                m.d.sync += start
+                m.d.sync += start(first_b)
         with m.Elif(self.a & self.b):            # rule 4, none pending
             m.d.sync += [self.skew.eq(0), self.count.eq(self.count + 1), self.pending.eq(0)]
         with m.Elif(self.a | self.b):            # rules 1 and 3
-            m.d.sync += [self.pending.eq(1), first_b.eq(self.b), *start]
+            m.d.sync += [self.pending.eq(1), first_b.eq(self.b), *start(self.b)]
         return m
