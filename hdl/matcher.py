@@ -125,6 +125,7 @@ window is complete for only about one line time before the next pair overwrites 
 and ``extra_rows`` = 2 buys two more lines for 2 RAMB16 (``python -m sim.bench.throughput``).
 """
 from functools import reduce
+from types import SimpleNamespace
 from operator import or_
 
 from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array
@@ -174,6 +175,22 @@ def has_subpixel(cost):
 def _sat_inc(counter, by=1):
     top = (1 << len(counter)) - 1
     return counter.eq(Mux(counter + by > top, top, counter + by))
+
+
+def _slot_bytes(words):
+    """One column of every line slot, in slot order, from the ROWS / 2 pair words (slot 2q in
+    the low byte of pair q, slot 2q + 1 in the high byte). No line selection: both cameras keep
+    line y in slot y mod ROWS, so the windows hold the same lines in the same slots, and the
+    cost lane masks the slots outside the window (the window cost is a sum, whatever the order
+    of its lines)."""
+    return [w[8 * h:8 * h + 8] for w in words for h in (0, 1)]
+
+
+def _window_slots(top, rows, window):
+    """Bit s: slot s holds one of the ``window`` lines of the window whose top line is in slot
+    ``top`` (a constant per top slot)."""
+    masks = [sum(1 << ((t + j) % rows) for j in range(window)) for t in range(rows)]
+    return Array(Const(v, rows) for v in masks)[top]
 
 
 class Matcher(wiring.Component):
@@ -274,6 +291,35 @@ class Matcher(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        p = self._widths()
+        self._frame_control(m, p)
+        self._scanner_queue(m, p)
+        self._left_stage(m, p)
+        self._walker(m, p)
+        self._right_window(m, p)
+        self._cost_winner(m, p)
+        self._records(m, p)
+        return m
+
+    # The stages below add their logic to the matcher's one module (one netlist, no ports
+    # between stages), in pipeline order; each takes the signals of earlier stages from ``p``
+    # and adds the ones later stages use.
+    #
+    # The engine:
+    # left stage (LS): takes an item from the queue; for a job, reads its W left columns
+    #   into `shadow` (while the walker works on the previous job);
+    # walker (WK): visits the right columns the job's candidates need, lowest first (one a
+    #   cycle: `need` has bit b for window position e = b - 2r when some candidate lies in
+    #   e .. e + 2r); each column read shifts into `rwin`, and a position that is a
+    #   candidate fires the cost tree;
+    # cost tree -> winner -> uniqueness test -> output FIFO.
+    # Both reads take 4 cycles from decision to window; the left stage starts a job only
+    # after the walker has taken the previous one, so the previous job's first right
+    # column reaches `rwin` (and `shadow` moves to `lwin`) no later than the next job's
+    # first left column reaches `shadow`.
+
+    def _widths(self):
+        """The widths every stage uses, in the namespace the stages share."""
         W = self._window
         r = W // 2
         D = self._max_disparity
@@ -285,8 +331,14 @@ class Matcher(wiring.Component):
         _, XW, YW, SB = LineWidths.of(MW, self._max_height, ROWS)
         CB = bits_for(term_max(self._cost) * W * W) + 1     # cost width with room for INF
         INF = (1 << CB) - 1
+        NE = ND + 2 * r                   # need bits: window positions e = -2r .. D
+        return SimpleNamespace(W=W, r=r, D=D, DB=DB, ND=ND, KB=KB, ROWS=ROWS, MW=MW, XW=XW,
+                               YW=YW, SB=SB, CB=CB, INF=INF, NE=NE)
 
-        # ---------------------------------------------------------------- frame control
+    def _frame_control(self, m, p):
+        """Frame control: the scanner, the two line stores and their wiring, the write limit
+        (``retired``, ``wlim``), the frame's disparity window, ``complete``, the error counts."""
+        W, r, D, DB, ROWS, MW, YW = p.W, p.r, p.D, p.DB, p.ROWS, p.MW, p.YW
         retired = Signal(YW)              # centre rows finished by the engine
         wlim = Signal(YW + 1, init=ROWS - r)      # retired + ROWS - r: the write limit
         wlim_m1 = Signal(YW + 1, init=ROWS - r - 1)
@@ -338,8 +390,14 @@ class Matcher(wiring.Component):
         m.d.comb += [err_lr_sat.eq(Mux(err_lr[16], 0xFFFF, err_lr[:16])),
                      self.errors.eq(Mux(err_all[16], 0xFFFF, err_all[:16]))]
         saturating_sum(m, self.dropped, L.dropped, R.dropped)   # 2 cycles later
+        vars(p).update(L=L, R=R, complete=complete, eng_done=eng_done, f_dmax=f_dmax, f_dmin=f_dmin,
+                       retired=retired, scan=scan, wlim=wlim, wlim_m1=wlim_m1)
 
-        # ---------------------------------------------------------------- scanner and queue
+    def _scanner_queue(self, m, p):
+        """The scanner's parameters, the job queue between scanner and engine, the per-frame
+        statistics counters."""
+        ND, MW = p.ND, p.MW
+        complete, f_dmax, f_dmin, scan = p.complete, p.f_dmax, p.f_dmin, p.scan
         m.d.comb += [scan.d_min.eq(f_dmin), scan.d_max.eq(f_dmax),
                      scan.mode_full.eq(self.mode_full), scan.sign_any.eq(self.sign_any),
                      scan.drop_mode.eq(self.drop_mode), scan.widen.eq(self.widen),
@@ -359,20 +417,14 @@ class Matcher(wiring.Component):
         pixels = MW * self._max_height
         stat = {name: Signal(bits_for(pixels * (ND + 2) if name == "evaluations" else pixels),
                              name=f"cnt_{name}") for name in STAT_KEYS}
+        vars(p).update(pop=pop, queue=queue, stat=stat)
 
-        # ---------------------------------------------------------------- engine
-        # left stage (LS): takes an item from the queue; for a job, reads its W left columns
-        #   into `shadow` (while the walker works on the previous job);
-        # walker (WK): visits the right columns the job's candidates need, lowest first (one a
-        #   cycle: `need` has bit b for window position e = b - 2r when some candidate lies in
-        #   e .. e + 2r); each column read shifts into `rwin`, and a position that is a
-        #   candidate fires the cost tree;
-        # cost tree -> winner -> uniqueness test -> output FIFO.
-        # Both reads take 4 cycles from decision to window; the left stage starts a job only
-        # after the walker has taken the previous one, so the previous job's first right
-        # column reaches `rwin` (and `shadow` moves to `lwin`) no later than the next job's
-        # first left column reaches `shadow`.
-        NE = ND + 2 * r                   # need bits: window positions e = -2r .. D
+    def _left_stage(self, m, p):
+        """Engine, left stage: takes an item from the queue once its window's lines are
+        readable and reads a job's W left columns into ``shadow`` (four cycles from decision to
+        window)."""
+        W, r, ND, ROWS, XW, YW, SB = p.W, p.r, p.ND, p.ROWS, p.XW, p.YW, p.SB
+        L, R, complete, pop, queue = p.L, p.R, p.complete, p.pop, p.queue
         lrow = Signal(YW)                 # row of the jobs at the left stage
         lneed = Signal(YW + 1, init=r)    # lrow + r
         # Drop-mode doom limit of a job of row lrow: the top line t = lrow - r of its window
@@ -385,21 +437,6 @@ class Matcher(wiring.Component):
         ls_k = Signal(range(W + 1)); ls_y = Signal(YW); ls_lim = Signal(YW + 1)
         ls_top = Signal(SB)
 
-        def slot_bytes(words):
-            """One column of every line slot, in slot order, from the ROWS / 2 pair words (slot
-            2q in the low byte of pair q, slot 2q + 1 in the high byte). No line selection: both
-            cameras keep line y in slot y mod ROWS, so the windows hold the same lines in the
-            same slots, and the cost lane masks the slots outside the window (the window cost
-            is a sum, whatever the order of its lines)."""
-            return [w[8 * h:8 * h + 8] for w in words for h in (0, 1)]
-
-        def window_slots(top):
-            """Bit s: slot s holds one of the W lines of the window whose top line is in slot
-            ``top`` (a constant per top slot)."""
-            masks = [sum(1 << ((t + j) % ROWS) for j in range(W)) for t in range(ROWS)]
-            return Array(Const(v, ROWS) for v in masks)[top]
-
-        # Registered: lneed changes only when a row marker is popped, and the left stage then
         # holds that marker for at least a cycle, so the value is fresh when a job can pop.
         lines_ready = Signal()
         m.d.sync += lines_ready.eq(
@@ -427,7 +464,7 @@ class Matcher(wiring.Component):
         m.d.comb += L.pair_addr.eq(l2_addr)
         m.d.sync += [l3_v.eq(l2_v), l4_v.eq(l3_v)]
         m.d.sync += [raw.eq(L.pair_data[16 * q:16 * q + 16]) for q, raw in enumerate(l4_raw)]
-        lcol = slot_bytes(l4_raw)
+        lcol = _slot_bytes(l4_raw)
         # shadow[i][s]: window column i (0 = x - r), line slot s
         shadow = [[Signal(8, name=f"shadow_{i}_{j}") for j in range(ROWS)] for i in range(W)]
         with m.If(l4_v):
@@ -436,7 +473,16 @@ class Matcher(wiring.Component):
                     m.d.sync += shadow[i][j].eq(shadow[i + 1][j])
             for j in range(ROWS):
                 m.d.sync += shadow[W - 1][j].eq(lcol[j])
+        vars(p).update(ls_full=ls_full, ls_k=ls_k, ls_kind=ls_kind, ls_lim=ls_lim, ls_mask=ls_mask,
+                       ls_top=ls_top, ls_x=ls_x, ls_y=ls_y, shadow=shadow)
 
+    def _walker(self, m, p):
+        """Engine, walker and column address: visits the job's ``need`` bits lowest first,
+        one a cycle, and addresses right column ``x - d_min - e - r``; ``t2`` is the visited
+        position's tag (candidate, first, last, marker, ``d``) on its way to the window."""
+        W, r, DB, ND, KB, XW, YW, SB, NE = p.W, p.r, p.DB, p.ND, p.KB, p.XW, p.YW, p.SB, p.NE
+        R, f_dmin, ls_full, ls_k, ls_kind = p.R, p.f_dmin, p.ls_full, p.ls_k, p.ls_kind
+        ls_lim, ls_mask, ls_top, ls_x, ls_y = p.ls_lim, p.ls_mask, p.ls_top, p.ls_x, p.ls_y
         # Walker.
         w_act = Signal(); w_kind = Signal(2); w_need = Signal(NE); w_fire = Signal(NE)
         w_first = Signal(); w_x = Signal(XW); w_base = Signal(XW + 1); w_y = Signal(YW)
@@ -506,7 +552,16 @@ class Matcher(wiring.Component):
                      t2["x"].eq(t1_x), t2["y"].eq(t1_y), t2["lim"].eq(t1_lim),
                      t2["top"].eq(t1_top), t2["first"].eq(t1_first)]
         m.d.comb += R.pair_addr.eq(t2_addr)
+        vars(p).update(credits=credits, eof_pending=eof_pending, t2=t2, take=take)
 
+    def _right_window(self, m, p):
+        """Engine, right window: the tag rides along the four-cycle right read; each
+        column shifts into ``rwin``, the job's first moves ``shadow`` to ``lwin``; a row marker
+        retires a centre row; ``doomed4``: the job's window has been overwritten (drop
+        mode)."""
+        W, ROWS = p.W, p.ROWS
+        L, R, retired, shadow, t2, wlim = p.L, p.R, p.retired, p.shadow, p.t2, p.wlim
+        wlim_m1 = p.wlim_m1
         def stage(prev, name):
             nxt = {k_: Signal.like(v, name=f"{name}_{k_}") for k_, v in prev.items()}
             m.d.sync += [nxt[k_].eq(v) for k_, v in prev.items()]
@@ -516,7 +571,7 @@ class Matcher(wiring.Component):
         t4 = stage(t3, "t4")
         r4_raw = [Signal(16, name=f"r4_raw{q}") for q in range(ROWS // 2)]
         m.d.sync += [raw.eq(R.pair_data[16 * q:16 * q + 16]) for q, raw in enumerate(r4_raw)]
-        rcol = slot_bytes(r4_raw)
+        rcol = _slot_bytes(r4_raw)
         lwin = [[Signal(8, name=f"lwin_{i}_{j}") for j in range(ROWS)] for i in range(W)]
         rwin = [[Signal(8, name=f"rwin_{i}_{j}") for j in range(ROWS)] for i in range(W)]
         with m.If(t4["v"]):
@@ -535,7 +590,14 @@ class Matcher(wiring.Component):
             m.d.sync += [retired.eq(retired + 1), wlim.eq(wlim + 1), wlim_m1.eq(wlim_m1 + 1)]
         doomed4 = Signal()
         m.d.comb += doomed4.eq(self.drop_mode & ((L.wrow > t4["lim"]) | (R.wrow > t4["lim"])))
+        vars(p).update(doomed4=doomed4, lwin=lwin, rwin=rwin, t4=t4)
 
+    def _cost_winner(self, m, p):
+        """Engine, cost lane and winner: the W x W cost of the candidate positions
+        (:class:`~hdl.matcher_cost.CostTree`), then the streaming winner over each job's
+        candidates (:class:`~hdl.matcher_winner.Winner`)."""
+        W, ND, KB, ROWS, XW, YW, CB = p.W, p.ND, p.KB, p.ROWS, p.XW, p.YW, p.CB
+        doomed4, lwin, rwin, t4 = p.doomed4, p.lwin, p.rwin, p.t4
         # D5: cost tree over (lwin, rwin) for the positions that are candidates.
         tag_layout = data.StructLayout({"fire": 1, "ff": 1, "last": 1, "frame": 1, "d": KB,
                                         "d1": KB + 1, "x": XW, "y": YW, "doomed": 1})
@@ -543,7 +605,7 @@ class Matcher(wiring.Component):
                                              lines=ROWS)
         t5_tag = Signal(tag_layout)
         t5_slots = Signal(ROWS)           # the job's window slots
-        m.d.sync += t5_slots.eq(window_slots(t4["top"]))
+        m.d.sync += t5_slots.eq(_window_slots(t4["top"], ROWS, W))
         m.d.sync += [t5_tag.fire.eq(t4["fire"]), t5_tag.ff.eq(t4["ff"]),
                      t5_tag.last.eq(t4["last"]), t5_tag.frame.eq(t4["mk"] == KIND_FRAME),
                      t5_tag.d.eq(t4["d"]), t5_tag.d1.eq(t4["d1"]), t5_tag.x.eq(t4["x"]),
@@ -565,7 +627,15 @@ class Matcher(wiring.Component):
         w_frame = Signal()                # the frame marker, aligned with the winner's output
         m.d.sync += w_frame.eq(s_tag.frame)
         wt = data.View(win_tag, winner.o_tag)
+        vars(p).update(w_frame=w_frame, winner=winner, wt=wt)
 
+    def _records(self, m, p):
+        """Engine, record stage: the uniqueness test, subpixel fit and confidence (census),
+        the output FIFO and its credits, the statistics and the frame end."""
+        DB, XW, YW, CB, INF = p.DB, p.XW, p.YW, p.CB, p.INF
+        credits, eng_done, eof_pending, f_dmin = p.credits, p.eng_done, p.eof_pending, p.f_dmin
+        ls_kind, scan, stat, take, w_frame = p.ls_kind, p.scan, p.stat, p.take, p.w_frame
+        winner, wt = p.winner, p.wt
         # Uniqueness test (E2), statistics and credits; the matches go on to the record.
         e_v = Signal(); e_frame = Signal(); e_bc = Signal(CB); e_bd = Signal(DB)
         e_fm = Signal(CB); e_x = Signal(XW); e_y = Signal(YW); e_doomed = Signal()
@@ -640,4 +710,3 @@ class Matcher(wiring.Component):
         taken = Signal()
         m.d.comb += taken.eq(take & (ls_kind != KIND_ROW))
         m.d.sync += credits.eq(credits - taken + o_pop + give_back)
-        return m
