@@ -62,8 +62,8 @@ class FrontEnd(FramedUnit):
     ``horizontal`` and optional ``nodes``): a rectifier between the classifier and the Sobel
     unit, on the luminance and the ground bit (golden
     :class:`golden.rectify.RectifiedPipelineModel`); free space stays the classifier's. It
-    delays the edges by ``lo + span`` rows and a few pixels, and costs four block RAMs of line
-    buffer and one of map.
+    delays the edges by ``lo + span`` rows and a few pixels, and takes block RAM for its line
+    buffer (four memories of ``(span + 2) / 2`` half lines) and its map.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, census=False, rectify=None):

@@ -20,7 +20,8 @@ Payload (the XBee "RF data"), version 2, big-endian, ``PAYLOAD_HEADER_LEN`` + n_
                frames, pairs_ok, mispaired, drops, cam_errors[0], cam_errors[1],
                matcher_errors, fifo_overflow (u16 each), flags (u8: bit0 left decoder
                locked, bit1 right decoder locked, bit2 pipeline enabled, bit3 hue fallback
-               to luma)
+               to luma, bit4 the calibration's rectification is not running: the build
+               has no rectifier, the rig's warp exceeds it or its map is not the rig's)
     33   1     n_bands: 1..64
     34   n     bands[i]: u8, nearest obstacle disparity of column band i (0 = none)
     34+n 2     crc: CRC-16/CCITT-FALSE over bytes 0 .. 33+n
@@ -65,7 +66,8 @@ HEALTH_FIELDS = (
     ("cam_errors1", "cam_errors[1]", 2), ("matcher_errors", "matcher_errors", 2),
     ("fifo_overflow", "fifo_overflow", 2), ("flags", "flags", 1),
 )
-HEALTH_FLAGS = {"LEFT_LOCKED": 0, "RIGHT_LOCKED": 1, "PIPELINE_ENABLED": 2, "HUE_FALLBACK": 3}
+HEALTH_FLAGS = {"LEFT_LOCKED": 0, "RIGHT_LOCKED": 1, "PIPELINE_ENABLED": 2, "HUE_FALLBACK": 3,
+                "RECT_FAULT": 4}
 
 #: payload fields before the bands: (name, size, signed)
 HEADER_FIELDS = (

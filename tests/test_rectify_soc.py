@@ -157,3 +157,40 @@ def test_map_over_the_bus_equals_golden():
     assert state["check"] == state["want"]
     assert state["results"] == [(int(r["x"]), int(r["y"]), int(r["d"]))
                                 for g in golden for r in g.records]
+
+
+def test_firmware_table_matches_the_bitstream_map(tmp_path, capsys):
+    """sim.flows.rect_table: the table of a calibrated rig asks for what a SoC built with the
+    rig's map in its bitstream reports (RECT_INFO: span, stride, node rows; RECT_MAP_CHECK),
+    with the rig's lo; the header says so; bad input is one error line."""
+    from golden.camera import Camera
+    from sim.flows.rect_table import bitstream_map, main, render, table
+    from tests.test_rectify_pipeline import _small_rig_file
+    _small_rig_file(tmp_path / "rig.json", row_offset=1.0, roll_deg=1.0)
+    camera = Camera.from_json(tmp_path / "rig.json")
+    t = table(camera, 128, 64)
+    soc = StereoSoC(clk_div=4, max_width=128, max_height=64,
+                    rectify=dict(span=8, nodes=bitstream_map(camera)))
+    got = {}
+
+    async def cpu(ctx):
+        got["info"] = await io_read(ctx, soc.bus, _rect("RECT_INFO"))
+        got["check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK"))
+
+    _simulate(soc, cpu, [])
+    info = regmap.rect_register("RECT_INFO")
+    need, have = _fields(info, t["need"]), _fields(info, got["info"])
+    assert have["preloaded"] == 1 and 2 <= need["span"] <= have["span"] == 8
+    assert need["stride_log2"] == have["stride_log2"] and need["node_rows"] <= have["node_rows"]
+    assert t["map_check"] == got["check"]
+    assert _fields(regmap.rect_register("RECT_CTRL"), t["ctrl"]) == {"enable": 1,
+                                                                     "lo": t["lo"] & 63}
+    text = render(t, "rig.json")
+    assert "#define RECT_TABLE_PRESENT 1" in text and f"0x{t['map_check']:08X}u" in text
+    assert "#define RECT_TABLE_PRESENT 0" in render()
+    assert main([str(tmp_path / "rig.json"), "--out", str(tmp_path / "t.h")]) == 0
+    assert "RECT_TABLE_PRESENT 1" in (tmp_path / "t.h").read_text()
+    assert main([str(tmp_path / "rig.json"), "--max-width", "64", "--max-height", "32"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: the calibration's 96x48 images do not fit")
+    assert main([]) == 2 and capsys.readouterr().err.startswith("error: give a camera file")

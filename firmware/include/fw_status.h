@@ -19,6 +19,9 @@ typedef int32_t fw_status_t;
 #define FW_ERR_ID          (-6) /**< wrong chip / bitstream identification */
 #define FW_ERR_NO_LOCK     (-7) /**< video decoder not locked to an input */
 #define FW_ERR_RX          (-8) /**< IIC: receive FIFO empty when data was expected */
+#define FW_ERR_RECT_ABSENT (-9) /**< the build has no rectifier for a rig that needs one */
+#define FW_ERR_RECT_WARP  (-10) /**< the rig's warp needs more rows than the rectifier holds */
+#define FW_ERR_RECT_MAP   (-11) /**< the rectifier's map is not the calibration's */
 
 /** Short name of a status code, for logs ("OK", "NACK", ...). */
 const char *fw_status_str(fw_status_t st);

@@ -136,6 +136,9 @@ const char *fw_status_str(fw_status_t st)
     case FW_ERR_ID: return "ID";
     case FW_ERR_NO_LOCK: return "NO_LOCK";
     case FW_ERR_RX: return "RX";
+    case FW_ERR_RECT_ABSENT: return "RECT_ABSENT";
+    case FW_ERR_RECT_WARP: return "RECT_WARP";
+    case FW_ERR_RECT_MAP: return "RECT_MAP";
     default: return "UNKNOWN";
     }
 }

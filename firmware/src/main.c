@@ -19,6 +19,7 @@
 #include "hal.h"
 #include "stereo_regs.h"
 #include "pose.h"
+#include "rect_table.h"
 #include "xbee.h"
 #ifdef FIRMWARE_BANDS_HW
 #include "bands_hw.h"
@@ -88,6 +89,7 @@ int main(void)
     static const xbee_config_t radio_cfg = { XBEE_ROBOT_ADDR, XBEE_STATION_ADDR, XBEE_PAN_ID };
     xbee_io_t radio_io;
     fw_status_t st_dec, st_pipe, st_video = FW_ERR_NO_LOCK;
+    uint8_t rect_fault = 0u;        /* RADIO_HEALTH_RECT_FAULT when the rectifier is not on */
     uint8_t decoders_locked = 0u;
     uint8_t decoder_tries = 0u;
     uint32_t start;
@@ -97,6 +99,13 @@ int main(void)
     (void)xbee_configure(&radio_io, &radio_cfg, NULL);
     st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
     st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);
+#if RECT_TABLE_PRESENT
+    /* the calibration's rectification: its map in the bitstream, checked, then enabled; a
+     * build that cannot take it is reported in every health record (RECT_FAULT) */
+    if (rect_setup(STEREO_RECT_BASEADDR, &rect_table) != FW_OK) {
+        rect_fault = RADIO_HEALTH_RECT_FAULT;
+    }
+#endif
     (void)app_collect(&app);        /* the summary's band boundaries, before any record */
 #ifdef FIRMWARE_BANDS_HW
     (void)bands_hw_init(&bands, BANDS_HW_BASEADDR, app.width, app.n_bands);
@@ -153,6 +162,7 @@ int main(void)
             bands_drops = drops;
         }
 #endif
+        health.flags |= rect_fault;
         /* the motion controller's pose (pose.h); the last good one if it is being updated */
         (void)pose_read(POSE_BASEADDR, &pose);
         if (tx_pos >= tx_len) {         /* the last report is out */

@@ -38,6 +38,7 @@ void suite_iic(void);
 void suite_adv7180(void);
 void suite_pipeline(void);
 void suite_radio(void);
+void suite_rectify(void);
 void suite_xbee(void);
 void suite_pose(void);
 

@@ -17,6 +17,8 @@ int main(void)
     suite_xbee();
     printf("# pose\n");
     suite_pose();
+    printf("# rectify\n");
+    suite_rectify();
     printf("%d passed, %d failed\n", fwt_passed, fwt_failed);
     return fwt_failed == 0 ? 0 : 1;
 }

@@ -1,0 +1,31 @@
+/**
+ * @file rectify.c
+ * Start-up check and enable of the right camera's rectifier (include/rectify.h).
+ */
+#include "rectify.h"
+
+#include "hal.h"
+#include "stereo_regs.h"
+
+fw_status_t rect_setup(uint32_t base, const rect_table_t *t)
+{
+    uint32_t info = Xil_In32(base + STEREO_RECT_INFO_OFFSET);
+    /* a rectifier's RECT_INFO is positive (span >= 2, bit 31 clear); a window nobody answers
+     * reads 0 (MCS) or all ones (the RISC-V core's I/O timeout, the host's empty bus) */
+    if ((int32_t)info <= 0) {
+        return FW_ERR_RECT_ABSENT;
+    }
+    /* the fields sit at the same bits in both words: masked words compare as the fields */
+    if ((t->need & STEREO_RECT_INFO_SPAN_MASK) > (info & STEREO_RECT_INFO_SPAN_MASK)) {
+        return FW_ERR_RECT_WARP;
+    }
+    if (((t->need ^ info) & STEREO_RECT_INFO_STRIDE_LOG2_MASK) != 0u ||
+        (t->need & STEREO_RECT_INFO_NODE_ROWS_MASK) > (info & STEREO_RECT_INFO_NODE_ROWS_MASK) ||
+        Xil_In32(base + STEREO_RECT_MAP_CHECK_OFFSET) != t->map_check) {
+        return FW_ERR_RECT_MAP;
+    }
+    Xil_Out32(base + STEREO_RECT_VALID_POS_OFFSET, t->valid_pos);
+    Xil_Out32(base + STEREO_RECT_VALID_SIZE_OFFSET, t->valid_size);
+    Xil_Out32(base + STEREO_RECT_CTRL_OFFSET, t->ctrl);
+    return FW_OK;
+}
