@@ -31,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import SimpleNamespace
 
-from golden.floor import FloorParams, OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
+from golden.floor import FloorLine, FloorParams, OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
 from golden.matcher import CONFIDENCE_MAX, DISPARITY_BITS, DISPARITY_SPAN, SUBPIXEL_BITS
 from golden.pipeline import default_params
 
@@ -72,6 +72,14 @@ _S = _P.frontend.sobel
 _M = _P.matcher
 _F = _P.frontend.free
 _FL = FloorParams()
+#: The floor line FLOOR_LINE resets to, which the firmware writes at start-up (the rig's): the
+#: project's nominal rig (``sim.scenes.rendered.Rig``: 0.12 m baseline, optical centres 0.35 m
+#: above the floor, pitched 12 degrees down, focal length 600 px at 752 columns) seen by the
+#: ADV7180 cameras, one field of a REF_WIDTH x 2 REF_HEIGHT frame: the field's row v is the
+#: frame's row 2 v, so its line is the frame's with twice the slope (the same as a rig of twice
+#: the baseline with half the focal length and half the principal row, ``FloorLine.from_rig``).
+RIG_FLOOR_LINE = FloorLine.from_rig(focal_px=600.0 * REF_WIDTH / 752 / 2, baseline_m=2 * 0.12,
+                                    height_m=0.35, pitch_deg=12.0, cy=(2 * REF_HEIGHT - 1) / 4)
 
 
 @dataclass(frozen=True)
@@ -319,9 +327,11 @@ REGISTERS: tuple[Register, ...] = (
     )),
     Register("FLOOR_LINE", 0xD4, "rw", "The v-disparity floor line (golden/floor.py FloorLine): "
              "line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads "
-             "half a line.", (
-        F("floor_slope", 0, SLOPE_BITS, 0, "1/256 px of disparity per row"),
-        F("floor_offset", SLOPE_BITS, OFFSET_BITS, 0, "1/256 px, two's complement"),
+             "half a line. Reset: the nominal rig's line in one field of a "
+             f"{REF_WIDTH}x{2 * REF_HEIGHT} camera (hdl/regmap.py RIG_FLOOR_LINE).", (
+        F("floor_slope", 0, SLOPE_BITS, RIG_FLOOR_LINE.slope, "1/256 px of disparity per row"),
+        F("floor_offset", SLOPE_BITS, OFFSET_BITS, RIG_FLOOR_LINE.offset % (1 << OFFSET_BITS),
+          "1/256 px, two's complement"),
     )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one whole record, whose "
              "second half (d16, conf) RESULT_EXT then shows.", (

@@ -503,15 +503,15 @@
 #define STEREO_FLOOR_FLOOR_TOL_SHIFT_MASK            0x00070000u  /**< floor_tol_shift mask (3 bits) */
 #define STEREO_FLOOR_FLOOR_TOL_SHIFT_RESET           6u           /**< floor_tol_shift reset value */
 
-/* FLOOR_LINE (read/write): The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. */
-#define STEREO_FLOOR_LINE_OFFSET                     0xD4u        /**< The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. */
-#define STEREO_FLOOR_LINE_RESET                      0x0u         /**< FLOOR_LINE value after reset */
+/* FLOOR_LINE (read/write): The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. Reset: the nominal rig's line in one field of a 720x480 camera (hdl/regmap.py RIG_FLOOR_LINE). */
+#define STEREO_FLOOR_LINE_OFFSET                     0xD4u        /**< The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. Reset: the nominal rig's line in one field of a 720x480 camera (hdl/regmap.py RIG_FLOOR_LINE). */
+#define STEREO_FLOOR_LINE_RESET                      0x0F6284ACu  /**< FLOOR_LINE value after reset */
 #define STEREO_FLOOR_LINE_FLOOR_SLOPE_SHIFT          0u           /**< floor_slope: 1/256 px of disparity per row */
 #define STEREO_FLOOR_LINE_FLOOR_SLOPE_MASK           0x3FFu       /**< floor_slope mask (10 bits) */
-#define STEREO_FLOOR_LINE_FLOOR_SLOPE_RESET          0u           /**< floor_slope reset value */
+#define STEREO_FLOOR_LINE_FLOOR_SLOPE_RESET          172u         /**< floor_slope reset value */
 #define STEREO_FLOOR_LINE_FLOOR_OFFSET_SHIFT         10u          /**< floor_offset: 1/256 px, two's complement */
 #define STEREO_FLOOR_LINE_FLOOR_OFFSET_MASK          0x0FFFFC00u  /**< floor_offset mask (18 bits) */
-#define STEREO_FLOOR_LINE_FLOOR_OFFSET_RESET         0u           /**< floor_offset reset value */
+#define STEREO_FLOOR_LINE_FLOOR_OFFSET_RESET         252065u      /**< floor_offset reset value */
 
 /* RESULT (read pops): Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
 #define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
