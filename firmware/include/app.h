@@ -71,6 +71,10 @@ fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base);
  *  its floor line is twice as steep as golden.floor.FloorParams' frames allow. */
 #define APP_FLOOR_SLOPE_MAX 320u
 void app_floor_start(uint32_t regs_base);
+/** A rig of another geometry (a calibration, another frame size): its floor line (slope in
+ *  1/256 px a row, 0..1023; offset in 1/256 px, 18 bits signed) replaces the nominal rig's, in
+ *  FLOOR_LINE and as the learning's start and prior. FW_ERR_PARAM outside the fields. */
+fw_status_t app_floor_rig(uint32_t regs_base, uint16_t slope, int32_t offset);
 /** One record of the frame being read (learning only; beyond APP_FLOOR_RECORDS a frame is
  *  not learned from). */
 void app_floor_add(uint16_t y, uint16_t d16);

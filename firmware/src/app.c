@@ -119,6 +119,24 @@ void app_floor_start(uint32_t regs_base)
 #endif
 }
 
+fw_status_t app_floor_rig(uint32_t regs_base, uint16_t slope, int32_t offset)
+{
+    if (slope > 1023u || offset < -131072 || offset > 131071) {
+        return FW_ERR_PARAM;
+    }
+    STEREO_WriteReg(regs_base, STEREO_FLOOR_LINE_OFFSET,
+                    STEREO_SET(FLOOR_LINE, FLOOR_SLOPE, slope) |
+                    STEREO_SET(FLOOR_LINE, FLOOR_OFFSET, (uint32_t)offset));
+#if APP_FLOOR_LEARN
+    app_floor.rig.slope = slope;
+    app_floor.rig.offset = offset;
+    app_floor.line = app_floor.rig;
+    app_floor.n = 0u;
+    app_floor.full = 0u;
+#endif
+    return FW_OK;
+}
+
 void app_floor_add(uint16_t y, uint16_t d16)
 {
 #if APP_FLOOR_LEARN
