@@ -38,10 +38,10 @@
 
 /* GROUND (read/write): Ground classifier (golden/ground.py): mode and band width. */
 #define STEREO_GROUND_OFFSET                         0x08u        /**< Ground classifier (golden/ground.py): mode and band width. */
-#define STEREO_GROUND_RESET                          0x00303262u  /**< GROUND value after reset */
+#define STEREO_GROUND_RESET                          0x00303260u  /**< GROUND value after reset */
 #define STEREO_GROUND_MODE_SHIFT                     0u           /**< mode: 0 off (every pixel is an obstacle), 1 luminance, 2 hue */
 #define STEREO_GROUND_MODE_MASK                      0x3u         /**< mode mask (2 bits) */
-#define STEREO_GROUND_MODE_RESET                     2u           /**< mode reset value */
+#define STEREO_GROUND_MODE_RESET                     0u           /**< mode reset value */
 #define STEREO_GROUND_K_SHIFT                        4u           /**< k: half-width of the ground band, in JND units */
 #define STEREO_GROUND_K_MASK                         0xF0u        /**< k mask (4 bits) */
 #define STEREO_GROUND_K_RESET                        6u           /**< k reset value */
