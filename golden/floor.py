@@ -262,18 +262,28 @@ def search_start16(line, height, margin=32):
 
 class FloorModel:
     """The floor decision from reset, one frame's records per ``step``: the flags by the line
-    of this frame, then (``learn``) the line of the next frame from this frame's records."""
+    of this frame, then (``learn``) the next line learned from this frame's records.
 
-    def __init__(self, params):
+    ``lag``: the line learned from frame n's records flags frame n + ``lag`` (frames before
+    ``lag`` use ``params.initial``). 1: the line is ready for the next frame. 2: the SoC, whose
+    flag unit (``hdl/floor.py``) loads the line at each frame's end, before the CPU has read
+    that frame's records (they pass the unit first): the line the CPU learns from frame n is
+    loaded at frame n + 1's end. Learning always starts from the line learned last."""
+
+    def __init__(self, params, lag=1):
+        if lag < 1:
+            raise ValueError(f"floor lag must be at least 1, not {lag!r}")
         self.params = params.validate()
         self.line = None if params.mode == "off" else params.initial
+        self._lines = [self.line] * lag     # the lines of the next lag frames
 
     def step(self, records):
         """Floor flags of one frame's records (``y``, ``d16``); the line they used is
         ``self.used`` afterwards."""
-        self.used = self.line
-        flags = floor_flags(records["y"], records["d16"], self.line, self.params)
+        self.used = self._lines[0]
+        flags = floor_flags(records["y"], records["d16"], self.used, self.params)
         if self.params.mode == "learn":
             self.line = learn_line(records["y"], records["d16"], self.params, self.line,
                                    prior=self.params.initial)
+        self._lines = self._lines[1:] + [self.line]
         return flags

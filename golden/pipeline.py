@@ -81,10 +81,11 @@ class PipelineFrame:
     stats: dict              # STAT_KEYS
 
 
-def default_params(width, height, *, ground="hue", version="rtl", thresholds=None, **matcher):
+def default_params(width, height, *, ground="off", version="rtl", thresholds=None, **matcher):
     """The default pipeline configuration for a width x height pair (what the command line,
-    ``make sim`` and the register reset values use): the ground reference region at the bottom
-    centre, free-space bands covering the width (:meth:`FreeSpaceParams.for_width`), and by
+    ``make sim`` and the register reset values use): the appearance model off (``ground``:
+    ``"off"``, ``"luma"`` or ``"hue"``; the floor is decided by geometry after matching,
+    ``golden.floor``, docs/floor.md) with its reference region at the bottom centre, free-space bands covering the width (:meth:`FreeSpaceParams.for_width`), and by
     ``version`` (matcher keywords override; ``thresholds = (left, right)`` overrides the Sobel
     thresholds):
 

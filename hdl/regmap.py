@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import SimpleNamespace
 
+from golden.floor import FloorLine, FloorParams, OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
 from golden.matcher import CONFIDENCE_MAX, DISPARITY_BITS, DISPARITY_SPAN, SUBPIXEL_BITS
 from golden.pipeline import default_params
 
@@ -47,7 +48,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 10
+MAP_VERSION = 11
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -70,6 +71,15 @@ _G = _P.frontend.ground
 _S = _P.frontend.sobel
 _M = _P.matcher
 _F = _P.frontend.free
+_FL = FloorParams()
+#: The floor line FLOOR_LINE resets to, which the firmware writes at start-up (the rig's): the
+#: project's nominal rig (``sim.scenes.rendered.Rig``: 0.12 m baseline, optical centres 0.35 m
+#: above the floor, pitched 12 degrees down, focal length 600 px at 752 columns) seen by the
+#: ADV7180 cameras, one field of a REF_WIDTH x 2 REF_HEIGHT frame: the field's row v is the
+#: frame's row 2 v, so its line is the frame's with twice the slope (the same as a rig of twice
+#: the baseline with half the focal length and half the principal row, ``FloorLine.from_rig``).
+RIG_FLOOR_LINE = FloorLine.from_rig(focal_px=600.0 * REF_WIDTH / 752 / 2, baseline_m=2 * 0.12,
+                                    height_m=0.35, pitch_deg=12.0, cy=(2 * REF_HEIGHT - 1) / 4)
 
 
 @dataclass(frozen=True)
@@ -302,6 +312,27 @@ REGISTERS: tuple[Register, ...] = (
         F("pairs", 16, 16, 0, "pairs of field starts measured (wraps): a new us since the last "
                               "read when it moved"),
     )),
+    # The floor decision (golden/floor.py, hdl/floor.py FloorFlag on the records before the
+    # result FIFO and the band summary): the flag's tolerance and the v-disparity line, which
+    # the CPU writes (the rig's line, or the one it learned from the records). The unit loads
+    # both registers in the cycle after each frame's end-of-frame record passes it.
+    Register("FLOOR", 0xD0, "rw", "Floor flag of the records (golden/floor.py floor_flags): "
+             "a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> "
+             "tol_shift). Loaded at each frame's end: a write applies from the frame after the "
+             "one in progress.", (
+        F("floor_enable", 0, 1, 0, "1: flag floor points by FLOOR_LINE; 0: no record is one"),
+        F("floor_tol", 8, TOL_BITS, _FL.tol, "tolerance above the line, 1/16 px"),
+        F("floor_tol_shift", 16, TOL_SHIFT_BITS, _FL.tol_shift,
+          "the tolerance grows by max(line16, 0) >> floor_tol_shift"),
+    )),
+    Register("FLOOR_LINE", 0xD4, "rw", "The v-disparity floor line (golden/floor.py FloorLine): "
+             "line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads "
+             "half a line. Reset: the nominal rig's line in one field of a "
+             f"{REF_WIDTH}x{2 * REF_HEIGHT} camera (hdl/regmap.py RIG_FLOOR_LINE).", (
+        F("floor_slope", 0, SLOPE_BITS, RIG_FLOOR_LINE.slope, "1/256 px of disparity per row"),
+        F("floor_offset", SLOPE_BITS, OFFSET_BITS, RIG_FLOOR_LINE.offset % (1 << OFFSET_BITS),
+          "1/256 px, two's complement"),
+    )),
     Register("RESULT", 0x80, "fifo", "Result FIFO head; a read pops one whole record, whose "
              "second half (d16, conf) RESULT_EXT then shows.", (
         F("x", 0, _XB, 0, "column of the left edge pixel"),
@@ -313,6 +344,8 @@ REGISTERS: tuple[Register, ...] = (
         F("abort", _XB + _YB + _DB + 1, 1, 0, "with eof: that frame was cut by "
                                               "CTRL.restart_video or VIDEO.video_enable = 0: "
                                               "discard its records"),
+        F("floor", _XB + _YB + _DB + 2, 1, 0, "1: a floor point (hdl/floor.py, by the line "
+                                              "of FLOOR and FLOOR_LINE): not an obstacle"),
         F("valid", 31, 1, 0, "1: a record; 0: no whole record was waiting (the FIFO was empty, "
                              "or the read came in the cycle right after a RESULT read, while "
                              "the FIFO steps over that record's second half: read again)"),

@@ -15,7 +15,7 @@ also runs in simulation with the firmware driving the bus (``sim/system/cosim``)
 import hashlib
 
 from amaranth.hdl import Cat, ClockDomain, ClockSignal, Const, Module, ResetInserter, Signal, Mux
-from amaranth.lib import wiring, stream
+from amaranth.lib import data, wiring, stream
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
@@ -28,6 +28,7 @@ from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort
 from .cpu import RiscvCPU
+from .floor import FloorFlag
 from .pixel_pairs import PixelPairer, PixelUnpairer, pair_layout
 from .freespace import free_space_tables
 from .iic import IICMaster
@@ -74,8 +75,11 @@ class StereoSoC(wiring.Component):
     scl_o, scl_oe, scl_i, sda_o, sda_oe, sda_i
         Open-drain IIC pins of the video decoders (drive low when ``*_oe``).
 
-    The pipeline's records go to the register block's result FIFO, one every two cycles at
-    most (the matcher holds them meanwhile); the FIFO does not wait for the CPU (a camera-fed
+    The pipeline's records go through the floor flag unit (:class:`hdl.floor.FloorFlag`, the
+    registers FLOOR and FLOOR_LINE; RESULT's bit ``floor``) to the register block's result
+    FIFO, one every two cycles at most (the matcher holds them meanwhile); the first frame
+    after reset has no floor line (the unit loads the registers at each frame's end). The
+    FIFO does not wait for the CPU (a camera-fed
     pipeline cannot: a full FIFO drops and counts). The sticky error counters are cleared by
     CTRL.clear_errors: the block shows each counter minus its value at the last clear, so the
     pipeline's own counters never need a reset.
@@ -121,15 +125,18 @@ class StereoSoC(wiring.Component):
         wiring.connect(m, wiring.flipped(self.right), pipe.right)
         _connect_parameters(m, regs, pipe)
 
-        # Records into the result FIFO (the end-of-frame markers carry no match), at most one
-        # every two cycles (the FIFO's ready; the matcher holds them meanwhile).
-        rec = pipe.o.payload
+        # Records, with their floor flag, into the result FIFO (the end-of-frame markers carry
+        # no match), at most one every two cycles (the FIFO's ready; the matcher and the flag
+        # unit hold them meanwhile).
+        o = _floor_stage(m, regs, pipe.o)
+        rec = o.payload
         m.d.comb += [
-            pipe.o.ready.eq(regs.results.ready),
-            regs.results.valid.eq(pipe.o.valid & ~rec.eof),
+            o.ready.eq(regs.results.ready),
+            regs.results.valid.eq(o.valid & ~rec.eof),
             regs.results.payload.x.eq(rec.x),
             regs.results.payload.y.eq(rec.y),
             regs.results.payload.d.eq(rec.d),
+            regs.results.payload.floor.eq(rec.floor),
             *_second_half(rec, regs.results.payload),
         ]
 
@@ -168,10 +175,16 @@ class SystemSoC(wiring.Component):
     the bus is a port, for an external CPU: a MicroBlaze MCS in the vendor flow, or the
     firmware's host build in simulation.
 
+    Floor points: the records pass the floor flag unit (:class:`hdl.floor.FloorFlag`, reset
+    with the video path, so the first frame after VIDEO.video_enable takes the line written
+    before it; the registers FLOOR and FLOOR_LINE, loaded at each frame's end) before
+    anything else sees them; RESULT shows the flag (``floor``).
+
     Records with the CPU inside: a slow core cannot read every record (a busy row of the
     matcher brings one every few cycles), so the records and markers go to the per-band
     summary unit (:class:`hdl.bands.BandSummary`, at ``hdl.regmap.BANDS_BASEADDR``), one every
-    two cycles at most, and the firmware reads its summary once a frame; they go to the result
+    two cycles at most, floor points excepted (no floor point reaches the radio summary), and
+    the firmware reads its summary once a frame; they go to the result
     FIFO as well only while the unit's RECORDS.fifo is 1 (reset 0, so an unread FIFO never
     overflows), and that FIFO defaults to :data:`CPU_FIFO_DEPTH` records in distributed RAM:
     the summary's block RAM takes the FIFO's. Without the CPU the records go to the result
@@ -329,17 +342,18 @@ class SystemSoC(wiring.Component):
         m.d.comb += pairing.busy.eq(busy)
         _connect_parameters(m, regs, pipe)
 
+        flagged = _floor_stage(m, regs, pipe.o, video_rst)
         if self._cpu is None:
-            _records_and_markers(m, pipe.o, regs.results, video_rst)
+            _records_and_markers(m, flagged, regs.results, video_rst)
         else:
             records = stream.Signature(ResultLayout).create()
-            _records_and_markers(m, pipe.o, records, video_rst)
+            _records_and_markers(m, flagged, records, video_rst)
             _records_to_summary(m, records, regs.results, bands.i, bands.fifo_enable)
             if self._monitor:
                 p = records.payload
                 m.d.comb += [self.record_valid.eq(records.valid & records.ready),
                              self.record_word.eq(Cat(p.x, p.y, p.d, p.eof, p.abort,
-                                                     Const(0, 1), 1))]
+                                                     p.floor, 1))]
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
                                   reset=video_rst)
         # capture skew: each camera's field start as its port hands it over (the ports'
@@ -448,7 +462,7 @@ def _records_and_markers(m, o, results, video_rst):
         results.payload.eof.eq(marker),
         results.payload.abort.eq(abort),
     ]
-    for name in ("x", "y", "d"):
+    for name in ("x", "y", "d", "floor"):
         m.d.comb += results.payload[name].eq(Mux(marker, 0, rec[name]))
     m.d.comb += _second_half(rec, results.payload)
 
@@ -466,7 +480,8 @@ def _records_to_summary(m, records, results, summary, fifo_enable):
     """Records and markers (stream ``records``) into the band summary's input ``summary``
     (always ready), and into the result FIFO's input ``results`` only while ``fifo_enable``:
     one every two cycles at most (the rate both take), and no faster than the FIFO takes them
-    while it is enabled."""
+    while it is enabled. Floor points (``floor``) go to the FIFO but not to the summary: they
+    are no obstacles."""
     took = Signal()                         # a record went last cycle
     ready = Signal()
     m.d.comb += [
@@ -474,10 +489,35 @@ def _records_to_summary(m, records, results, summary, fifo_enable):
         records.ready.eq(ready),
         results.valid.eq(records.valid & ~took & fifo_enable),
         results.payload.eq(records.payload),
-        summary.valid.eq(records.valid & ready),
+        summary.valid.eq(records.valid & ready & ~records.payload.floor),
         summary.payload.eq(records.payload),
     ]
     m.d.sync += took.eq(records.valid & ready)
+
+
+def _floor_stage(m, regs, o, reset=None):
+    """The pipeline's records (stream ``o``) through the floor flag unit
+    (:class:`hdl.floor.FloorFlag`, its line and tolerance from the FLOOR and FLOOR_LINE
+    registers; reset with the video path by ``reset``): a stream of x, y, d, d16, conf,
+    ``floor`` and eof, the matcher's window cost left behind. A matcher without the subpixel
+    step (``cost = "sad"``: no d16) flags nothing: its records pass with ``floor`` 0."""
+    members = o.payload.shape().members
+    if "d16" not in members:
+        layout = data.StructLayout({**{n: members[n] for n in ("x", "y", "d")}, "floor": 1,
+                                    "eof": 1})
+        out = stream.Signature(layout).create()
+        m.d.comb += [out.valid.eq(o.valid), o.ready.eq(out.ready),
+                     *[out.payload[n].eq(o.payload[n]) for n in ("x", "y", "d", "eof")]]
+        return out
+    keep = ("x", "y", "d", "d16", "conf", "eof")
+    unit = FloorFlag(data.StructLayout({n: members[n] for n in keep}))
+    m.submodules.floor = unit if reset is None else ResetInserter(reset)(unit)
+    m.d.comb += [unit.i.valid.eq(o.valid), o.ready.eq(unit.i.ready),
+                 *[unit.i.payload[n].eq(o.payload[n]) for n in keep],
+                 unit.enable.eq(regs.floor_enable), unit.slope.eq(regs.floor_slope),
+                 unit.offset.eq(regs.floor_offset), unit.tol.eq(regs.floor_tol),
+                 unit.tol_shift.eq(regs.floor_tol_shift)]
+    return unit.o
 
 
 def _second_half(rec, payload):

@@ -79,6 +79,25 @@ def test_model_uses_last_frames_line():
     assert model.used is not None and flags[:300].mean() > 0.6 and flags[300:900].mean() < 0.05
 
 
+def test_model_lag_two_flags_by_the_line_learned_two_frames_before():
+    """lag 2 (the SoC's loop): frame n uses the line learned from frame n - 2, the first two
+    frames the initial line; the learning itself is lag 1's, frame to frame."""
+    rng = np.random.default_rng(5)
+    recs = [dict(zip(("y", "d16"), planted(rng, FloorLine(60 + 8 * k, -3000)))) for k in range(5)]
+    one, two = FloorModel(FloorParams()), FloorModel(FloorParams(), lag=2)
+    lines = []
+    for n, r in enumerate(recs):
+        one.step(r)
+        lines.append(one.used)
+        flags = two.step(r)
+        assert two.used == (lines[n - 1] if n >= 1 else None)
+        assert (flags == floor_flags(r["y"], r["d16"], two.used, FloorParams())).all()
+        assert two.line == one.line
+    assert len({ln for ln in lines if ln is not None}) >= 2
+    with pytest.raises(ValueError):
+        FloorModel(FloorParams(), lag=0)
+
+
 def test_bad_parameters():
     for kw in (dict(mode="sky"), dict(tol=256), dict(tol_shift=8), dict(slope_min=900, slope_max=10),
                dict(mode="rig")):

@@ -4,6 +4,7 @@ import pytest
 from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
+from golden.floor import FloorLine, FloorParams, floor_flags
 from golden.freespace import FreeSpaceParams
 from golden.frontend import FrontEndParams
 from golden.ground import GroundParams, GroundMode
@@ -58,6 +59,16 @@ def test_configure_stream_and_read_results_over_the_bus():
     recs = np.concatenate([g.records for g in golden])
     assert compared == ("x", "y", "d", "d16", "conf")
     assert (recs["d16"] != 16 * recs["d"]).any() and len(set(recs["conf"])) > 1
+    # a floor line through the middle of the records: the second frame flags some of them
+    # (the flag unit loads the line at each frame's end, the first frame's in the cycle after
+    # reset: no line)
+    fp = FloorParams(mode="rig", tol=5, tol_shift=3)
+    slope = 40
+    offset = int(np.median(16 * recs["d16"].astype(np.int64) - slope * recs["y"]))
+    line = FloorLine(slope, offset)
+    flags = [np.zeros(len(golden[0].records), np.uint8),
+             floor_flags(golden[1].records["y"], golden[1].records["d16"], line, fp)]
+    assert 0 < flags[1].sum() < len(flags[1])
 
     soc, sim = soc_simulator(max_width=64, max_height=16, fifo_depth=64)
     packer = Packer(RGBPixel)
@@ -68,6 +79,9 @@ def test_configure_stream_and_read_results_over_the_bus():
                                     free=params.frontend.free)
         for name, value in regs.items():
             await io_write(ctx, soc.bus, addr(name), value)
+        await io_write(ctx, soc.bus, addr("FLOOR"), 1 | fp.tol << 8 | fp.tol_shift << 16)
+        await io_write(ctx, soc.bus, addr("FLOOR_LINE"),
+                       line.slope | (line.offset & 0x3FFFF) << 10)
         assert await io_read(ctx, soc.bus, addr("MATCH")) == regs["MATCH"]
         ident = fields("ID", await io_read(ctx, soc.bus, addr("ID")))
         assert ident["magic"] == regmap.ID_MAGIC
@@ -83,7 +97,7 @@ def test_configure_stream_and_read_results_over_the_bus():
             word.update(fields("RESULT_EXT", await io_read(ctx, soc.bus, addr("RESULT_EXT"))))
             if not word["valid"]:
                 break
-            state["results"].append(tuple(word[k] for k in compared))
+            state["results"].append(tuple(word[k] for k in compared + ("floor",)))
         for reg in ("STAT_EDGES", "STAT_EVALUATIONS", "STAT_MATCHES", "STAT_REJECTS", "STAT_DROPS"):
             state["stats"][reg] = await io_read(ctx, soc.bus, addr(reg))
         for reg in ("ERR_LEFT", "ERR_RIGHT", "ERR_MATCH"):
@@ -108,7 +122,8 @@ def test_configure_stream_and_read_results_over_the_bus():
     sim.add_testbench(camera(soc.right, [rf, rf], 2), background=True)
     sim.run()
 
-    expected = [tuple(int(r[k]) for k in compared) for g in golden for r in g.records]
+    expected = [tuple(int(r[k]) for k in compared) + (int(f),)
+                for g, fl in zip(golden, flags) for r, f in zip(g.records, fl)]
     assert state["results"] == expected
     st = golden[-1].stats
     assert state["stats"] == {"STAT_EDGES": st["edge_pixels"], "STAT_EVALUATIONS": st["evaluations"],
@@ -155,14 +170,16 @@ def test_abort_marker_waits_for_the_fifo(cost):
     """SystemSoC's records into the FIFO (hdl/soc.py ``_records_and_markers``): a video restart
     in the cycle the FIFO writes a record's second word still adds its abort marker, after
     that record and ahead of the next one; markers carry 0 beside eof / abort, records their
-    d16 and conf (16 d and 0 from a matcher without the subpixel step, cost sad)."""
+    floor flag, d16 and conf (16 d and 0 from a matcher without the subpixel step, cost
+    sad)."""
     from amaranth.lib import stream, wiring
+    from hdl.floor import floor_record_layout
     from hdl.matcher import match_record_layout
     from hdl.regs import RegisterBlock
     from hdl.soc import _records_and_markers
 
     class Top(wiring.Component):
-        o: wiring.In(stream.Signature(match_record_layout(64, 16, cost=cost)))
+        o: wiring.In(stream.Signature(floor_record_layout(match_record_layout(64, 16, cost=cost))))
         video_rst: wiring.In(1)
 
         def __init__(self):
@@ -179,10 +196,10 @@ def test_abort_marker_waits_for_the_fifo(cost):
     regs = top.regs
     sim = Simulator(top)
     sim.add_clock(1e-8)
-    recs = [dict(x=3, y=4, d=5, cost=9, d16=5 * 16 - 3, conf=77, eof=0),
-            dict(x=0, y=0, d=0, cost=0, d16=0, conf=0, eof=1),
-            dict(x=6, y=7, d=8, cost=1, d16=8 * 16 + 8, conf=255, eof=0),
-            dict(x=9, y=1, d=2, cost=2, d16=2 * 16, conf=1, eof=0)]
+    recs = [dict(x=3, y=4, d=5, cost=9, d16=5 * 16 - 3, conf=77, floor=1, eof=0),
+            dict(x=0, y=0, d=0, cost=0, d16=0, conf=0, floor=1, eof=1),
+            dict(x=6, y=7, d=8, cost=1, d16=8 * 16 + 8, conf=255, floor=0, eof=0),
+            dict(x=9, y=1, d=2, cost=2, d16=2 * 16, conf=1, floor=1, eof=0)]
     if cost == "sad":
         recs = [{k: v for k, v in r.items() if k not in ("d16", "conf")} for r in recs]
     got = []
@@ -212,11 +229,12 @@ def test_abort_marker_waits_for_the_fifo(cost):
             word.update(fields("RESULT_EXT", await io_read(ctx, regs.bus, addr("RESULT_EXT"))))
             if not word["valid"]:
                 break
-            got.append({k: word[k] for k in ("x", "y", "d", "d16", "conf", "eof", "abort")})
+            got.append({k: word[k] for k in ("x", "y", "d", "d16", "conf", "floor", "eof",
+                                             "abort")})
 
     sim.add_testbench(bench)
     sim.run()
-    keep = ("x", "y", "d", "d16", "conf")
+    keep = ("x", "y", "d", "d16", "conf", "floor")
     record = [{"d16": 16 * r["d"], "conf": 0, **{k: r[k] for k in keep if k in r}, "eof": 0,
                "abort": 0} for r in recs]
     eof = {**{k: 0 for k in keep}, "eof": 1, "abort": 0}

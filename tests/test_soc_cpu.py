@@ -59,9 +59,10 @@ class _Split(wiring.Component):
 
 @pytest.mark.parametrize("enable", [0, 1])
 def test_records_reach_the_summary_and_the_fifo_only_when_enabled(enable):
-    """Every record taken goes to the summary unit, one every two cycles at most; to the result
-    FIFO as well (in the same cycle) only while ``fifo_enable``, and no faster than the FIFO's
-    ready allows (seeded random ready and valid)."""
+    """Every record taken goes to the summary unit but floor points, one every two cycles at
+    most; to the result FIFO as well (in the same cycle, floor points too) only while
+    ``fifo_enable``, and no faster than the FIFO's ready allows (seeded random ready, valid
+    and floor flags)."""
     dut = _Split()
     rng = random.Random(7 + enable)
     log = []
@@ -74,9 +75,12 @@ def test_records_reach_the_summary_and_the_fifo_only_when_enabled(enable):
             valid = rng.random() < 0.8
             ctx.set(dut.records.valid, int(valid))
             ctx.set(dut.records.payload.x, n % 1024)
+            ctx.set(dut.records.payload.floor, int(rng.random() < 0.3))
             ctx.set(dut.results.ready, int(rng.random() < 0.6))
             taken = ctx.get(dut.records.valid) and ctx.get(dut.records.ready)
-            log.append((taken, ctx.get(dut.records.payload.x),
+            log.append((taken and not ctx.get(dut.records.payload.floor),
+                        ctx.get(dut.records.valid) and ctx.get(dut.records.ready),
+                        ctx.get(dut.records.payload.x),
                         ctx.get(dut.summary.valid), ctx.get(dut.summary.payload.x),
                         ctx.get(dut.results.valid) and ctx.get(dut.results.ready),
                         ctx.get(dut.results.payload.x), ctx.get(dut.results.ready)))
@@ -88,11 +92,12 @@ def test_records_reach_the_summary_and_the_fifo_only_when_enabled(enable):
     sim.add_clock(1e-8)
     sim.add_testbench(bench)
     sim.run()
-    takes = [i for i, e in enumerate(log) if e[0]]
+    takes = [i for i, e in enumerate(log) if e[1]]
     assert len(takes) > 100
     assert all(b - a >= 2 for a, b in zip(takes, takes[1:]))
-    for taken, x, s_valid, s_x, fifo_take, f_x, f_ready in log:
-        assert s_valid == taken and (not taken or s_x == x)
+    assert 0 < sum(e[0] for e in log) < len(takes)      # floor points were taken
+    for obstacle, taken, x, s_valid, s_x, fifo_take, f_x, f_ready in log:
+        assert s_valid == obstacle and (not obstacle or s_x == x)
         assert fifo_take == (taken and enable == 1)
         if fifo_take:
             assert f_x == x

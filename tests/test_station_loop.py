@@ -138,6 +138,8 @@ def test_small_world_closed_loop_reaches_goal_without_collision():
 
 
 def test_frame_by_frame_golden_pipeline_equals_the_chained_model():
+    """The closed loop's perception is the chained golden model's records, the floor points
+    by the rig's line left out (what reaches the SoC's radio summary)."""
     from golden.pipeline import default_params, pipeline_frames
     from sim.scenes.rendered import Rig, render
     from sim.closedloop.perception import GoldenPipeline
@@ -147,12 +149,17 @@ def test_frame_by_frame_golden_pipeline_equals_the_chained_model():
                      supersample=False) for k in range(3)]
     ref = pipeline_frames([f.left for f in frames], [f.right for f in frames],
                           default_params(160, 120))
+    from golden.floor import FloorLine, floor_flags
     gp = GoldenPipeline(160, 120)
+    line = FloorLine.from_camera(rig.camera())
+    dropped = 0
     for f, r in zip(frames, ref):
         got = gp(f.left, f.right)
-        want = np.stack([r.records["x"], r.records["y"], r.records["d"]], axis=1)
+        keep = floor_flags(r.records["y"], r.records["d16"], line, gp.floor) == 0
+        dropped += int((~keep).sum())
+        want = np.stack([r.records["x"], r.records["y"], r.records["d"]], axis=1)[keep]
         assert np.array_equal(got, want)
-    assert len(got) > 50
+    assert len(got) > 50 and dropped > 0                    # floor points left out
 
 
 def test_small_world_with_the_golden_pipeline():
@@ -167,7 +174,10 @@ def test_small_world_with_the_golden_pipeline():
     from station.cli import decode_bytes
     rec = decode_bytes(res.radio_bytes)
     assert len(rec["accepted"]) == s["radio"]["accepted"]
-    assert rec["link"]["rejected"] == s["radio"]["rejected"]
+    # the same rejections, but the line is decoded to its end: a last frame the channel cut
+    # short counts as truncated there (live, no later frame start reveals it)
+    extra = {k: v - s["radio"]["rejected"][k] for k, v in rec["link"]["rejected"].items()}
+    assert extra["truncated"] in (0, 1) and not any(v for k, v in extra.items() if k != "truncated")
 
 
 def test_station_reports_an_unreachable_goal_and_keeps_running():

@@ -26,9 +26,23 @@ def pair():
     return crop(left, W, H, 380, 240), crop(right, W, H, 380, 240)
 
 
+def floor_line_through(left, right, params, frames=1):
+    """A floor line (slope 64) through the middle of the golden records of the pair."""
+    import numpy as np
+    from golden.floor import FloorLine
+    golden = pipeline_frames([camera_fields(left)[1]] * frames,
+                             [camera_fields(right)[1]] * frames, params)
+    recs = np.concatenate([g.records for g in golden])
+    return FloorLine(64, int(np.median(16 * recs["d16"].astype(np.int64) - 64 * recs["y"])))
+
+
 def test_clean_run_is_bit_exact_with_records():
-    res = run_system(*pair(), frames=FRAMES, timing="short", params=PARAMS)
+    # with a floor line through the records: the SoC flags some of them, as golden does
+    line = floor_line_through(*pair(), PARAMS)
+    res = run_system(*pair(), frames=FRAMES, timing="short", params=PARAMS, floor_line=line)
     assert res["bit_exact"] and res["records"] == res["golden_records"] > 0
+    assert res["floor_exact"] and 0 < res["floor_points"] == res["golden_floor_points"]
+    assert res["floor_points"] < res["records"]
     assert res["record_fields"] == ["x", "y", "d", "d16", "conf"]    # RESULT_EXT compared too
     assert res["frames"] == res["pairs_ok"] == FRAMES
     assert res["mispaired"] == res["drops"] == res["fifo_overflow"] == 0

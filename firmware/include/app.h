@@ -46,12 +46,47 @@ fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeou
  *  error, FW_OK when both have started. */
 fw_status_t app_retry_decoders(app_t *app);
 
-/** Check the register block's ID and write the default configuration. */
+/** Check the register block's ID and write the default configuration, the floor decision's
+ *  included (app_floor_start). */
 fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base);
 
+/** The floor decision (docs/floor.md). At start-up the rig's floor line (FLOOR_LINE's reset
+ *  value: the nominal rig seen in one NTSC field) with the default tolerance, enabled: the
+ *  SoC flags every record on the floor (RESULT.floor) and no floor point enters the radio
+ *  summary. With APP_FLOOR_LEARN (host builds; a target build needs memory for a frame's
+ *  records, APP_FLOOR_RECORDS of them at 20 bytes each) the line is learned from each frame's
+ *  records (floor_learn, within the rig's line's reach) and written for the frames after it:
+ *  the SoC loads it at the end of the frame in progress (golden.floor.FloorModel, lag 2). */
+#ifndef APP_FLOOR_LEARN
+#ifdef HAL_TARGET
+#define APP_FLOOR_LEARN 0
+#else
+#define APP_FLOOR_LEARN 1
+#endif
+#endif
+#ifndef APP_FLOOR_RECORDS
+#define APP_FLOOR_RECORDS 8192u
+#endif
+/** The learning's steepest slope (1/256 px a row): a field's rows are two of the frame's, so
+ *  its floor line is twice as steep as golden.floor.FloorParams' frames allow. */
+#define APP_FLOOR_SLOPE_MAX 320u
+void app_floor_start(uint32_t regs_base);
+/** A rig of another geometry (a calibration, another frame size): its floor line (slope in
+ *  1/256 px a row, 0..1023; offset in 1/256 px, 18 bits signed) replaces the nominal rig's, in
+ *  FLOOR_LINE and as the learning's start and prior. FW_ERR_PARAM outside the fields. */
+fw_status_t app_floor_rig(uint32_t regs_base, uint16_t slope, int32_t offset);
+/** One record of the frame being read (learning only; beyond APP_FLOOR_RECORDS a frame is
+ *  not learned from). */
+void app_floor_add(uint16_t y, uint16_t d16);
+/** A frame's end-of-frame marker (abort: a cut frame, not learned from): learn the line from
+ *  its records and write it (FLOOR_LINE) when it changed. Returns 1 when a new line was
+ *  written, 0 otherwise. */
+int app_floor_end(uint32_t regs_base, int abort);
+
 /** Drain the result FIFO into the running per-band summary: the records it held when the
- *  call began (RESULT_LEVEL), at most APP_COLLECT_MAX, one RESULT read each (end-of-frame
- *  markers are read and skipped). Call it often: at 60 frames/s a report period spans 6
+ *  call began (RESULT_LEVEL), at most APP_COLLECT_MAX, one RESULT read each (and RESULT_EXT
+ *  with APP_FLOOR_LEARN); floor points (RESULT.floor) stay out of the summary, end-of-frame
+ *  markers end a frame of the floor's learning. Call it often: at 60 frames/s a report period spans 6
  *  frames, more results than the FIFO holds. Returns the number of results read. */
 #define APP_COLLECT_MAX 4096u
 uint32_t app_collect(app_t *app);

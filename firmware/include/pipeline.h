@@ -23,13 +23,15 @@ typedef struct {
     uint16_t x;
     uint16_t y;
     uint8_t d;
-    uint8_t mark;            /**< 0 a match; PIPELINE_MARK_EOF, | PIPELINE_MARK_ABORT */
+    uint8_t mark;            /**< a match: 0, or PIPELINE_MARK_FLOOR; a marker:
+                                  PIPELINE_MARK_EOF, | PIPELINE_MARK_ABORT */
     uint16_t d16;            /**< subpixel disparity, 1/16 px: 16 d + offset (-8..8) */
     uint8_t conf;            /**< confidence 0..255 */
 } pipeline_match_t;
 
 #define PIPELINE_MARK_EOF   0x01u /**< end of a frame's records */
 #define PIPELINE_MARK_ABORT 0x02u /**< that frame was cut by a video restart: discard it */
+#define PIPELINE_MARK_FLOOR 0x04u /**< a match on the floor (RESULT.floor): not an obstacle */
 
 /** Status snapshot. */
 typedef struct {

@@ -10,15 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           10u          /**< ID.version value */
+#define STEREO_MAP_VERSION                           11u          /**< ID.version value */
 #define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x5354000Au  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x5354000Bu  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      10u          /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      11u          /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -38,10 +38,10 @@
 
 /* GROUND (read/write): Ground classifier (golden/ground.py): mode and band width. */
 #define STEREO_GROUND_OFFSET                         0x08u        /**< Ground classifier (golden/ground.py): mode and band width. */
-#define STEREO_GROUND_RESET                          0x00303262u  /**< GROUND value after reset */
+#define STEREO_GROUND_RESET                          0x00303260u  /**< GROUND value after reset */
 #define STEREO_GROUND_MODE_SHIFT                     0u           /**< mode: 0 off (every pixel is an obstacle), 1 luminance, 2 hue */
 #define STEREO_GROUND_MODE_MASK                      0x3u         /**< mode mask (2 bits) */
-#define STEREO_GROUND_MODE_RESET                     2u           /**< mode reset value */
+#define STEREO_GROUND_MODE_RESET                     0u           /**< mode reset value */
 #define STEREO_GROUND_K_SHIFT                        4u           /**< k: half-width of the ground band, in JND units */
 #define STEREO_GROUND_K_MASK                         0xF0u        /**< k mask (4 bits) */
 #define STEREO_GROUND_K_RESET                        6u           /**< k reset value */
@@ -490,6 +490,29 @@
 #define STEREO_HEALTH_SKEW_PAIRS_MASK                0xFFFF0000u  /**< pairs mask (16 bits) */
 #define STEREO_HEALTH_SKEW_PAIRS_RESET               0u           /**< pairs reset value */
 
+/* FLOOR (read/write): Floor flag of the records (golden/floor.py floor_flags): a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift). Loaded at each frame's end: a write applies from the frame after the one in progress. */
+#define STEREO_FLOOR_OFFSET                          0xD0u        /**< Floor flag of the records (golden/floor.py floor_flags): a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift). Loaded at each frame's end: a write applies from the frame after the one in progress. */
+#define STEREO_FLOOR_RESET                           0x00060400u  /**< FLOOR value after reset */
+#define STEREO_FLOOR_FLOOR_ENABLE_SHIFT              0u           /**< floor_enable: 1: flag floor points by FLOOR_LINE; 0: no record is one */
+#define STEREO_FLOOR_FLOOR_ENABLE_MASK               0x1u         /**< floor_enable mask (1 bits) */
+#define STEREO_FLOOR_FLOOR_ENABLE_RESET              0u           /**< floor_enable reset value */
+#define STEREO_FLOOR_FLOOR_TOL_SHIFT                 8u           /**< floor_tol: tolerance above the line, 1/16 px */
+#define STEREO_FLOOR_FLOOR_TOL_MASK                  0xFF00u      /**< floor_tol mask (8 bits) */
+#define STEREO_FLOOR_FLOOR_TOL_RESET                 4u           /**< floor_tol reset value */
+#define STEREO_FLOOR_FLOOR_TOL_SHIFT_SHIFT           16u          /**< floor_tol_shift: the tolerance grows by max(line16, 0) >> floor_tol_shift */
+#define STEREO_FLOOR_FLOOR_TOL_SHIFT_MASK            0x00070000u  /**< floor_tol_shift mask (3 bits) */
+#define STEREO_FLOOR_FLOOR_TOL_SHIFT_RESET           6u           /**< floor_tol_shift reset value */
+
+/* FLOOR_LINE (read/write): The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. Reset: the nominal rig's line in one field of a 720x480 camera (hdl/regmap.py RIG_FLOOR_LINE). */
+#define STEREO_FLOOR_LINE_OFFSET                     0xD4u        /**< The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. Reset: the nominal rig's line in one field of a 720x480 camera (hdl/regmap.py RIG_FLOOR_LINE). */
+#define STEREO_FLOOR_LINE_RESET                      0x0F6284ACu  /**< FLOOR_LINE value after reset */
+#define STEREO_FLOOR_LINE_FLOOR_SLOPE_SHIFT          0u           /**< floor_slope: 1/256 px of disparity per row */
+#define STEREO_FLOOR_LINE_FLOOR_SLOPE_MASK           0x3FFu       /**< floor_slope mask (10 bits) */
+#define STEREO_FLOOR_LINE_FLOOR_SLOPE_RESET          172u         /**< floor_slope reset value */
+#define STEREO_FLOOR_LINE_FLOOR_OFFSET_SHIFT         10u          /**< floor_offset: 1/256 px, two's complement */
+#define STEREO_FLOOR_LINE_FLOOR_OFFSET_MASK          0x0FFFFC00u  /**< floor_offset mask (18 bits) */
+#define STEREO_FLOOR_LINE_FLOOR_OFFSET_RESET         252065u      /**< floor_offset reset value */
+
 /* RESULT (read pops): Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
 #define STEREO_RESULT_OFFSET                         0x80u        /**< Result FIFO head; a read pops one whole record, whose second half (d16, conf) RESULT_EXT then shows. */
 #define STEREO_RESULT_RESET                          0x0u         /**< RESULT value after reset */
@@ -508,6 +531,9 @@
 #define STEREO_RESULT_ABORT_SHIFT                    29u          /**< abort: with eof: that frame was cut by CTRL.restart_video or VIDEO.video_enable = 0: discard its records */
 #define STEREO_RESULT_ABORT_MASK                     0x20000000u  /**< abort mask (1 bits) */
 #define STEREO_RESULT_ABORT_RESET                    0u           /**< abort reset value */
+#define STEREO_RESULT_FLOOR_SHIFT                    30u          /**< floor: 1: a floor point (hdl/floor.py, by the line of FLOOR and FLOOR_LINE): not an obstacle */
+#define STEREO_RESULT_FLOOR_MASK                     0x40000000u  /**< floor mask (1 bits) */
+#define STEREO_RESULT_FLOOR_RESET                    0u           /**< floor reset value */
 #define STEREO_RESULT_VALID_SHIFT                    31u          /**< valid: 1: a record; 0: no whole record was waiting (the FIFO was empty, or the read came in the cycle right after a RESULT read, while the FIFO steps over that record's second half: read again) */
 #define STEREO_RESULT_VALID_MASK                     0x80000000u  /**< valid mask (1 bits) */
 #define STEREO_RESULT_VALID_RESET                    0u           /**< valid reset value */

@@ -3,6 +3,7 @@
  * Start-up and the periodic radio report.
  */
 #include "app.h"
+#include "floor.h"
 #include "hal.h"
 #include "stereo_regs.h"
 
@@ -76,9 +77,100 @@ fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base)
     if (st != FW_OK) {
         return st;
     }
+    app_floor_start(regs_base);
     pipeline_clear_errors(regs_base);
     pipeline_flush_results(regs_base);
     return FW_OK;
+}
+
+#if APP_FLOOR_LEARN
+static struct {
+    uint16_t y[APP_FLOOR_RECORDS];
+    uint16_t d16[APP_FLOOR_RECORDS];
+    int64_t work[2u * APP_FLOOR_RECORDS];
+    uint32_t n;
+    uint8_t full;
+    floor_line_t rig, line;
+    floor_params_t params;
+} app_floor;
+
+static floor_line_t floor_line_of(uint32_t word)
+{
+    floor_line_t l;
+    uint32_t off = STEREO_GET(FLOOR_LINE, FLOOR_OFFSET, word);
+    l.slope = (uint16_t)STEREO_GET(FLOOR_LINE, FLOOR_SLOPE, word);
+    l.offset = (int32_t)off - ((off & 0x20000u) != 0u ? 0x40000 : 0);    /* 18-bit signed */
+    return l;
+}
+#endif
+
+void app_floor_start(uint32_t regs_base)
+{
+    STEREO_WriteReg(regs_base, STEREO_FLOOR_LINE_OFFSET, STEREO_FLOOR_LINE_RESET);
+    STEREO_WriteReg(regs_base, STEREO_FLOOR_OFFSET,
+                    STEREO_FLOOR_RESET | STEREO_SET(FLOOR, FLOOR_ENABLE, 1u));
+#if APP_FLOOR_LEARN
+    app_floor.n = 0u;
+    app_floor.full = 0u;
+    app_floor.rig = floor_line_of(STEREO_FLOOR_LINE_RESET);
+    app_floor.line = app_floor.rig;
+    floor_default_params(&app_floor.params);
+    app_floor.params.slope_max = APP_FLOOR_SLOPE_MAX;
+#endif
+}
+
+fw_status_t app_floor_rig(uint32_t regs_base, uint16_t slope, int32_t offset)
+{
+    if (slope > 1023u || offset < -131072 || offset > 131071) {
+        return FW_ERR_PARAM;
+    }
+    STEREO_WriteReg(regs_base, STEREO_FLOOR_LINE_OFFSET,
+                    STEREO_SET(FLOOR_LINE, FLOOR_SLOPE, slope) |
+                    STEREO_SET(FLOOR_LINE, FLOOR_OFFSET, (uint32_t)offset));
+#if APP_FLOOR_LEARN
+    app_floor.rig.slope = slope;
+    app_floor.rig.offset = offset;
+    app_floor.line = app_floor.rig;
+    app_floor.n = 0u;
+    app_floor.full = 0u;
+#endif
+    return FW_OK;
+}
+
+void app_floor_add(uint16_t y, uint16_t d16)
+{
+#if APP_FLOOR_LEARN
+    if (app_floor.n < APP_FLOOR_RECORDS) {
+        app_floor.y[app_floor.n] = y;
+        app_floor.d16[app_floor.n] = d16;
+        app_floor.n++;
+    } else {
+        app_floor.full = 1u;
+    }
+#else
+    (void)y; (void)d16;
+#endif
+}
+
+int app_floor_end(uint32_t regs_base, int abort)
+{
+#if APP_FLOOR_LEARN
+    int changed = 0;
+    if (!abort && !app_floor.full &&
+        floor_learn(app_floor.y, app_floor.d16, app_floor.n, &app_floor.params, &app_floor.rig,
+                    &app_floor.line, 1, app_floor.work) == 1) {
+        STEREO_WriteReg(regs_base, STEREO_FLOOR_LINE_OFFSET,
+                        STEREO_SET(FLOOR_LINE, FLOOR_SLOPE, app_floor.line.slope) |
+                        STEREO_SET(FLOOR_LINE, FLOOR_OFFSET, (uint32_t)app_floor.line.offset));
+        changed = 1;
+    }
+    app_floor.n = 0u;
+    app_floor.full = 0u;
+    return changed;
+#else
+    (void)regs_base; (void)abort;
+    return 0;
+#endif
 }
 
 static fw_status_t app_open_summary(app_t *app)
@@ -129,9 +221,19 @@ uint32_t app_collect(app_t *app)
         uint32_t r = STEREO_ReadReg(base, STEREO_RESULT_OFFSET);
         if ((r & STEREO_RESULT_VALID_MASK) != 0u) {
             total++;
-            /* end-of-frame markers carry x = y = d = 0: the summary ignores them (d = 0) */
-            radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
-                              (uint8_t)STEREO_GET(RESULT, D, r));
+            if ((r & STEREO_RESULT_EOF_MASK) != 0u) {
+                (void)app_floor_end(base, (r & STEREO_RESULT_ABORT_MASK) != 0u);
+                continue;
+            }
+#if APP_FLOOR_LEARN
+            app_floor_add((uint16_t)STEREO_GET(RESULT, Y, r),
+                          (uint16_t)STEREO_GET(RESULT_EXT, D16,
+                                               STEREO_ReadReg(base, STEREO_RESULT_EXT_OFFSET)));
+#endif
+            if ((r & STEREO_RESULT_FLOOR_MASK) == 0u) {     /* floor points are no obstacles */
+                radio_summary_add(summary, (uint16_t)STEREO_GET(RESULT, X, r),
+                                  (uint8_t)STEREO_GET(RESULT, D, r));
+            }
         } else if (++misses > 1u) {
             /* a read in the cycle right after a RESULT read finds no whole record: once more */
             break;

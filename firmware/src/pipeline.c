@@ -151,7 +151,8 @@ uint32_t pipeline_read_results(uint32_t base, pipeline_match_t *out, uint32_t ma
         out[n].y = (uint16_t)STEREO_GET(RESULT, Y, r);
         out[n].d = (uint8_t)STEREO_GET(RESULT, D, r);
         out[n].mark = (uint8_t)((STEREO_GET(RESULT, EOF, r) != 0u ? PIPELINE_MARK_EOF : 0u) |
-                                (STEREO_GET(RESULT, ABORT, r) != 0u ? PIPELINE_MARK_ABORT : 0u));
+                                (STEREO_GET(RESULT, ABORT, r) != 0u ? PIPELINE_MARK_ABORT : 0u) |
+                                (STEREO_GET(RESULT, FLOOR, r) != 0u ? PIPELINE_MARK_FLOOR : 0u));
         /* the record's second half, which the RESULT read latched: before the next RESULT */
         r = STEREO_ReadReg(base, STEREO_RESULT_EXT_OFFSET);
         out[n].d16 = (uint16_t)STEREO_GET(RESULT_EXT, D16, r);

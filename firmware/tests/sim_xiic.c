@@ -170,8 +170,10 @@ static void regblock_write(sim_xiic_t *s, uint32_t off, uint32_t v)
         if ((v & STEREO_CTRL_FLUSH_RESULTS_MASK) != 0u) {
             s->result_head = s->result_n;
         }
-    } else if (off >= STEREO_GROUND_OFFSET && off < STEREO_FRAME_COUNT_OFFSET) {
-        /* the parameter registers: everything between CTRL and the status block */
+    } else if ((off >= STEREO_GROUND_OFFSET && off < STEREO_FRAME_COUNT_OFFSET) ||
+               off == STEREO_FLOOR_OFFSET || off == STEREO_FLOOR_LINE_OFFSET) {
+        /* the parameter registers: everything between CTRL and the status block, and the
+         * floor's */
         s->regfile[off / 4u] = v;
     }
 }

@@ -274,6 +274,63 @@ static void test_collect_across_frames(void)
     FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 0);
 }
 
+/** line16(y) of a FLOOR_LINE word */
+static int32_t line16_of(uint32_t word, int32_t y)
+{
+    int32_t off = (int32_t)STEREO_GET(FLOOR_LINE, FLOOR_OFFSET, word);
+    off -= (off & 0x20000) ? 0x40000 : 0;
+    return ((int32_t)STEREO_GET(FLOOR_LINE, FLOOR_SLOPE, word) * y + off) >> 4;
+}
+
+static void test_floor_points_stay_out_and_the_line_is_learned(void)
+{
+    /* start-up: the rig's line, enabled; floor points (RESULT.floor) never reach the summary;
+     * a frame's records on a line 3 px above the rig's: the line learned from them is written */
+    static app_t app;
+    uint8_t buf[RADIO_MAX_FRAME];
+    uint32_t i, n = 0u;
+    int32_t y;
+    setup();
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    FWT_CHECK_EQ(sim.regfile[STEREO_FLOOR_LINE_OFFSET / 4], STEREO_FLOOR_LINE_RESET);
+    FWT_CHECK_EQ(sim.regfile[STEREO_FLOOR_OFFSET / 4],
+                 STEREO_FLOOR_RESET | STEREO_FLOOR_FLOOR_ENABLE_MASK);
+    app.width = 752; app.n_bands = 32; app.min_support = 1; app.summary_open = 0;
+    for (y = 60; y < 240; y++) {
+        int32_t d16 = line16_of(STEREO_FLOOR_LINE_RESET, y) + 48;
+        sim.result_ext[sim.result_n] = record_ext((uint32_t)d16, 9u);
+        sim.result_fifo[sim.result_n++] = record(5u, (uint32_t)y, (uint32_t)(d16 >> 4)) |
+                                          STEREO_SET(RESULT, FLOOR, 1u);            /* band 0 */
+        n++;
+    }
+    sim.result_fifo[sim.result_n++] = record(30u, 100u, 7u);                       /* band 1 */
+    sim.result_fifo[sim.result_n++] = STEREO_SET(RESULT, EOF, 1u) | STEREO_SET(RESULT, VALID, 1u);
+    FWT_CHECK_EQ(app_collect(&app), n + 2u);
+    FWT_CHECK(sim.regfile[STEREO_FLOOR_LINE_OFFSET / 4] != STEREO_FLOOR_LINE_RESET);
+#if APP_FLOOR_LEARN
+    for (y = 60; y < 240; y += 30) {
+        int32_t d = line16_of(sim.regfile[STEREO_FLOOR_LINE_OFFSET / 4], y) -
+                    (line16_of(STEREO_FLOOR_LINE_RESET, y) + 48);
+        FWT_CHECK(d >= -32 && d <= 32);     /* within 2 px of the records */
+    }
+#endif
+    FWT_CHECK_EQ(app_report(&app, 0, 0, 0, 0u, NULL, buf, sizeof buf),
+                 RADIO_HEADER_LEN + 32 + RADIO_CRC_LEN + XBEE_API_OVERHEAD);
+    FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN], 0);      /* band 0: floor points only */
+    FWT_CHECK_EQ(buf[8 + RADIO_HEADER_LEN + 1], 7);
+    /* an aborted frame is not learned from */
+    i = sim.regfile[STEREO_FLOOR_LINE_OFFSET / 4];
+    sim.result_n = sim.result_head = 0u;
+    for (y = 60; y < 240; y++) {
+        sim.result_ext[sim.result_n] = record_ext(16u * 40u, 9u);
+        sim.result_fifo[sim.result_n++] = record(5u, (uint32_t)y, 40u);
+    }
+    sim.result_fifo[sim.result_n++] = STEREO_SET(RESULT, EOF, 1u) | STEREO_SET(RESULT, ABORT, 1u) |
+                                      STEREO_SET(RESULT, VALID, 1u);
+    (void)app_collect(&app);
+    FWT_CHECK_EQ(sim.regfile[STEREO_FLOOR_LINE_OFFSET / 4], i);
+}
+
 static void test_free_space(void)
 {
     pipeline_free_space_t fs;
@@ -315,4 +372,5 @@ void suite_pipeline(void)
     FWT_RUN(test_report_builds_frame);
     FWT_RUN(test_collect_across_frames);
     FWT_RUN(test_free_space);
+    FWT_RUN(test_floor_points_stay_out_and_the_line_is_learned);
 }

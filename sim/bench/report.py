@@ -539,7 +539,7 @@ def software_speed(bench, quick, left, right):
         what = "motorcycle resized to 752x480 (cv2.INTER_AREA)"
     h, w = l.shape[:2]
     repeats = 5
-    params = default_params(w, h)           # the default configuration (ground model in hue mode)
+    params = default_params(w, h)           # the default configuration (appearance model off)
     model = PipelineModel(params)
     times, match_times = [], []
     for _ in range(repeats):

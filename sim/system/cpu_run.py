@@ -14,12 +14,15 @@ Checks (the JSON line):
 ``bit_exact``
     The records the SoC hands its band summary unit (``hdl.soc.SystemSoC`` ports
     ``record_valid``, ``record_word``) split into frames at the end-of-frame markers equal
-    golden's (x, y, d) frame for frame (with a fault: as :mod:`sim.system.run`, the frames
-    before it and from the second pair after it).
+    golden's (x, y, d) and floor flag frame for frame (with a fault: as :mod:`sim.system.run`,
+    the frames before it and from the second pair after it). The firmware enables the floor
+    flag with the rig's line (FLOOR_LINE's reset value, ``hdl.regmap.RIG_FLOOR_LINE``) and
+    learns none (``firmware/include/app.h`` APP_FLOOR_LEARN): golden flags by that line
+    (``golden.floor.floor_flags``); ``floor_points`` counts the flagged records.
 ``radio_packets``, ``radio_exact``
     The packets decoded from the pin; each one's bands equal the firmware's summary rule
     (``golden.bands``: :func:`~golden.bands.band_values` of :func:`~golden.bands.merge_tops` of
-    each frame's :func:`~golden.bands.frame_top`) over the frames that ended (their marker
+    each frame's :func:`~golden.bands.frame_top`, floor points left out) over the frames that ended (their marker
     reached the unit) between the previous packet's first byte and this one's: the firmware
     merges each frame's summary as the unit publishes it and closes its summary right before
     sending. A frame it missed, or merged twice, makes a packet differ. ``radio_frames``: the
@@ -42,6 +45,7 @@ from __future__ import annotations
 import ctypes as C
 import time
 
+from golden.floor import FloorParams, floor_flags
 from golden.pipeline import default_params, pipeline_frames
 from hdl import regmap
 
@@ -142,7 +146,10 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     lib = _load(libpath)
 
     golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
-    want = [[(int(r["x"]), int(r["y"]), int(r["d"])) for r in g.records] for g in golden]
+    floor = FloorParams(mode="rig", initial=regmap.RIG_FLOOR_LINE)
+    want = [[(int(r["x"]), int(r["y"]), int(r["d"]), int(f)) for r, f in
+             zip(g.records, floor_flags(g.records["y"], g.records["d16"], floor.initial, floor))]
+            for g in golden]
 
     nack = 0b10 if fault == "iic-nack" else 0
     t0 = time.monotonic()
@@ -188,12 +195,14 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
                         current, aborted = [], aborted + 1
                     elif word >> 28 & 1:            # end of frame
                         out_frames.append(current)
-                        ended.append((cyc[i], [r[0] for r in current], [r[2] for r in current]))
+                        ended.append((cyc[i], [r[0] for r in current if not r[3]],
+                                      [r[2] for r in current if not r[3]]))
                         current = []
                         if len(out_frames) == frames:
                             last_frame_cycle = cyc[i]
                     else:
-                        current.append((word & 0x3FF, word >> 10 & 0x3FF, word >> 20 & 0xFF))
+                        current.append((word & 0x3FF, word >> 10 & 0x3FF, word >> 20 & 0xFF,
+                                        word >> 30 & 1))
             while n := lib.sys_take_tx(cyc, txb, len(txb)):
                 for i in range(n):
                     b = txb[i]
@@ -263,7 +272,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
                    "matcher": health["matcher_errors"]},
         "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
         "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
-        "record_fields": ["x", "y", "d"],
+        "record_fields": ["x", "y", "d", "floor"],
+        "floor_points": sum(r[3] for f in out_frames for r in f),
         "radio_packets": len(packets),
         "radio_exact": bool(packets) and all(exact_packets),
         "radio_bands": [list(p.bands) for _c, p, _n in packets],

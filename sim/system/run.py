@@ -33,6 +33,14 @@ split the records into frames; an abort marker (video restart) discards the cut 
 Golden: ``golden.pipeline.pipeline_frames`` on the decoded pairs (Ln, Rn) (chroma replicated,
 ``golden.bt656.ycbcr_to_rgb``) with the same parameters; a record compares its x, y, d and, when
 the parameters have ``matcher.subpixel``, its d16 and conf (:func:`record_fields`).
+
+Floor: the firmware starts with the rig's floor line (FLOOR_LINE's reset value,
+``hdl.regmap.RIG_FLOOR_LINE``), learns a line from each frame's records
+(``app_floor_add`` / ``app_floor_end``) and writes it; the SoC flags each record
+(RESULT.floor) by the line it loaded at the previous frame's end. Golden: the flags of
+:func:`floor_model` (``golden.floor.FloorModel``, lag 2) over the golden records. Without a
+fault a record also compares its flag (``floor``); ``floor_points`` counts the flagged
+records, which the radio summary leaves out.
 ``bit_exact``: without a fault every frame equals golden; with a fault at field :data:`FAULT_FIELD`, the frames before it and every
 frame from the second pair after it ((L3, R3) onwards for field 1) equal golden, and the fault is
 counted (in mispaired, drops, camera errors or by the restart). Prints one JSON line; exit 0 only
@@ -254,6 +262,20 @@ def _config(lib_fw, params):
     return cfg
 
 
+def floor_model(line=None):
+    """The floor decision of the firmware's drain build (``firmware/src/app.c``): the rig's
+    line first (``line``, a ``golden.floor.FloorLine``; None: ``hdl.regmap.RIG_FLOOR_LINE``), learning with the steeper slopes of a field (``APP_FLOOR_SLOPE_MAX``), each
+    line loaded by the SoC one frame after the CPU learned it (lag 2)."""
+    from golden.floor import FloorModel, FloorParams
+    return FloorModel(FloorParams(initial=line or regmap.RIG_FLOOR_LINE,
+                                  slope_max=FLOOR_SLOPE_MAX),
+                      lag=2)
+
+
+#: firmware/include/app.h APP_FLOOR_SLOPE_MAX
+FLOOR_SLOPE_MAX = 320
+
+
 def record_fields(params):
     """The record fields the run compares with golden: x, y, d, and the subpixel disparity
     ``d16`` and confidence ``conf`` (RESULT_EXT) when the golden matcher computes them
@@ -276,9 +298,11 @@ def camera_phases_us(ldata, rdata, cam0=(CAM_PS, 0), cam1=(CAM1_PS, 12_345)):
 
 
 def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None, seed=1,
-               right_lead=RIGHT_LEAD_BYTES):
+               right_lead=RIGHT_LEAD_BYTES, floor_line=None):
     """Simulate; returns the result dict (the JSON line's fields). ``right_lead``: bytes the
-    right stream starts after the left (negative: the left after the right)."""
+    right stream starts after the left (negative: the left after the right). ``floor_line``:
+    the rig's floor line the firmware starts from (``app_floor_rig``; None: the nominal
+    rig's, FLOOR_LINE's reset value)."""
     from sim.system.cosim import fwlib
     h, w = left.shape[:2]
     params = params or default_params(w, h)
@@ -318,10 +342,16 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     fw.app_start_video.argtypes = [C.POINTER(fwlib.AppC), C.c_uint32]
     fw.app_read_health.restype = C.c_int32
     fw.app_read_health.argtypes = [C.POINTER(fwlib.AppC), C.POINTER(fwlib.RadioHealthC)]
+    fw.app_floor_add.argtypes = [C.c_uint16, C.c_uint16]
+    fw.app_floor_end.argtypes = [C.c_uint32, C.c_int]
+    fw.app_floor_end.restype = C.c_int
 
     golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
     fields = record_fields(params)
+    model = floor_model(floor_line)
+    want_floor = [model.step(g.records) for g in golden]
     want = [[tuple(int(r[k]) for k in fields) for r in g.records] for g in golden]
+    floors, current_floor = [], []
 
     t0 = time.monotonic()
     sysl.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345)
@@ -341,6 +371,9 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                                                 regmap.REGS_BASEADDR), st)
         status["configure"] = fw.pipeline_configure(regmap.REGS_BASEADDR,
                                                     C.byref(_config(fw, params)))
+        if floor_line is not None:
+            fw.app_floor_rig.argtypes = [C.c_uint32, C.c_uint16, C.c_int32]
+            fw.app_floor_rig(regmap.REGS_BASEADDR, floor_line.slope, floor_line.offset)
         status["video"] = fwlib.STATUS_NAMES.get(st := fw.app_start_video(C.byref(app), 2000), st)
         chunk = (fwlib.PipelineMatchC * 64)()
         end_ps = max(len(ldata), len(rdata)) * CAM_PS + 2_000_000_000   # + 2 ms
@@ -366,12 +399,17 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
             for k in range(n):
                 r = chunk[k]
                 if r.mark & 2:
-                    current, aborted = [], aborted + 1
+                    current, current_floor, aborted = [], [], aborted + 1
+                    fw.app_floor_end(regmap.REGS_BASEADDR, 1)
                 elif r.mark & 1:
                     out_frames.append(current)
-                    current = []
+                    floors.append(current_floor)
+                    current, current_floor = [], []
+                    fw.app_floor_end(regmap.REGS_BASEADDR, 0)
                 else:
                     current.append(tuple(getattr(r, k) for k in fields))
+                    current_floor.append(int(bool(r.mark & 4)))
+                    fw.app_floor_add(r.y, r.d16)
             if n < 64:
                 wait = POLL_US
                 if restart_at is not None:      # wake up for the restart on time
@@ -384,8 +422,11 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
         sysl.sys_final()
     seconds = time.monotonic() - t0
 
+    floor_exact = None
     if fault is None:
-        exact = out_frames == want
+        floor_exact = [np.asarray(f, np.uint8).tolist() for f in floors] == \
+            [f.tolist() for f in want_floor]
+        exact = out_frames == want and floor_exact
         counted = True
     else:
         tail = frames - FAULT_FIELD - 2
@@ -413,6 +454,9 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
                    "matcher": health["matcher_errors"]},
         "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
         "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
+        "floor_points": sum(map(sum, floors)),
+        "golden_floor_points": int(sum(int(f.sum()) for f in want_floor)),
+        "floor_exact": floor_exact,
         "camera_skew_us": skews, "camera_phase_us": camera_phases_us(ldata, rdata),
         "record_fields": list(fields),
         "firmware": status, "core_cycles": cycles, "sim_seconds": round(seconds, 1),
