@@ -89,6 +89,8 @@ int app_floor_end(uint32_t regs_base, int abort);
  *  markers end a frame of the floor's learning. Call it often: at 60 frames/s a report period spans 6
  *  frames, more results than the FIFO holds. Returns the number of results read. */
 #define APP_COLLECT_MAX 4096u
+/** Built with FIRMWARE_BANDS_HW (the SoC's summary unit takes the records, bands_hw.h), it
+ *  only opens the summary, for bands_hw_collect to merge into, and returns 0. */
 uint32_t app_collect(app_t *app);
 
 /** Collect, close the summary of everything collected since the last report, build the API

@@ -192,6 +192,17 @@ static fw_status_t app_open_summary(app_t *app)
     return st;
 }
 
+#ifdef FIRMWARE_BANDS_HW
+uint32_t app_collect(app_t *app)
+{
+    /* the SoC's summary unit takes the records (bands_hw.h): the caller merges its frames
+     * into the summary opened here */
+    if (app != NULL) {
+        (void)app_open_summary(app);
+    }
+    return 0u;
+}
+#else
 uint32_t app_collect(app_t *app)
 {
     uint32_t total = 0u;
@@ -202,11 +213,6 @@ uint32_t app_collect(app_t *app)
     if (app == NULL || app_open_summary(app) != FW_OK) {
         return 0u;
     }
-#ifdef FIRMWARE_BANDS_HW
-    /* the SoC's summary unit takes the records (bands_hw.h): the caller merges its frames */
-    (void)total; (void)misses; (void)level; (void)base; (void)summary;
-    return 0u;
-#endif
     /* locals: the summary's byte stores could alias app's members, which would be reloaded */
     base = app->regs_base;
     summary = &app->summary;
@@ -242,6 +248,7 @@ uint32_t app_collect(app_t *app)
     app->results_read += total;
     return total;
 }
+#endif
 
 uint32_t app_report(app_t *app, int16_t x_mm, int16_t y_mm, uint16_t theta, uint32_t pose_ms,
                     const radio_health_t *health, uint8_t *buf, uint32_t cap)
