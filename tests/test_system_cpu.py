@@ -7,6 +7,7 @@ import json
 import pytest
 
 from sim.system.command import main
+from station.wire import HEALTH_FLAGS
 
 
 @pytest.fixture(scope="module")
@@ -28,6 +29,8 @@ def test_records_and_packets_are_exact(mixed):
     assert sum(res["radio_frames"]) >= 2
     # both decoders locked and the video path enabled in the last packet's health
     assert res["radio_flags"][-1] & 0b111 == 0b111
+    # the XBee model answered the firmware's queries: no packet reports the radio fault
+    assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in res["radio_flags"])
 
 
 def test_cpu_figures(mixed):
