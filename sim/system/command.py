@@ -28,7 +28,12 @@ class _Parser(argparse.ArgumentParser):
 
 def main(argv=None):
     ap = _Parser(prog="python -m sim system",
-                 description=" ".join(_run.__doc__.split("\n\n")[0].split()),
+                 description="The whole SoC under Verilator from two BT.656 cameras: the "
+                             "cross-compiled firmware on the core inside the SoC (--cpu "
+                             "picorv32, the default) to the radio UART's pin, or the firmware's "
+                             "host build driving the SoC's bus (--cpu host: far faster, any "
+                             "field size, the camera-stream faults). One JSON line; exit 0 when "
+                             "bit-exact, 1 otherwise, 2 on a usage error.",
                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--left", help="left image (PNG/JPEG, colour); with --right, instead of --scene")
     ap.add_argument("--right", help="right image")

@@ -2,7 +2,7 @@
 ``cpu="picorv32"``) under Verilator, its core running the cross-compiled firmware
 (``build/firmware/firmware.bin``, ``make -C firmware rv32``); no host firmware in the loop.
 
-    python -m sim system --cpu picorv32 [--scene S] [--frames N] [--fault F]
+    python -m sim system [--cpu picorv32] [--scene S] [--frames N] [--fault F]
 
 From BT.656 bytes to the radio UART's TX pin (``sim/system/harness/cpu_system.cpp``): the
 cameras as in :mod:`sim.system.run`, two ADV7180 models on the IIC pins, the TX pin decoded
