@@ -28,7 +28,7 @@ import numpy as np
 from station.base import BaseStation, pose_from_packet
 from station.camera import observe_bands
 from station.radio import RadioPacket
-from station.wire import HEALTH_FLAGS, START_DELIMITER
+from station.wire import START_DELIMITER, flag_names
 
 __all__ = ["StationRun", "PacketInfo", "write_outputs", "frames_of", "recording_packets"]
 
@@ -62,7 +62,7 @@ class PacketInfo:
 
     def health(self) -> dict:
         h = self.packet.health.as_dict()
-        h["flag_names"] = [n for n, b in HEALTH_FLAGS.items() if h["flags"] >> b & 1]
+        h["flag_names"] = flag_names(h["flags"])
         return h
 
 

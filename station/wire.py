@@ -21,7 +21,9 @@ Payload (the XBee "RF data"), version 2, big-endian, ``PAYLOAD_HEADER_LEN`` + n_
                matcher_errors, fifo_overflow (u16 each), flags (u8: bit0 left decoder
                locked, bit1 right decoder locked, bit2 pipeline enabled, bit3 hue fallback
                to luma, bit4 the calibration's rectification is not running: the build
-               has no rectifier, the rig's warp exceeds it or its map is not the rig's)
+               has no rectifier, the rig's warp exceeds it or its map is not the rig's,
+               bit5 the XBee did not answer its configuration: the firmware queries it
+               again every few seconds, and the packet came out on the UART regardless)
     33   1     n_bands: 1..64
     34   n     bands[i]: u8, nearest obstacle disparity of column band i (0 = none)
     34+n 2     crc: CRC-16/CCITT-FALSE over bytes 0 .. 33+n
@@ -67,7 +69,12 @@ HEALTH_FIELDS = (
     ("fifo_overflow", "fifo_overflow", 2), ("flags", "flags", 1),
 )
 HEALTH_FLAGS = {"LEFT_LOCKED": 0, "RIGHT_LOCKED": 1, "PIPELINE_ENABLED": 2, "HUE_FALLBACK": 3,
-                "RECT_FAULT": 4}
+                "RECT_FAULT": 4, "RADIO_FAULT": 5}
+
+
+def flag_names(flags: int) -> list:
+    """The names of the :data:`HEALTH_FLAGS` set in a health record's ``flags``, by bit."""
+    return [name for name, bit in HEALTH_FLAGS.items() if flags >> bit & 1]
 
 #: payload fields before the bands: (name, size, signed)
 HEADER_FIELDS = (

@@ -1,6 +1,7 @@
 """station.radio / station.wire: payload layout, CRC, XBee API mode 2 framing, and a decoder
 that rejects every corrupted payload and recovers every good frame behind a bad one."""
 
+import dataclasses
 import random
 
 import pytest
@@ -65,6 +66,18 @@ def test_api_frame_matches_xbee_manual_example():
     assert frame[3:8] == bytes([0x01, 0x01, 0x12, 0x34, 0x00])
     assert frame[8:10] == b"Hi"
     assert (sum(frame[3:]) & 0xFF) == 0xFF
+
+
+def test_health_flags_decode_to_names():
+    """The station names every flag the firmware sets: radio_wire.h's bits are these."""
+    rng = random.Random(5)
+    pkt = make_packet(rng, 8)
+    pkt = dataclasses.replace(pkt, health=dataclasses.replace(pkt.health, flags=0b110101))
+    got = decode_payload(encode_payload(pkt))
+    assert wire.flag_names(got.health.flags) == ["LEFT_LOCKED", "PIPELINE_ENABLED", "RECT_FAULT",
+                                                 "RADIO_FAULT"]
+    assert wire.flag_names(0) == []
+    assert sorted(wire.HEALTH_FLAGS.values()) == list(range(len(wire.HEALTH_FLAGS)))
 
 
 @pytest.mark.parametrize("n_bands", [1, 32, 64])

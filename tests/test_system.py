@@ -108,7 +108,8 @@ def test_command_line_errors_are_one_line():
     r = subprocess.run([sys.executable, "-m", "sim", "system", "--left", "x.png"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.startswith("error:")
-    for bad in (["--right-lead", "5", "--cpu", "picorv32"], ["--right-lead", "200000"]):
+    for bad in (["--right-lead", "5", "--cpu", "picorv32"], ["--right-lead", "5"],
+                ["--cpu", "host", "--right-lead", "200000"]):
         r = subprocess.run([sys.executable, "-m", "sim", "system", *bad], capture_output=True,
                            text=True)
         assert r.returncode == 2 and r.stderr.startswith("error:") and "--right-lead" in r.stderr

@@ -1,5 +1,6 @@
-"""``python -m sim system --cpu picorv32``: the cross-compiled firmware on the core inside the
-SoC, under Verilator, from BT.656 cameras to the radio UART's TX pin (sim/system/cpu_run.py)."""
+"""``python -m sim system`` (``--cpu picorv32``, the default): the cross-compiled firmware on
+the core inside the SoC, under Verilator, from BT.656 cameras to the radio UART's TX pin
+(sim/system/cpu_run.py)."""
 import contextlib
 import io
 import json
@@ -7,13 +8,14 @@ import json
 import pytest
 
 from sim.system.command import main
+from station.wire import HEALTH_FLAGS
 
 
 @pytest.fixture(scope="module")
 def mixed():
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        code = main(["--cpu", "picorv32", "--scene", "mixed", "--frames", "2"])
+        code = main(["--scene", "mixed", "--frames", "2"])        # the core by default
     return code, json.loads(buf.getvalue().strip().splitlines()[-1])
 
 
@@ -28,6 +30,8 @@ def test_records_and_packets_are_exact(mixed):
     assert sum(res["radio_frames"]) >= 2
     # both decoders locked and the video path enabled in the last packet's health
     assert res["radio_flags"][-1] & 0b111 == 0b111
+    # the XBee model answered the firmware's queries: no packet reports the radio fault
+    assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in res["radio_flags"])
 
 
 def test_cpu_figures(mixed):
@@ -57,10 +61,15 @@ def test_busy_scene_keeps_up():
 @pytest.mark.parametrize("argv", [
     ["--cpu", "picorv32", "--width", "64", "--height", "16"],
     ["--cpu", "picorv32", "--timing", "short"],
-    ["--fault", "iic-nack"],
+    ["--width", "64", "--height", "16"],                 # the core is the default
+    ["--fault", "noise-left"],
+    ["--cpu", "host", "--fault", "iic-nack"],
+    ["--cpu", "host", "--fault", "no-radio-module"],
     ["--cpu", "picorv32", "--fault", "noise-left"],
     ["--cpu", "picorv32", "--fault", "camera-lost-left", "--frames", "5"],
+    ["--right-lead", "5"],
     ["--cpu", "riscv"],
+    ["--cpu", ""],
 ])
 def test_bad_combinations_are_usage_errors(argv, capsys):
     assert main(argv) == 2

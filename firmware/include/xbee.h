@@ -64,6 +64,26 @@ typedef struct {
 fw_status_t xbee_configure(const xbee_io_t *io, const xbee_config_t *cfg,
                            xbee_result_t *result);
 
+/**
+ * Retry without blocking: whether a module that did not answer at start-up answers now. The
+ * caller sends the bytes of xbee_probe_query (the API-mode "AP" query, XBEE_AT_FRAME_ID) at
+ * 115200 baud and feeds every byte it receives to xbee_probe_feed, which returns 1 once the
+ * module's answer "AP = 2" has come: the module is in API mode 2 and takes the reports. It
+ * waits for nothing, so a frame loop can send a query every few seconds and go on. A module
+ * still in its factory configuration (transparent mode) does not answer: only xbee_configure,
+ * whose guard times block for seconds, configures it.
+ */
+typedef struct {
+    uint8_t matched;      /**< bytes of the expected answer received so far */
+} xbee_probe_t;
+
+/** The query's frame (XBEE_PROBE_QUERY_LEN bytes) in buf. */
+#define XBEE_PROBE_QUERY_LEN 8u
+void xbee_probe_query(uint8_t buf[XBEE_PROBE_QUERY_LEN]);
+
+/** One received byte; 1 when it completes the answer "AP = 2" (then matching starts over). */
+int xbee_probe_feed(xbee_probe_t *probe, uint8_t byte);
+
 /** The SoC's radio UART (hdl/uart.py) as an xbee_io_t (xbee_uart.c, target builds). */
 void xbee_uart_io(xbee_io_t *io);
 

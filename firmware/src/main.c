@@ -46,6 +46,10 @@
  *  the records of the frames that do come are drained. */
 #define LOCK_POLLS 0u
 #define DECODER_TRIES 2u
+/** A radio module that did not answer its configuration is queried again (xbee_probe_query,
+ *  between two reports) every RADIO_RETRY_PERIODS periods; its answer is looked for in every
+ *  step, so the frame loop never waits for it. */
+#define RADIO_RETRY_PERIODS 20u
 
 static app_t app;
 static pose_t pose;
@@ -53,6 +57,9 @@ static uint8_t frame_buf[RADIO_MAX_FRAME];
 static radio_health_t health;
 static uint32_t tx_len;         /**< the report being sent: frame_buf[tx_pos..tx_len) waits */
 static uint32_t tx_pos;
+static xbee_io_t radio_io;
+static uint8_t radio_fault;     /**< RADIO_HEALTH_RADIO_FAULT until the module answers */
+static xbee_probe_t radio_probe;
 #ifdef FIRMWARE_BANDS_HW
 static bands_hw_t bands;
 static uint16_t bands_drops;    /**< DROPS.records at the last report */
@@ -64,6 +71,12 @@ static uint16_t bands_drops;    /**< DROPS.records at the last report */
 static uint32_t step(void)
 {
     uint32_t n;
+    uint8_t b;
+    /* a module that did not answer: its answer to the last query, if it came */
+    if (radio_fault != 0u && radio_io.read(radio_io.ctx, &b) != 0 &&
+        xbee_probe_feed(&radio_probe, b) != 0) {
+        radio_fault = 0u;
+    }
     /* the report goes out a byte at a time between drains: the UART takes a byte every
      * 87 us, far longer than the FIFO could wait */
     if (tx_pos < tx_len && hal_uart_put(frame_buf[tx_pos]) != 0) {
@@ -87,16 +100,20 @@ static uint32_t step(void)
 int main(void)
 {
     static const xbee_config_t radio_cfg = { XBEE_ROBOT_ADDR, XBEE_STATION_ADDR, XBEE_PAN_ID };
-    xbee_io_t radio_io;
     fw_status_t st_dec, st_pipe, st_video = FW_ERR_NO_LOCK;
     uint8_t rect_fault = 0u;        /* RADIO_HEALTH_RECT_FAULT when the rectifier is not on */
     uint8_t decoders_locked = 0u;
     uint8_t decoder_tries = 0u;
+    uint8_t radio_wait = 0u;
     uint32_t start;
-    /* the radio module: API mode 2 at 115200 baud (a failure leaves the reports unheard but
-     * the pipeline running) */
+    /* the radio module: API mode 2 at 115200 baud. A failure keeps the pipeline running and
+     * the reports going out at 115200 (a module in transparent mode may still pass them on),
+     * flagged RADIO_FAULT until the module answers a query */
     xbee_uart_io(&radio_io);
-    (void)xbee_configure(&radio_io, &radio_cfg, NULL);
+    if (xbee_configure(&radio_io, &radio_cfg, NULL) != FW_OK) {
+        radio_fault = RADIO_HEALTH_RADIO_FAULT;
+        radio_io.set_baud(radio_io.ctx, XBEE_LINK_BAUD);
+    }
     st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
     st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);
 #if RECT_TABLE_PRESENT
@@ -162,10 +179,15 @@ int main(void)
             bands_drops = drops;
         }
 #endif
-        health.flags |= rect_fault;
+        health.flags |= (uint8_t)(rect_fault | radio_fault);
         /* the motion controller's pose (pose.h); the last good one if it is being updated */
         (void)pose_read(POSE_BASEADDR, &pose);
         if (tx_pos >= tx_len) {         /* the last report is out */
+            if (radio_fault != 0u && ++radio_wait >= RADIO_RETRY_PERIODS) {
+                radio_wait = 0u;        /* 8 bytes: under a millisecond at 115200 baud */
+                xbee_probe_query(frame_buf);
+                (void)hal_uart_write(frame_buf, XBEE_PROBE_QUERY_LEN);
+            }
             tx_len = app_build_report(&app, pose.x_mm, pose.y_mm, pose.theta, pose.t_ms,
                                       &health, frame_buf, sizeof frame_buf);
             tx_pos = 0u;

@@ -252,3 +252,36 @@ fw_status_t xbee_configure(const xbee_io_t *io, const xbee_config_t *cfg,
     drain(io);
     return api_check(io, cfg);
 }
+
+/* The API frames of the probe: the AT query "AP" and the answer of a module in API mode 2
+ * (AT Command Response, status OK, value 2). No byte needs escaping. */
+static const uint8_t probe_query[XBEE_PROBE_QUERY_LEN] = {
+    XBEE_START, 0x00u, 0x04u, XBEE_API_AT_COMMAND, XBEE_AT_FRAME_ID, 'A', 'P', 0x14u
+};
+static const uint8_t probe_answer[10] = {
+    XBEE_START, 0x00u, 0x06u, XBEE_API_AT_RESPONSE, XBEE_AT_FRAME_ID, 'A', 'P', 0x00u, 0x02u,
+    0x92u
+};
+
+void xbee_probe_query(uint8_t buf[XBEE_PROBE_QUERY_LEN])
+{
+    uint32_t i;
+    for (i = 0u; i < XBEE_PROBE_QUERY_LEN; i++) {
+        buf[i] = probe_query[i];
+    }
+}
+
+int xbee_probe_feed(xbee_probe_t *probe, uint8_t byte)
+{
+    /* the start delimiter occurs only first: a mismatch starts over, at it if it is one */
+    if (byte == probe_answer[probe->matched]) {
+        probe->matched++;
+    } else {
+        probe->matched = (uint8_t)(byte == XBEE_START);
+    }
+    if (probe->matched == sizeof probe_answer) {
+        probe->matched = 0u;
+        return 1;
+    }
+    return 0;
+}

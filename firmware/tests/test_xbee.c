@@ -330,8 +330,62 @@ static void test_error_answer_stops_before_writing(void)
     FWT_CHECK_EQ(xbee_configure(NULL, &cfg, NULL), FW_ERR_PARAM);
 }
 
+/* Feed every byte the module sent; the number of completed answers, and the index of the
+ * byte that completed the last one in *last. */
+static uint32_t probe_all(sim_xbee_t *m, xbee_probe_t *p, uint32_t *last)
+{
+    uint8_t b;
+    uint32_t i = 0, hits = 0;
+    while (sim_read(m, &b)) {
+        if (xbee_probe_feed(p, b)) {
+            hits++;
+            *last = i;
+        }
+        i++;
+    }
+    return hits;
+}
+
+static void test_probe_finds_a_module_that_comes_later(void)
+{
+    static sim_xbee_t m;
+    static const uint8_t req[4] = { XBEE_API_AT_COMMAND, XBEE_AT_FRAME_ID, 'A', 'P' };
+    static const uint8_t noise[] = { 0x7E, 0x00, 0x7E, 0x7E, 0x00, 0x06, 0x88, 0x52, 0x41 };
+    uint8_t q[XBEE_PROBE_QUERY_LEN];
+    uint8_t want[16];
+    xbee_io_t io;
+    xbee_probe_t p = { 0 };
+    uint32_t last = 0, i;
+    factory(&m);
+    m.present = 0;
+    io_of(&io, &m);
+    FWT_CHECK_EQ(xbee_configure(&io, &cfg, NULL), FW_ERR_TIMEOUT);
+    xbee_probe_query(q);
+    FWT_CHECK_EQ(radio_encode_frame(req, 4, want, sizeof want), XBEE_PROBE_QUERY_LEN);
+    FWT_CHECK(memcmp(q, want, sizeof q) == 0);
+    io.write(io.ctx, q, sizeof q);                   /* nobody there: no answer */
+    FWT_CHECK_EQ(probe_all(&m, &p, &last), 0);
+    m.present = 1; m.baud = 115200; m.ap = 2;        /* a configured module plugged in */
+    io.set_baud(io.ctx, XBEE_LINK_BAUD);
+    out_put(&m, noise, sizeof noise);                /* a cut-off frame first */
+    io.write(io.ctx, q, sizeof q);
+    FWT_CHECK_EQ(probe_all(&m, &p, &last), 1);
+    FWT_CHECK_EQ(last, sizeof noise + 9);            /* at the answer's checksum */
+    for (i = 0; i < 2; i++) {                        /* and again for the next query */
+        io.write(io.ctx, q, sizeof q);
+        FWT_CHECK_EQ(probe_all(&m, &p, &last), 1);
+    }
+    m.ap = 0;                                        /* transparent mode: no answer */
+    io.write(io.ctx, q, sizeof q);
+    FWT_CHECK_EQ(probe_all(&m, &p, &last), 0);
+    m.ap = 2; m.baud = 9600;                         /* at another baud: garbage */
+    io.write(io.ctx, q, sizeof q);
+    FWT_CHECK_EQ(probe_all(&m, &p, &last), 0);
+}
+
 void suite_xbee(void)
 {
+    FWT_RUN(test_probe_finds_a_module_that_comes_later);
     FWT_RUN(test_factory_module_is_configured);
     FWT_RUN(test_configured_module_is_left_alone);
     FWT_RUN(test_transparent_module_at_115200);

@@ -1,7 +1,9 @@
-"""The ``python -m sim system`` command: the whole SoC under Verilator, its firmware either as
-the host build on the CPU bus (:mod:`sim.system.run`, the default) or cross-compiled on the core
-inside the SoC (``--cpu``, :mod:`sim.system.cpu_run`). Prints one JSON line; exit 0 only when
-bit-exact (and with ``--cpu`` every radio packet exact), 1 otherwise, 2 on a usage error."""
+"""The ``python -m sim system`` command: the whole SoC under Verilator, its firmware either
+cross-compiled on the core inside the SoC (``--cpu picorv32``, the default,
+:mod:`sim.system.cpu_run`) or as the host build on the CPU bus (``--cpu host``,
+:mod:`sim.system.run`: far faster, any field size, the camera-stream faults). Prints one JSON
+line; exit 0 only when bit-exact (and on the core every radio packet exact), 1 otherwise, 2 on
+a usage error."""
 from __future__ import annotations
 
 import argparse
@@ -13,7 +15,10 @@ from sim.system.run import (FAULT_FIELD, FAULTS, SystemError_, _load, field_of, 
                             scene_pair)
 from sim.system import run as _run
 
-__all__ = ["main"]
+__all__ = ["CPUS", "main"]
+
+#: ``--cpu`` values: the cores the SoC can hold, then the firmware's host build.
+CPUS = ("picorv32", "host")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -23,7 +28,12 @@ class _Parser(argparse.ArgumentParser):
 
 def main(argv=None):
     ap = _Parser(prog="python -m sim system",
-                 description=" ".join(_run.__doc__.split("\n\n")[0].split()),
+                 description="The whole SoC under Verilator from two BT.656 cameras: the "
+                             "cross-compiled firmware on the core inside the SoC (--cpu "
+                             "picorv32, the default) to the radio UART's pin, or the firmware's "
+                             "host build driving the SoC's bus (--cpu host: far faster, any "
+                             "field size, the camera-stream faults). One JSON line; exit 0 when "
+                             "bit-exact, 1 otherwise, 2 on a usage error.",
                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--left", help="left image (PNG/JPEG, colour); with --right, instead of --scene")
     ap.add_argument("--right", help="right image")
@@ -33,12 +43,13 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=5,
                     help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
     ap.add_argument("--fault", choices=FAULTS + CPU_FAULTS,
-                    help=f"fault injected in field {FAULT_FIELD} (see the module documentation; "
-                         f"{', '.join(CPU_FAULTS)}: with --cpu, sim/system/cpu_run.py)")
-    ap.add_argument("--cpu", choices=("picorv32",),
-                    help="run the cross-compiled firmware on this core inside the SoC "
-                         "(sim/system/cpu_run.py; 720 x 240 fields, NTSC timing) instead of "
-                         "the firmware's host build on the bus")
+                    help=f"fault injected in field {FAULT_FIELD} ({', '.join(CPU_FAULTS)}: "
+                         f"on the core, sim/system/cpu_run.py; the others: --cpu host, "
+                         f"sim/system/run.py)")
+    ap.add_argument("--cpu", choices=CPUS, default="picorv32",
+                    help="picorv32: the cross-compiled firmware on that core inside the SoC "
+                         "(sim/system/cpu_run.py; 720 x 240 fields, NTSC timing); host: the "
+                         "firmware's host build drives the SoC's bus (sim/system/run.py)")
     ap.add_argument("--width", type=int, default=720, help="field width, even, 16..720")
     ap.add_argument("--height", type=int, default=240, help="field height, 8..240")
     ap.add_argument("--timing", choices=("ntsc", "short"), default="ntsc",
@@ -53,19 +64,21 @@ def main(argv=None):
             raise SystemError_("give both --left and --right, or neither")
         if args.width % 2 or not 16 <= args.width <= 720 or not 8 <= args.height <= 240:
             raise SystemError_("--width must be even, 16..720; --height 8..240")
-        if args.cpu is None and args.fault in CPU_FAULTS:
-            raise SystemError_(f"--fault {args.fault} needs --cpu")
-        if args.cpu is not None and args.fault in FAULTS:
-            raise SystemError_(f"--fault {args.fault} runs with the host firmware: drop --cpu")
-        if args.cpu is not None and (args.width, args.height, args.timing) != (720, 240, "ntsc"):
-            raise SystemError_("--cpu runs 720 x 240 fields with NTSC timing (the firmware's "
-                               "geometry and the register defaults)")
-        if args.cpu is not None and args.fault == "camera-lost-left" and \
+        host = args.cpu == "host"
+        if host and args.fault in CPU_FAULTS:
+            raise SystemError_(f"--fault {args.fault} runs on the core: drop --cpu host")
+        if not host and args.fault in FAULTS:
+            raise SystemError_(f"--fault {args.fault} runs with the host firmware: give --cpu host")
+        if not host and (args.width, args.height, args.timing) != (720, 240, "ntsc"):
+            raise SystemError_(f"--cpu {args.cpu} runs 720 x 240 fields with NTSC timing (the "
+                               "firmware's geometry and the register defaults): give --cpu "
+                               "host for others")
+        if not host and args.fault == "camera-lost-left" and \
                 args.frames < FAULT_FIELD + LOST_FIELDS + 3:
             raise SystemError_(f"--fault camera-lost-left needs --frames at least "
                                f"{FAULT_FIELD + LOST_FIELDS + 3}")
-        if args.cpu is not None and args.right_lead != _run.RIGHT_LEAD_BYTES:
-            raise SystemError_("--right-lead runs with the host firmware: drop --cpu")
+        if not host and args.right_lead != _run.RIGHT_LEAD_BYTES:
+            raise SystemError_("--right-lead runs with the host firmware: give --cpu host")
         if abs(args.right_lead) > 100_000:
             raise SystemError_("--right-lead must be within -100000..100000 bytes")
         if args.frames < (FAULT_FIELD + 4 if args.fault else 1):
@@ -75,7 +88,7 @@ def main(argv=None):
             right = field_of(_load(args.right), args.width, args.height)
         else:
             left, right = scene_pair(args.scene, args.width, args.height)
-        if args.cpu is not None:
+        if not host:
             res = run_cpu_system(left, right, frames=args.frames, fault=args.fault,
                                  timing=args.timing, seed=args.seed)
         else:
@@ -85,7 +98,7 @@ def main(argv=None):
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(json.dumps(res))
-    ok = res["bit_exact"] and (args.cpu is None or res["radio_exact"])
+    ok = res["bit_exact"] and (host or res["radio_exact"])
     return 0 if ok else 1
 
 

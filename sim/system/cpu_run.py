@@ -2,7 +2,7 @@
 ``cpu="picorv32"``) under Verilator, its core running the cross-compiled firmware
 (``build/firmware/firmware.bin``, ``make -C firmware rv32``); no host firmware in the loop.
 
-    python -m sim system --cpu picorv32 [--scene S] [--frames N] [--fault F]
+    python -m sim system [--cpu picorv32] [--scene S] [--frames N] [--fault F]
 
 From BT.656 bytes to the radio UART's TX pin (``sim/system/harness/cpu_system.cpp``): the
 cameras as in :mod:`sim.system.run`, two ADV7180 models on the IIC pins, the TX pin decoded
@@ -38,7 +38,8 @@ what the firmware reported. The run goes on after the last frame until a packet 
 
 Faults: ``camera-lost-left`` (the left decoder sends nothing for :data:`LOST_FIELDS` fields
 from field 1, whose bytes are lost, then its stream goes on), ``iic-nack`` (the right decoder never answers), ``no-radio-module``
-(nothing answers the XBee queries).
+(nothing answers the XBee queries: counted when every packet's health carries the RADIO_FAULT
+flag, ``station.wire.HEALTH_FLAGS``).
 """
 from __future__ import annotations
 
@@ -131,7 +132,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
                                 _field_spans, camera_streams)
     from golden.bands import band_values, frame_top, merge_tops
     from station.radio import FrameDecoder
-    from station.wire import DEFAULT_MIN_SUPPORT
+    from station.wire import DEFAULT_MIN_SUPPORT, HEALTH_FLAGS
     from station.wire import API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
@@ -257,7 +258,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     elif fault == "iic-nack":
         counted = addressed[1] > 0
     elif fault == "no-radio-module":
-        counted = len(packets) > 0
+        counted = len(packets) > 0 and all(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
     else:
         counted = True
     span = cycles - video_cycles if video_cycles else 0

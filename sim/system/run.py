@@ -1,12 +1,11 @@
 """System simulation: the whole SoC (hdl/soc.py SystemSoC) under Verilator, fed by two BT.656
 cameras, configured and read by the firmware's host build through the CPU bus.
 
-    python -m sim system [--left L --right R | --scene S] [--frames N] [--fault F]
+    python -m sim system --cpu host [--left L --right R | --scene S] [--frames N] [--fault F]
                          [--width W --height H] [--timing ntsc|short] [--seed S]
-                         [--cpu picorv32]
 
-With ``--cpu`` the firmware runs cross-compiled on the core inside the SoC instead
-(:mod:`sim.system.cpu_run`); what follows describes the run without it.
+Without ``--cpu host`` (``--cpu picorv32``, the default) the firmware runs cross-compiled on the
+core inside the SoC instead (:mod:`sim.system.cpu_run`); what follows describes the host run.
 
 Cameras: each image pair is one NTSC field (default 720 x 240: the image is resized to 720 x 480
 and its even rows taken, as an interlaced camera's field), converted to YCbCr 4:2:2
