@@ -5,7 +5,8 @@ the core's memory interface to the SoC's MicroBlaze-style I/O bus (:class:`hdl.r
 Core: RV32IC (compressed instructions, no multiplier or divider: the firmware is built for
 ``rv32ic``, ``firmware/Makefile`` ``rv32``), barrel shifter, 32-bit cycle and instruction
 counters (``rdcycle``, ``rdinstret``), illegal instructions trap (``trap`` port), misaligned
-accesses are not checked. The core starts at address 0 after reset.
+accesses are not checked. The core starts at address 0 a cycle after the reset ends (its
+reset goes through a register placed with the core).
 
 Address map (the core's byte addresses; the decode looks at few bits, so the RAM and the
 timer repeat through their halves of the map):
@@ -153,11 +154,16 @@ class RiscvCPU(wiring.Component):
         addr, wdata, rdata = Signal(32), Signal(32), Signal(32)
         wstrb = Signal(4)
         la_read, la_addr = Signal(), Signal(32)
+        # The core's reset from a register of its own, placed with the core: the core uses its
+        # reset in its combinational logic too (the look-ahead read, the prefetch state), and
+        # the domain's reset comes from far across the chip; the core leaves reset a cycle late.
+        core_rst = Signal(init=1, reset_less=True)
+        m.d.sync += core_rst.eq(ResetSignal())
         m.submodules.core = Instance(
             "picorv32",
             **{f"p_{k}": Const(v, 32) if k == "PROGADDR_RESET" else Const(v, 1)
                for k, v in CORE_PARAMETERS.items()},
-            i_clk=ClockSignal(), i_resetn=~ResetSignal(),
+            i_clk=ClockSignal(), i_resetn=~core_rst,
             o_trap=self.trap,
             o_mem_valid=valid, o_mem_instr=instr, i_mem_ready=ready,
             o_mem_addr=addr, o_mem_wdata=wdata, o_mem_wstrb=wstrb, i_mem_rdata=rdata,
