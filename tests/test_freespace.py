@@ -241,7 +241,7 @@ def test_sim_run_writes_the_rtl_free_space(tmp_path):
     assert summary["free_space_mismatches"] == 0 and summary["parameters"]["band-w"] == 9
     with open(out / "free_space.csv") as f:
         rows = list(csv.DictReader(f))
-    params = default_params(128, 64)
+    params = default_params(128, 64, ground="hue")          # as --ground hue above
     params = replace(params, frontend=replace(params.frontend, free=FreeSpaceParams(9, 3)))
     last = pipeline_frames([scene.left] * 3, [scene.right] * 3, params)[-1]
     for side in ("left", "right"):

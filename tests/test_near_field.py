@@ -24,7 +24,8 @@ NEAR_M = 0.8                      # nearer than this: the 0.5 m box (the other b
 @pytest.fixture(scope="module")
 def near():
     frame = make_scene("near", 752, 480)
-    params = default_params(752, 480, **scene_settings("near"))
+    # the appearance model in hue mode, as the command-line run below (--ground hue)
+    params = default_params(752, 480, ground="hue", **scene_settings("near"))
     last = pipeline_frames([frame.left] * 2, [frame.right] * 2, params)[-1]
     return frame, params, last
 
@@ -64,7 +65,8 @@ def test_the_far_window_vetoes_most_far_texture_seen_through_the_near_one(near):
     # window; the default window matches it right at the same pixel, the box it cannot see
     from sim.bench.depth import far_veto
     frame, _, last = near
-    far = pipeline_frames([frame.left] * 2, [frame.right] * 2, default_params(752, 480))[-1]
+    far = pipeline_frames([frame.left] * 2, [frame.right] * 2,
+                          default_params(752, 480, ground="hue"))[-1]
     rec, cam = last.records, scene_camera(752, 480)
     truth = contour_depth(frame.depth, rec)
     off = np.abs(cam.depth(rec["d"]) - truth) > 0.1 * truth
