@@ -61,3 +61,21 @@ def test_flow_on_color(tmp_path):
     assert r["critical_path"]["from"].startswith("dut") or r["critical_path"]["to"].startswith("dut")
     md = (tmp_path / "report.md").read_text()
     assert "NOT Spartan-3" in md and "| color |" in md
+
+
+def test_critical_path_is_the_core_clocks():
+    """The report's path is the core clock's own (the figure it judges), not the first clock
+    nextpnr lists."""
+    from sim.flows.timing import critical_path
+
+    def path(clk, a, b, delay):
+        edge = f"posedge $glbnet${clk}$TRELLIS_IO_IN"
+        return {"from": edge, "to": edge, "path": [
+            {"type": "clk-to-q", "delay": 0.5, "from": {"cell": a}, "to": {"cell": a}},
+            {"type": "routing", "delay": delay, "from": {"cell": a}, "to": {"cell": b}}]}
+
+    rep = {"critical_paths": [path("cam1_clk", "c0", "c1", 7.0), path("clk", "k0", "k1", 11.0)]}
+    assert critical_path(rep) == {"from": "k0", "to": "k1", "delay_ns": 11.5, "logic_ns": 0.5,
+                                  "routing_ns": 11.0, "logic_cells": 0}
+    rep["critical_paths"].pop()
+    assert critical_path(rep)["from"] == "c0"
