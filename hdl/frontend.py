@@ -35,6 +35,7 @@ class FrontEnd(FramedUnit):
         Free space per column band (:class:`hdl.freespace.FreeSpace`, observing the
         classifier's output without holding it up): 16 beats after each frame's classified
         ``eof``. Results not taken before the next frame's are ready are lost (``free_lost``).
+        Never valid without ``free_space``.
     ground : In(:data:`GroundConfig`)
         Ground model parameters.
     threshold, ratio, nms : In
@@ -63,11 +64,17 @@ class FrontEnd(FramedUnit):
     unit, on the luminance and the ground bit (golden
     :class:`golden.rectify.RectifiedPipelineModel`); free space stays the classifier's. It
     delays the edges by ``lo + span`` rows and a few pixels, and takes block RAM for its line
-    buffer (four memories of ``(span + 2) / 2`` half lines) and its map.
+    buffer (four memories of ``(span + 2) / 2`` half lines) and its map. ``free_space`` (True
+    by default): the free-space unit; without it the ports stay, ``free`` is never valid,
+    ``free_lost`` is 0 and ``band_w``, ``run_r`` are ignored. That free space comes from the
+    appearance (ground) mask, so it only means something with an appearance ground mode; a
+    build whose floor decision is geometric (the v-disparity floor flag) leaves it out.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, census=False, rectify=None):
+    def __init__(self, *, max_width=1024, max_height=1024, census=False, rectify=None,
+                 free_space=True):
         self._census = census
+        self._free_space = bool(free_space)
         self._rectify = dict(rectify) if rectify is not None else None
         super().__init__(max_width=max_width, max_height=max_height)
         if self._rectify is not None:
@@ -127,15 +134,16 @@ class FrontEnd(FramedUnit):
         wiring.connect(m, sobel.o, skid_out.i)
         wiring.connect(m, skid_out.o, wiring.flipped(self.o))
         # free space observes the classifier's transfers (it never applies backpressure)
-        m.submodules.free = free = FreeSpace(**size)
-        m.d.comb += [free.i.valid.eq(ground.o.valid & ground.o.ready),
-                     free.i.payload.eq(ground.o.payload),
-                     free.band_w.eq(self.band_w), free.run_r.eq(self.run_r),
-                     self.free_lost.eq(free.lost)]
-        wiring.connect(m, free.o, wiring.flipped(self.free))
+        if self._free_space:
+            m.submodules.free = free = FreeSpace(**size)
+            m.d.comb += [free.i.valid.eq(ground.o.valid & ground.o.ready),
+                         free.i.payload.eq(ground.o.payload),
+                         free.band_w.eq(self.band_w), free.run_r.eq(self.run_r),
+                         self.free_lost.eq(free.lost)]
+            wiring.connect(m, free.o, wiring.flipped(self.free))
+            units += (free,)
         # an abandoned pair ends the frame in every unit at once (hdl.framing); the front end is
         # inside a frame while any of them is
-        units += (free,)
         m.d.comb += [unit.frame_abort.eq(self.frame_abort) for unit in units]
         m.d.comb += self.in_frame.eq(Cat(unit.in_frame for unit in units).any())
         m.d.comb += [

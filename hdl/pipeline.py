@@ -36,7 +36,8 @@ class StereoPipeline(wiring.Component):
         record with ``eof`` set per frame, when the ``frame_*`` statistics take that frame's values.
     free_left, free_right : Out(stream of :data:`FreeBand`)
         Each camera's free space per column band, 16 beats per frame
-        (:class:`hdl.freespace.FreeSpace`); never holds up the pixels.
+        (:class:`hdl.freespace.FreeSpace`); never holds up the pixels. Never valid without
+        ``free_space``.
     ground, threshold, ratio, nms, band_w, run_r : In
         Front-end parameters, shared by both cameras (each learns its own ground band; the two
         ground units share one search engine, :class:`hdl.ground_search.GroundSearch`, one
@@ -68,7 +69,12 @@ class StereoPipeline(wiring.Component):
     mode, for one RAMB16 more per camera), ``cost``: the matcher's window cost,
     ``"census"`` (the default: the front ends' Sobel units send census words, the matcher sums
     their Hamming distances) or ``"sad"`` (luminance, sum of absolute differences); it must
-    equal the golden ``matcher.cost`` the pipeline is compared with.
+    equal the golden ``matcher.cost`` the pipeline is compared with. ``free_space`` (True by
+    default): each front end's free-space unit (:class:`hdl.frontend.FrontEnd`); without it
+    ``free_left``, ``free_right`` are never valid and ``*_free_lost`` are 0. It derives free
+    space from the appearance (ground) mask, so it only means something with an appearance
+    ground mode; with the geometric floor decision (the floor flag on the records) free space
+    comes from the points instead (:func:`golden.freespace.free_space_points`).
 
     ``rectify`` (None, or a dict of :class:`hdl.rectify.Rectify`'s ``span``, ``horizontal`` and
     optional ``nodes``, the map memory's initial contents): the right camera's luminance and
@@ -87,8 +93,9 @@ class StereoPipeline(wiring.Component):
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, extra_rows=0, cost="census", rectify=None):
+                 queue_depth=16, extra_rows=0, cost="census", rectify=None, free_space=True):
         self._size = dict(max_width=max_width, max_height=max_height)
+        self._free_space = bool(free_space)
         self.rectify = None if rectify is None else dict(rectify)
         if rectify is not None:
             # plain values: what the Verilog depends on (a cached simulator build is found by
@@ -149,7 +156,8 @@ class StereoPipeline(wiring.Component):
         m.d.comb += search.config.eq(self.ground)
         for k, side in enumerate(("left", "right")):
             fe = SharedSearchFrontEnd(**self._size, census=self._matcher["cost"] == "census",
-                                      rectify=self.rectify if side == "right" else None)
+                                      rectify=self.rectify if side == "right" else None,
+                                      free_space=self._free_space)
             m.submodules[f"{side}_frontend"] = fe
             if side == "right" and self.rectify is not None:
                 m.d.comb += [fe.rect_lo.eq(self.rect_lo), fe.rect_enable.eq(self.rect_enable),

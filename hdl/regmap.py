@@ -224,7 +224,8 @@ REGISTERS: tuple[Register, ...] = (
     # Free space (golden/freespace.py, hdl/freespace.py): configuration and each camera's
     # last frame, 16 bands of 16 bits, two bands per word.
     Register("FREE_CFG", 0x30, "rw", "Free space per column band (golden/freespace.py), both "
-             f"cameras. Reset: 16 bands across a {REF_WIDTH}-column frame.", (
+             f"cameras. Reset: 16 bands across a {REF_WIDTH}-column frame. Kept but unused in "
+             "a build without free space.", (
         F("band_w", 0, 11, _F.band_w, "free space: columns per band, 16 bands from x = 0",
           param="frontend.free.band_w", port="band_w"),
         F("run_r", 16, 8, _F.run_r, "free space: rows an obstacle run needs (a row of a band is "
@@ -235,7 +236,8 @@ REGISTERS: tuple[Register, ...] = (
                f"{side.capitalize()} camera, last frame: free-space rows of bands {2 * k} and "
                f"{2 * k + 1} (the image row of the lowest obstacle run, scanning up from the "
                "bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF "
-               "after reset (the SoC's table, hdl/freespace.py FreeSpaceTable).", (
+               "after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a "
+               "build without free space (SystemSoC's free_space, off by default).", (
                    F("even", 0, 16, 0, f"band {2 * k}: row, or 0xFFFF"),
                    F("odd", 16, 16, 0, f"band {2 * k + 1}: row, or 0xFFFF"),
                ), table=f"free_{side}")

@@ -83,12 +83,17 @@ class StereoSoC(wiring.Component):
     pipeline cannot: a full FIFO drops and counts). The sticky error counters are cleared by
     CTRL.clear_errors: the block shows each counter minus its value at the last clear, so the
     pipeline's own counters never need a reset.
+
+    ``free_space`` (True by default): the pipeline's free-space units and their register
+    tables (FREE_LEFT_k, FREE_RIGHT_k); without them those registers read 0 (see
+    :class:`SystemSoC`).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=256, clk_div=125,
-                 cost="census", rectify=None):
+                 cost="census", rectify=None, free_space=True):
         check_result_limits(self, max_width=max_width, max_height=max_height)
-        self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
+        self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
+                              free_space=bool(free_space))
         self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
@@ -141,7 +146,8 @@ class StereoSoC(wiring.Component):
         ]
 
         # Status: statistics as they are, sticky counters relative to the last clear.
-        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors)
+        status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors,
+                                  free_space=self._pipeline["free_space"])
         for reg, f in regmap.status_fields():
             name = status_port_name(reg, f)
             m.d.comb += getattr(regs, name).eq(status.get(name, 0))
@@ -197,7 +203,16 @@ class SystemSoC(wiring.Component):
     RAM of :class:`hdl.camera_buffer.PairBuffer`, two a word), ``skew`` (pairing), ``fifo_depth``
     (results; None: 256, or :data:`CPU_FIFO_DEPTH` with the CPU inside),
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
-    :class:`hdl.pipeline.StereoPipeline`).
+    :class:`hdl.pipeline.StereoPipeline`), ``free_space``.
+
+    Free space: ``free_space`` (False by default) builds each front end's free-space unit
+    (:class:`hdl.freespace.FreeSpace`) and the tables behind FREE_LEFT_k and FREE_RIGHT_k.
+    That free space is derived from the appearance (ground) mask, so it only means something
+    with an appearance ground mode (GROUND.mode, 0 by default); the chip's floor decision is
+    geometric (the floor flag above), and free space from the points is the firmware's
+    (``floor_free_space``, golden :func:`golden.freespace.free_space_points`). Without it the
+    register set stays the same: FREE_CFG is kept but unused, and FREE_LEFT_k, FREE_RIGHT_k
+    read 0.
 
     Camera buffering: a pixel waits, as a 4:2:2 word (:data:`hdl.bt656.YCbCr422`, 19 bits),
     in its port's FIFO (16) and its queue (512 pixels, paired into 36-bit words by
@@ -219,7 +234,7 @@ class SystemSoC(wiring.Component):
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
-                 monitor=False, rectify=None):
+                 monitor=False, rectify=None, free_space=False):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
@@ -227,7 +242,8 @@ class SystemSoC(wiring.Component):
         self._cpu = cpu
         self._image = image
         self._monitor = bool(monitor) and cpu is not None
-        self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost)
+        self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
+                              free_space=bool(free_space))
         self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
@@ -355,7 +371,7 @@ class SystemSoC(wiring.Component):
                              self.record_word.eq(Cat(p.x, p.y, p.d, p.eof, p.abort,
                                                      p.floor, 1))]
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
-                                  reset=video_rst)
+                                  reset=video_rst, free_space=self._pipeline["free_space"])
         # capture skew: each camera's field start as its port hands it over (the ports'
         # latencies are equal, so their difference is the cameras')
         skew = SkewCounter(unit=SKEW_UNIT_CYCLES, window=SKEW_WINDOW_US)
@@ -538,10 +554,11 @@ def _connect_parameters(m, regs, pipe):
         m.d.comb += port.eq(getattr(regs, f.name))
 
 
-def _pipeline_status(m, regs, pipe, *, clear, reset=0):
-    """The pipeline's status inputs of the register block (and its free-space tables):
-    statistics as they are, sticky counters relative to their value at the last ``clear``
-    (``reset``: the pipeline is being reset, which also clears them)."""
+def _pipeline_status(m, regs, pipe, *, clear, reset=0, free_space=True):
+    """The pipeline's status inputs of the register block (and, with ``free_space``, its
+    free-space tables; without, the table words stay 0): statistics as they are, sticky
+    counters relative to their value at the last ``clear`` (``reset``: the pipeline is being
+    reset, which also clears them)."""
     status = {
         "frame_count_frames": pipe.frames,
         "stat_edges_count": pipe.frame_edge_pixels,
@@ -550,7 +567,8 @@ def _pipeline_status(m, regs, pipe, *, clear, reset=0):
         "stat_rejects_count": pipe.frame_rejected,
         "stat_drops_count": pipe.frame_drops,
     }
-    free_space_tables(m, pipe, regs)                # FREE_LEFT_k, FREE_RIGHT_k
+    if free_space:
+        free_space_tables(m, pipe, regs)            # FREE_LEFT_k, FREE_RIGHT_k
     for side in ("left", "right"):
         status[f"ground_status_{side}_learned"] = getattr(pipe, f"{side}_ground_learned")
         status[f"ground_status_{side}_hue_fallback"] = getattr(pipe, f"{side}_hue_fallback")

@@ -324,14 +324,18 @@ SYSTEM_DESIGNS = {
                         "the soft CPU alone: PicoRV32 RV32IC, its 8 KB block RAM with the "
                         "firmware image, timer, I/O bus bridge (hdl/cpu.py)",
                         foreign_verilog=cpu_verilog, cores=("picorv32",)),
-    "soc": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240, firmware=True),
+    # free_space=False (SystemSoC's default, spelled out): the chip's floor decision is
+    # geometric; appearance-based free space is a build option (hdl/soc.py SystemSoC)
+    "soc": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240, firmware=True,
+                                       free_space=False),
                         "the chip: the SoC with its CPU inside (PicoRV32 and its block RAM "
                         "with the firmware image), two BT.656 camera ports, pairing, "
                         "pipeline, registers and result FIFO, IIC master, radio UART on the "
                         "I/O bus (hdl/soc.py, hdl/cpu.py)",
                         clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
                         foreign_verilog=cpu_verilog, cores=("picorv32",)),
-    "soc_bus": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240),
+    "soc_bus": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
+                                       free_space=False),
                             "the SoC without a CPU, its I/O bus a port for an external CPU "
                             "(a MicroBlaze MCS in EDK/ISE, the UART bridge on the ECP5 board)",
                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),

@@ -21,12 +21,13 @@ def rgb(img):
     return dict(r=img[..., 0], g=img[..., 1], b=img[..., 2])
 
 
-def run(frames, params, *, name, max_width=64, **kw):
+def run(frames, params, *, name, max_width=64, free_space=True, **kw):
     expected = [f.output() for f in frontend_frames(frames, params)]
 
     async def setup(ctx, dut):
         await apply_config(ctx, dut, params)
-    return check_unit(lambda: FrontEnd(max_width=max_width, max_height=32), PIN, POUT,
+    return check_unit(lambda: FrontEnd(max_width=max_width, max_height=32,
+                                       free_space=free_space), PIN, POUT,
                       [rgb(f) for f in frames], expected, name=name, setup=setup, **kw)
 
 
@@ -50,6 +51,14 @@ def test_motorcycle_crops_luma_and_off_modes():
                            SobelParams(threshold=80, nms=False))
         run(frames, p, name=f"frontend_moto_{mode.name}", seed=4, idle=0.2, stall=0.3)
 
+
+def test_without_free_space_the_pixels_are_the_same():
+    """``free_space=False`` leaves the free-space unit out: the edge pixels stay bit-exact."""
+    left, right, _ = motorcycle()
+    frames = [crop(left, 32, 12, 300, 200), crop(right, 32, 12, 300, 200)]
+    p = FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=8, ref_y=8, ref_w=16, ref_h=4),
+                       SobelParams(threshold=80))
+    run(frames, p, name="frontend_no_free", seed=7, idle=0.2, stall=0.3, free_space=False)
 
 def test_motorcycle_floor_crops_hue_fallback():
     """The grey concrete under the motorcycle: hue fallback from frame 1 (its wide luma set and

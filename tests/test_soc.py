@@ -165,6 +165,23 @@ def test_sticky_counters_count_since_the_last_clear():
                     {"errors": 0, "dropped": 3}]
 
 
+@pytest.mark.parametrize("free_space", [True, False])
+def test_free_space_registers_without_the_option_read_0(free_space):
+    """``free_space`` builds the free-space units and their tables (0xFFFF after reset); a
+    SoC without them has neither, and its FREE_LEFT_k, FREE_RIGHT_k read 0."""
+    soc, sim = soc_simulator(max_width=16, max_height=8, fifo_depth=8, free_space=free_space)
+    seen = []
+
+    async def cpu(ctx):
+        await ctx.tick().repeat(4)
+        for side in ("LEFT", "RIGHT"):
+            for k in range(8):
+                seen.append(await io_read(ctx, soc.bus, addr(f"FREE_{side}_{k}")))
+
+    sim.add_testbench(cpu)
+    sim.run()
+    assert seen == [0xFFFF_FFFF if free_space else 0] * 16
+
 @pytest.mark.parametrize("cost", ["census", "sad"])
 def test_abort_marker_waits_for_the_fifo(cost):
     """SystemSoC's records into the FIFO (hdl/soc.py ``_records_and_markers``): a video restart

@@ -166,8 +166,8 @@
 #define STEREO_GROUND_SET_FALLBACK_SHIFT_MASK        0xE0000000u  /**< fallback_shift mask (3 bits) */
 #define STEREO_GROUND_SET_FALLBACK_SHIFT_RESET       4u           /**< fallback_shift reset value */
 
-/* FREE_CFG (read/write): Free space per column band (golden/freespace.py), both cameras. Reset: 16 bands across a 720-column frame. */
-#define STEREO_FREE_CFG_OFFSET                       0x30u        /**< Free space per column band (golden/freespace.py), both cameras. Reset: 16 bands across a 720-column frame. */
+/* FREE_CFG (read/write): Free space per column band (golden/freespace.py), both cameras. Reset: 16 bands across a 720-column frame. Kept but unused in a build without free space. */
+#define STEREO_FREE_CFG_OFFSET                       0x30u        /**< Free space per column band (golden/freespace.py), both cameras. Reset: 16 bands across a 720-column frame. Kept but unused in a build without free space. */
 #define STEREO_FREE_CFG_RESET                        0x0004002Du  /**< FREE_CFG value after reset */
 #define STEREO_FREE_CFG_BAND_W_SHIFT                 0u           /**< band_w: free space: columns per band, 16 bands from x = 0 */
 #define STEREO_FREE_CFG_BAND_W_MASK                  0x7FFu       /**< band_w mask (11 bits) */
@@ -176,8 +176,8 @@
 #define STEREO_FREE_CFG_RUN_R_MASK                   0x00FF0000u  /**< run_r mask (8 bits) */
 #define STEREO_FREE_CFG_RUN_R_RESET                  4u           /**< run_r reset value */
 
-/* FREE_LEFT_0 (read-only): Left camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_0_OFFSET                    0x90u        /**< Left camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_0 (read-only): Left camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_0_OFFSET                    0x90u        /**< Left camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_0_RESET                     0x0u         /**< FREE_LEFT_0 value after reset */
 #define STEREO_FREE_LEFT_0_EVEN_SHIFT                0u           /**< even: band 0: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_0_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -186,8 +186,8 @@
 #define STEREO_FREE_LEFT_0_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_0_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_1 (read-only): Left camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_1_OFFSET                    0x94u        /**< Left camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_1 (read-only): Left camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_1_OFFSET                    0x94u        /**< Left camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_1_RESET                     0x0u         /**< FREE_LEFT_1 value after reset */
 #define STEREO_FREE_LEFT_1_EVEN_SHIFT                0u           /**< even: band 2: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_1_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -196,8 +196,8 @@
 #define STEREO_FREE_LEFT_1_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_1_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_2 (read-only): Left camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_2_OFFSET                    0x98u        /**< Left camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_2 (read-only): Left camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_2_OFFSET                    0x98u        /**< Left camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_2_RESET                     0x0u         /**< FREE_LEFT_2 value after reset */
 #define STEREO_FREE_LEFT_2_EVEN_SHIFT                0u           /**< even: band 4: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_2_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -206,8 +206,8 @@
 #define STEREO_FREE_LEFT_2_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_2_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_3 (read-only): Left camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_3_OFFSET                    0x9Cu        /**< Left camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_3 (read-only): Left camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_3_OFFSET                    0x9Cu        /**< Left camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_3_RESET                     0x0u         /**< FREE_LEFT_3 value after reset */
 #define STEREO_FREE_LEFT_3_EVEN_SHIFT                0u           /**< even: band 6: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_3_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -216,8 +216,8 @@
 #define STEREO_FREE_LEFT_3_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_3_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_4 (read-only): Left camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_4_OFFSET                    0xA0u        /**< Left camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_4 (read-only): Left camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_4_OFFSET                    0xA0u        /**< Left camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_4_RESET                     0x0u         /**< FREE_LEFT_4 value after reset */
 #define STEREO_FREE_LEFT_4_EVEN_SHIFT                0u           /**< even: band 8: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_4_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -226,8 +226,8 @@
 #define STEREO_FREE_LEFT_4_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_4_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_5 (read-only): Left camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_5_OFFSET                    0xA4u        /**< Left camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_5 (read-only): Left camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_5_OFFSET                    0xA4u        /**< Left camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_5_RESET                     0x0u         /**< FREE_LEFT_5 value after reset */
 #define STEREO_FREE_LEFT_5_EVEN_SHIFT                0u           /**< even: band 10: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_5_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -236,8 +236,8 @@
 #define STEREO_FREE_LEFT_5_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_5_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_6 (read-only): Left camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_6_OFFSET                    0xA8u        /**< Left camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_6 (read-only): Left camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_6_OFFSET                    0xA8u        /**< Left camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_6_RESET                     0x0u         /**< FREE_LEFT_6 value after reset */
 #define STEREO_FREE_LEFT_6_EVEN_SHIFT                0u           /**< even: band 12: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_6_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -246,8 +246,8 @@
 #define STEREO_FREE_LEFT_6_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_6_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_LEFT_7 (read-only): Left camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_LEFT_7_OFFSET                    0xACu        /**< Left camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_LEFT_7 (read-only): Left camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_LEFT_7_OFFSET                    0xACu        /**< Left camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_LEFT_7_RESET                     0x0u         /**< FREE_LEFT_7 value after reset */
 #define STEREO_FREE_LEFT_7_EVEN_SHIFT                0u           /**< even: band 14: row, or 0xFFFF */
 #define STEREO_FREE_LEFT_7_EVEN_MASK                 0xFFFFu      /**< even mask (16 bits) */
@@ -256,8 +256,8 @@
 #define STEREO_FREE_LEFT_7_ODD_MASK                  0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_LEFT_7_ODD_RESET                 0u           /**< odd reset value */
 
-/* FREE_RIGHT_0 (read-only): Right camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_0_OFFSET                   0xB0u        /**< Right camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_0 (read-only): Right camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_0_OFFSET                   0xB0u        /**< Right camera, last frame: free-space rows of bands 0 and 1 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_0_RESET                    0x0u         /**< FREE_RIGHT_0 value after reset */
 #define STEREO_FREE_RIGHT_0_EVEN_SHIFT               0u           /**< even: band 0: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_0_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -266,8 +266,8 @@
 #define STEREO_FREE_RIGHT_0_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_0_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_1 (read-only): Right camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_1_OFFSET                   0xB4u        /**< Right camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_1 (read-only): Right camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_1_OFFSET                   0xB4u        /**< Right camera, last frame: free-space rows of bands 2 and 3 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_1_RESET                    0x0u         /**< FREE_RIGHT_1 value after reset */
 #define STEREO_FREE_RIGHT_1_EVEN_SHIFT               0u           /**< even: band 2: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_1_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -276,8 +276,8 @@
 #define STEREO_FREE_RIGHT_1_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_1_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_2 (read-only): Right camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_2_OFFSET                   0xB8u        /**< Right camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_2 (read-only): Right camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_2_OFFSET                   0xB8u        /**< Right camera, last frame: free-space rows of bands 4 and 5 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_2_RESET                    0x0u         /**< FREE_RIGHT_2 value after reset */
 #define STEREO_FREE_RIGHT_2_EVEN_SHIFT               0u           /**< even: band 4: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_2_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -286,8 +286,8 @@
 #define STEREO_FREE_RIGHT_2_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_2_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_3 (read-only): Right camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_3_OFFSET                   0xBCu        /**< Right camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_3 (read-only): Right camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_3_OFFSET                   0xBCu        /**< Right camera, last frame: free-space rows of bands 6 and 7 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_3_RESET                    0x0u         /**< FREE_RIGHT_3 value after reset */
 #define STEREO_FREE_RIGHT_3_EVEN_SHIFT               0u           /**< even: band 6: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_3_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -296,8 +296,8 @@
 #define STEREO_FREE_RIGHT_3_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_3_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_4 (read-only): Right camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_4_OFFSET                   0xC0u        /**< Right camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_4 (read-only): Right camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_4_OFFSET                   0xC0u        /**< Right camera, last frame: free-space rows of bands 8 and 9 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_4_RESET                    0x0u         /**< FREE_RIGHT_4 value after reset */
 #define STEREO_FREE_RIGHT_4_EVEN_SHIFT               0u           /**< even: band 8: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_4_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -306,8 +306,8 @@
 #define STEREO_FREE_RIGHT_4_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_4_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_5 (read-only): Right camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_5_OFFSET                   0xC4u        /**< Right camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_5 (read-only): Right camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_5_OFFSET                   0xC4u        /**< Right camera, last frame: free-space rows of bands 10 and 11 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_5_RESET                    0x0u         /**< FREE_RIGHT_5 value after reset */
 #define STEREO_FREE_RIGHT_5_EVEN_SHIFT               0u           /**< even: band 10: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_5_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -316,8 +316,8 @@
 #define STEREO_FREE_RIGHT_5_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_5_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_6 (read-only): Right camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_6_OFFSET                   0xC8u        /**< Right camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_6 (read-only): Right camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_6_OFFSET                   0xC8u        /**< Right camera, last frame: free-space rows of bands 12 and 13 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_6_RESET                    0x0u         /**< FREE_RIGHT_6 value after reset */
 #define STEREO_FREE_RIGHT_6_EVEN_SHIFT               0u           /**< even: band 12: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_6_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
@@ -326,8 +326,8 @@
 #define STEREO_FREE_RIGHT_6_ODD_MASK                 0xFFFF0000u  /**< odd mask (16 bits) */
 #define STEREO_FREE_RIGHT_6_ODD_RESET                0u           /**< odd reset value */
 
-/* FREE_RIGHT_7 (read-only): Right camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
-#define STEREO_FREE_RIGHT_7_OFFSET                   0xCCu        /**< Right camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). */
+/* FREE_RIGHT_7 (read-only): Right camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
+#define STEREO_FREE_RIGHT_7_OFFSET                   0xCCu        /**< Right camera, last frame: free-space rows of bands 14 and 15 (the image row of the lowest obstacle run, scanning up from the bottom; 0xFFFF: none). Updated in the 16 cycles after each frame; 0xFFFF after reset (the SoC's table, hdl/freespace.py FreeSpaceTable). Reads 0 in a build without free space (SystemSoC's free_space, off by default). */
 #define STEREO_FREE_RIGHT_7_RESET                    0x0u         /**< FREE_RIGHT_7 value after reset */
 #define STEREO_FREE_RIGHT_7_EVEN_SHIFT               0u           /**< even: band 14: row, or 0xFFFF */
 #define STEREO_FREE_RIGHT_7_EVEN_MASK                0xFFFFu      /**< even mask (16 bits) */
