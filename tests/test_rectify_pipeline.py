@@ -141,7 +141,7 @@ def test_run_rectifies_a_test_rig_verilator(tmp_path, capsys):
     camera = Camera.from_json(tmp_path / "rig.json")
     rec = rectified_pipeline_frames([l2], [r2], params, params_for_rig(camera, w, h))[0].records
     assert len(rec) == summary["matches"]
-    _, within_rect, bad_rect = score(rec, gt, M, rig, M.doffs_px)
+    _, within_rect, bad_rect = score(rec, gt, M, camera)
     _, within, _ = score(pipeline_frames([l2], [r2], params)[0].records, gt)
     assert within_rect > 8000 > within and bad_rect < 0.08
 
