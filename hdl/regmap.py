@@ -369,8 +369,9 @@ REGISTERS: tuple[Register, ...] = (
 )
 
 
-def register(name: str) -> Register:
-    for reg in REGISTERS:
+def register(name: str, registers=REGISTERS) -> Register:
+    """The register ``name`` of ``registers`` (the main window's by default)."""
+    for reg in registers:
         if reg.name == name:
             return reg
     raise KeyError(name)
@@ -428,10 +429,12 @@ def tables():
     return {name: sorted(regs, key=lambda r: r.offset) for name, regs in runs.items()}
 
 
-def _check():
+def _check_layout(registers, window):
+    """Every register word-aligned inside ``window`` bytes, at its own offset, of a known kind;
+    its fields inside 32 bits, not overlapping, their resets within their widths."""
     offsets = set()
-    for reg in REGISTERS:
-        if reg.offset % 4 or not 0 <= reg.offset < REGS_WINDOW or reg.offset in offsets:
+    for reg in registers:
+        if reg.offset % 4 or not 0 <= reg.offset < window or reg.offset in offsets:
             raise ValueError(f"bad offset for {reg.name}")
         if reg.kind not in ("rw", "ro", "pulse", "fifo"):
             raise ValueError(f"bad kind for {reg.name}")
@@ -441,6 +444,11 @@ def _check():
             if f.lsb + f.width > 32 or used & f.mask or not 0 <= f.reset < (1 << f.width):
                 raise ValueError(f"bad field {reg.name}.{f.name}")
             used |= f.mask
+
+
+def _check():
+    _check_layout(REGISTERS, REGS_WINDOW)
+    for reg in REGISTERS:
         if reg.table is not None and reg.kind != "ro":
             raise ValueError(f"{reg.name}: only ro registers are read from a table")
     for name, run in tables().items():
@@ -553,27 +561,11 @@ RECT_REGISTERS: tuple[Register, ...] = (
 )
 
 
-def _check_rect():
-    offsets = set()
-    for reg in RECT_REGISTERS:
-        if reg.offset % 4 or not 0 <= reg.offset < RECT_MAP_OFFSET or reg.offset in offsets:
-            raise ValueError(f"bad offset for {reg.name}")
-        offsets.add(reg.offset)
-        used = 0
-        for f in reg.fields:
-            if f.lsb + f.width > 32 or used & f.mask:
-                raise ValueError(f"bad field {reg.name}.{f.name}")
-            used |= f.mask
-
-
-_check_rect()
+_check_layout(RECT_REGISTERS, RECT_MAP_OFFSET)
 
 
 def rect_register(name: str) -> Register:
-    for reg in RECT_REGISTERS:
-        if reg.name == name:
-            return reg
-    raise KeyError(name)
+    return register(name, RECT_REGISTERS)
 
 
 def rect_map_check(words) -> int:

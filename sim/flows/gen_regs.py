@@ -112,12 +112,21 @@ def _rect_markdown() -> list[str]:
     for reg in regmap.RECT_REGISTERS:
         out.append(f"| `0x{reg.offset:02X}` | {reg.name} | {reg.kind} | {reg.doc} |")
     for reg in regmap.RECT_REGISTERS:
-        out += ["", f"## {reg.name}", "",
-                f"Offset `0x{reg.offset:02X}`, {_KIND_TEXT[reg.kind]}. {reg.doc}", "",
-                "| Bits | Field | Description |", "|---|---|---|"]
-        for f in sorted(reg.fields, key=lambda f: -f.lsb):
-            bits = f"{f.lsb}" if f.width == 1 else f"{f.lsb + f.width - 1}:{f.lsb}"
-            out.append(f"| {bits} | `{f.name}` | {f.doc} |")
+        out += _register_section(reg, reset=False)
+    return out
+
+
+def _register_section(reg, *, reset):
+    """The Markdown section of one register: its offset, kind and text, and a row per field
+    (most significant first), with a Reset column when ``reset``."""
+    out = ["", f"## {reg.name}", "",
+           f"Offset `0x{reg.offset:02X}`, {_KIND_TEXT[reg.kind]}. {reg.doc}", ""]
+    out += (["| Bits | Field | Reset | Description |", "|---|---|---|---|"] if reset else
+            ["| Bits | Field | Description |", "|---|---|---|"])
+    for f in sorted(reg.fields, key=lambda f: -f.lsb):
+        bits = f"{f.lsb}" if f.width == 1 else f"{f.lsb + f.width - 1}:{f.lsb}"
+        out.append(f"| {bits} | `{f.name}` | {f.reset} | {f.doc} |" if reset else
+                   f"| {bits} | `{f.name}` | {f.doc} |")
     return out
 
 
@@ -171,12 +180,7 @@ def render_markdown() -> str:
         out.append(f"| `0x{reg.offset:02X}` | [{reg.name}](#{reg.name.lower()}) | {reg.kind} | "
                    f"`0x{reg.reset:08X}` | {reg.doc} |")
     for reg in regmap.REGISTERS:
-        out += ["", f"## {reg.name}", "",
-                f"Offset `0x{reg.offset:02X}`, {_KIND_TEXT[reg.kind]}. {reg.doc}", "",
-                "| Bits | Field | Reset | Description |", "|---|---|---|---|"]
-        for f in sorted(reg.fields, key=lambda f: -f.lsb):
-            bits = f"{f.lsb}" if f.width == 1 else f"{f.lsb + f.width - 1}:{f.lsb}"
-            out.append(f"| {bits} | `{f.name}` | {f.reset} | {f.doc} |")
+        out += _register_section(reg, reset=True)
     out += ["", "## Band summary unit", "",
             f"At `0x{regmap.BANDS_BASEADDR:08X}` ({regmap.BANDS_WINDOW} bytes) in the SoC with "
             "its CPU inside (`hdl/bands.py`, rule `golden/bands.py`, firmware "
