@@ -88,7 +88,8 @@ def test_params_check_lo():
 # RTL
 # ---------------------------------------------------------------------------------------------
 
-def _random_nodes(h, w, seed, reach=3.0, vreach=2.0):
+def random_nodes(h, w, seed, reach=3.0, vreach=2.0):
+    """A map of random node offsets (1/16 px) within +-reach columns and +-vreach rows."""
     rng = np.random.default_rng(seed)
     shape = grid_shape(w, h)
     n = np.zeros(shape, MAP_DTYPE)
@@ -127,7 +128,7 @@ def _run(frames, nodes, lo, span, *, seed=0, idle=0.0, stall=0.0, enable=1, extr
                                                ((9, 33), 3, 0, 2), ((5, 1), 4, -1, 2)])
 def test_rtl_bit_exact(shape, seed, lo, span):
     h, w = shape
-    nodes = _random_nodes(h, w, seed, vreach=span / 2)
+    nodes = random_nodes(h, w, seed, vreach=span / 2)
     frames = [_image(h, w, seed), _image(h, w, seed + 10)]
     _run(frames, nodes, lo, span, seed=seed)
 
@@ -135,14 +136,14 @@ def test_rtl_bit_exact(shape, seed, lo, span):
 @pytest.mark.parametrize("seed", [5, 6])
 def test_rtl_bit_exact_with_stalls(seed):
     h, w = 34, 66
-    nodes = _random_nodes(h, w, seed, vreach=3)
+    nodes = random_nodes(h, w, seed, vreach=3)
     frames = [_image(h, w, seed), _image(h, w, seed + 1)]
     _run(frames, nodes, -3, 6, seed=seed, idle=0.3, stall=0.3)
 
 
 def test_rtl_nearest_column_with_stalls():
     h, w = 30, 70
-    nodes = _random_nodes(h, w, 11, vreach=3)
+    nodes = random_nodes(h, w, 11, vreach=3)
     _run([_image(h, w, 11), _image(h, w, 12)], nodes, -3, 6, seed=11, idle=0.2, stall=0.3,
          horizontal="nearest")
 
@@ -158,7 +159,7 @@ def test_rtl_rig_map_and_disabled():
 @pytest.mark.parametrize("case", ["missing_sof", "short_line", "cut_short", "reset"])
 def test_rtl_recovers_from_malformed_frames(case):
     h, w = 12, 40
-    nodes = _random_nodes(h, w, 9, vreach=1.5)
+    nodes = random_nodes(h, w, 9, vreach=1.5)
     y, g = _image(h, w, 9)
     words, *_ = malformed_cases(P, dict(y=y, ground=g))[case]
     _run([(y, g)], nodes, -2, 4, seed=9, extra=words, max_width=64, max_height=16)

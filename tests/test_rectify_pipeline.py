@@ -11,6 +11,7 @@ from golden.rectify import MAP_DTYPE, RectifyParams, build_map, fits, grid_shape
 from sim.backends.run import run_unit
 from sim.scenes.data import crop, motorcycle
 from sim.units import UNITS, Job, records_from_words
+from tests.test_rectify import random_nodes
 
 
 def _records(job, backend, stalls):
@@ -35,15 +36,6 @@ def _crop_pair(w=48, h=20):
     return crop(left, w, h, 500, 300), crop(right, w, h, 500, 300)
 
 
-def _random_nodes(w, h, seed, reach=2.0, vreach=1.5):
-    rng = np.random.default_rng(seed)
-    shape = grid_shape(w, h)
-    n = np.zeros(shape, MAP_DTYPE)
-    n["dx"] = np.rint(rng.uniform(-reach, reach, shape) * 16)
-    n["dy"] = np.rint(rng.uniform(-vreach, vreach, shape) * 16)
-    return n
-
-
 def test_identity_map_equals_the_unrectified_pipeline():
     """Rectification on with a zero map: golden and RTL give the unrectified records."""
     l, r = _crop_pair()
@@ -65,7 +57,7 @@ def test_random_map_amaranth_with_stalls(seed, horizontal):
     l, r = _crop_pair()
     h, w = l.shape[:2]
     params = default_params(w, h, ground="luma", d_max=31, window=5)
-    nodes = _random_nodes(w, h, seed)
+    nodes = random_nodes(h, w, seed, reach=2.0, vreach=1.5)
     lo = row_window(nodes, w, h, 4)
     rect = RectifyParams(nodes, lo=lo, span=4, horizontal=horizontal)
     assert fits(nodes, w, h, lo, 4)
@@ -80,8 +72,8 @@ def test_disabled_rectifier_passes_the_image():
     l, r = _crop_pair()
     h, w = l.shape[:2]
     params = default_params(w, h, ground="off", d_max=31, window=5)
-    rect = RectifyParams(_random_nodes(w, h, 5), lo=-2, span=4, horizontal="nearest",
-                         enable=False)
+    rect = RectifyParams(random_nodes(h, w, 5, reach=2.0, vreach=1.5), lo=-2, span=4,
+                         horizontal="nearest", enable=False)
     job = Job([l], [r], params, max_width=64, max_height=32, max_disparity=31, rect=rect)
     plain = pipeline_frames([l], [r], params)[0]
     assert np.array_equal(job.golden[0].records, plain.records)
@@ -223,7 +215,7 @@ def test_random_map_icarus_with_stalls():
     l, r = _crop_pair()
     h, w = l.shape[:2]
     params = default_params(w, h, ground="luma", d_max=31, window=5)
-    nodes = _random_nodes(w, h, 6)
+    nodes = random_nodes(h, w, 6, reach=2.0, vreach=1.5)
     rect = RectifyParams(nodes, lo=row_window(nodes, w, h, 4), span=4, horizontal="nearest")
     job = Job([l], [r], params, max_width=64, max_height=32, max_disparity=31, rect=rect)
     assert _check(job, backend, 5) > 0
