@@ -4,6 +4,7 @@
  */
 #include "app.h"
 #include "floor.h"
+#include "floor_table.h"
 #include "hal.h"
 #include "stereo_regs.h"
 
@@ -106,13 +107,13 @@ static floor_line_t floor_line_of(uint32_t word)
 
 void app_floor_start(uint32_t regs_base)
 {
-    STEREO_WriteReg(regs_base, STEREO_FLOOR_LINE_OFFSET, STEREO_FLOOR_LINE_RESET);
+    STEREO_WriteReg(regs_base, STEREO_FLOOR_LINE_OFFSET, FLOOR_TABLE_LINE);
     STEREO_WriteReg(regs_base, STEREO_FLOOR_OFFSET,
                     STEREO_FLOOR_RESET | STEREO_SET(FLOOR, FLOOR_ENABLE, 1u));
 #if APP_FLOOR_LEARN
     app_floor.n = 0u;
     app_floor.full = 0u;
-    app_floor.rig = floor_line_of(STEREO_FLOOR_LINE_RESET);
+    app_floor.rig = floor_line_of(FLOOR_TABLE_LINE);
     app_floor.line = app_floor.rig;
     floor_default_params(&app_floor.params);
     app_floor.params.slope_max = APP_FLOOR_SLOPE_MAX;

@@ -38,7 +38,7 @@ from golden.ground import GroundMode, GroundModel, GroundParams, PeakGroundModel
 from golden.sobel import SobelParams, sobel_edges
 from sim.bench.common import write_table
 
-__all__ = ["FLOOR_LIMITS", "MOTORCYCLE_LIMITS", "motorcycle_truth", "floor_accuracy", "check_row",
+__all__ = ["FLOOR_LIMITS", "MOTORCYCLE_LIMITS", "motorcycle_plane", "motorcycle_truth", "floor_accuracy", "check_row",
            "motorcycle_accuracy", "check", "run", "markdown", "bench_section", "main"]
 
 FLOOR_LIMITS = dict(recall=0.95, obstacle_as_ground=0.05)
@@ -83,12 +83,11 @@ def floor_accuracy(width=320, height=240, **params):
     return rows
 
 
-def motorcycle_truth(gt, tolerance=1.5, refits=2):
-    """(floor, obstacle) boolean maps of the motorcycle pair: the floor plane is fitted (least
-    squares, disparity against column and row) to the finite disparities of the bottom quarter,
-    then ``refits`` times to those of the bottom quarter within ``tolerance`` px of the last
-    plane, so the obstacles standing there do not pull it; floor = every finite pixel within
-    ``tolerance`` of the final plane, obstacle = every other finite pixel."""
+def motorcycle_plane(gt, tolerance=1.5, refits=2):
+    """(a, b, c), the motorcycle pair's floor plane ``d = a x + b y + c`` (disparity in px at
+    column x, row y of ``gt``): fitted (least squares) to the finite disparities of the bottom
+    quarter, then ``refits`` times to those of the bottom quarter within ``tolerance`` px of
+    the last plane, so the obstacles standing there do not pull it."""
     h, w = gt.shape
     yy, xx = np.mgrid[0:h, 0:w]
     finite = np.isfinite(gt)
@@ -98,8 +97,20 @@ def motorcycle_truth(gt, tolerance=1.5, refits=2):
         a = np.stack([xx[fit], yy[fit], np.ones(fit.sum())], axis=1).astype(np.float64)
         coef, *_ = np.linalg.lstsq(a, gt[fit].astype(np.float64), rcond=None)
         plane = coef[0] * xx + coef[1] * yy + coef[2]
-        floor = finite & (np.abs(np.where(finite, gt, 0) - plane) <= tolerance)
-        fit = floor & bottom
+        fit = finite & (np.abs(np.where(finite, gt, 0) - plane) <= tolerance) & bottom
+    return tuple(float(c) for c in coef)
+
+
+def motorcycle_truth(gt, tolerance=1.5, refits=2):
+    """(floor, obstacle) boolean maps of the motorcycle pair: floor = every finite pixel within
+    ``tolerance`` px of the robust floor plane (:func:`motorcycle_plane`), obstacle = every
+    other finite pixel."""
+    h, w = gt.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    finite = np.isfinite(gt)
+    a, b, c = motorcycle_plane(gt, tolerance, refits)
+    plane = a * xx + b * yy + c
+    floor = finite & (np.abs(np.where(finite, gt, 0) - plane) <= tolerance)
     return floor, finite & ~floor
 
 

@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 
+from sim.flows.floor_table import scene_line
 from sim.system.cpu_run import CPU_FAULTS, LOST_FIELDS, run_cpu_system
 from sim.system.run import (FAULT_FIELD, FAULTS, SystemError_, _load, field_of, run_system,
                             scene_pair)
@@ -88,12 +89,15 @@ def main(argv=None):
             right = field_of(_load(args.right), args.width, args.height)
         else:
             left, right = scene_pair(args.scene, args.width, args.height)
+        # the scene's camera installation: its floor line (None: the nominal rig's)
+        line = None if args.left else scene_line(args.scene, args.width, args.height)
         if not host:
             res = run_cpu_system(left, right, frames=args.frames, fault=args.fault,
-                                 timing=args.timing, seed=args.seed)
+                                 timing=args.timing, seed=args.seed, floor_line=line)
         else:
             res = run_system(left, right, frames=args.frames, fault=args.fault,
-                             timing=args.timing, seed=args.seed, right_lead=args.right_lead)
+                             timing=args.timing, seed=args.seed, right_lead=args.right_lead,
+                             floor_line=line)
     except SystemError_ as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -16,8 +16,9 @@ Checks (the JSON line):
     ``record_valid``, ``record_word``) split into frames at the end-of-frame markers equal
     golden's (x, y, d) and floor flag frame for frame (with a fault: as :mod:`sim.system.run`,
     the frames before it and from the second pair after it). The firmware enables the floor
-    flag with the rig's line (FLOOR_LINE's reset value, ``hdl.regmap.RIG_FLOOR_LINE``) and
-    learns none (``firmware/include/app.h`` APP_FLOOR_LEARN): golden flags by that line
+    flag with the installed camera's line (its image's ``floor_table.h``: the scene's line,
+    ``sim.flows.floor_table.scene_line``, else FLOOR_LINE's reset value,
+    ``hdl.regmap.RIG_FLOOR_LINE``) and learns none (``firmware/include/app.h`` APP_FLOOR_LEARN): golden flags by that line
     (``golden.floor.floor_flags``); ``floor_points`` counts the flagged records.
 ``radio_packets``, ``radio_exact``
     The packets decoded from the pin; each one's bands equal the firmware's summary rule
@@ -125,8 +126,10 @@ def _xbee_answer(frame):
     return encode_frame(bytes([API_AT_RESPONSE, fid]) + cmd + b"\x00" + values[cmd])
 
 
-def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
-    """Simulate with the CPU inside; returns the result dict (the JSON line's fields)."""
+def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, floor_line=None):
+    """Simulate with the CPU inside; returns the result dict (the JSON line's fields).
+    ``floor_line``: the installed camera's floor line (``golden.floor.FloorLine``) the image is
+    built with (None: the nominal rig's)."""
     from sim.system import firmware
     from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
                                 _field_spans, camera_streams)
@@ -136,9 +139,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     from station.wire import API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
-    firmware.build_image()
-    image = firmware.image_words()
-    sections = firmware.sections()
+    image_path = firmware.build_image(floor_line)
+    image = firmware.image_words(image_path)
+    sections = firmware.sections(image_path.with_suffix(".elf"))
     ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
     rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
@@ -147,7 +150,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1):
     lib = _load(libpath)
 
     golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
-    floor = FloorParams(mode="rig", initial=regmap.RIG_FLOOR_LINE)
+    floor = FloorParams(mode="rig", initial=floor_line or regmap.RIG_FLOOR_LINE)
     want = [[(int(r["x"]), int(r["y"]), int(r["d"]), int(f)) for r, f in
              zip(g.records, floor_flags(g.records["y"], g.records["d16"], floor.initial, floor))]
             for g in golden]

@@ -31,18 +31,30 @@ class FirmwareBuildError(RuntimeError):
     """The cross build failed (its output is the message)."""
 
 
-def build_image() -> Path:
+def build_image(floor_line=None) -> Path:
     """``make -C firmware rv32``: build/firmware/firmware.{elf,bin,hex,size}; returns the .bin.
-    Raises :class:`FirmwareBuildError` with the build's output when it fails (no cross
-    compiler: ``make setup`` installs it)."""
+    With a ``floor_line`` (``golden.floor.FloorLine``, the installed camera's) the image takes
+    it from a generated table (``sim/flows/floor_table.py``) instead of the committed one, and
+    goes to a folder of its own, ``build/firmware/line-<FLOOR_LINE word>/`` (its ``.elf``
+    beside the returned ``.bin``). Raises :class:`FirmwareBuildError` with the build's output
+    when it fails (no cross compiler: ``make setup`` installs it)."""
     BUILD.mkdir(parents=True, exist_ok=True)
+    cmd, out = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"], BIN
     with open(BUILD / ".build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        r = subprocess.run(["make", "-s", "-C", str(ROOT / "firmware"), "rv32"],
-                           capture_output=True, text=True)
+        if floor_line is not None:
+            from sim.flows.floor_table import register_word, render
+            folder = BUILD / f"line-{register_word(floor_line):08x}"
+            folder.mkdir(exist_ok=True)
+            table, text = folder / "floor_table.h", render(floor_line)
+            if not table.exists() or table.read_text() != text:
+                table.write_text(text)
+            cmd += [f"RV_BUILD={folder}", f"FLOOR_TABLE_DIR={folder}"]
+            out = folder / BIN.name
+        r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         raise FirmwareBuildError(f"make -C firmware rv32 failed:\n{r.stdout}{r.stderr}")
-    return BIN
+    return out
 
 
 def sections(elf: Path = ELF) -> dict:
