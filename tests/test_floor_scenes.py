@@ -63,11 +63,17 @@ def test_floor_bench_one_scene(tmp_path, capsys):
     r = rep["scenes"]["planks"]
     assert set(bf.MODES) <= set(r) and r["off"]["good_ratio"] == 1.0
     assert r["geometry"]["floor_done"] > 0.8 and r["geometry"]["good_ratio"] > 0.95
+    assert r["geometry"]["level_done"] > 0.8
     assert r["off"]["floor_matches"] > 50 and r["off"]["floor_done"] == 0.0
+    assert 0 < r["off"]["floor_level"] <= r["off"]["floor_matches"]
+    assert r["off"]["level_done"] == 0.0
     assert r["appearance"]["work_saved"] > 0 and r["geometry"]["work_saved"] == 0.0
-    bad = {"scenes": {"x": {bf.DEFAULT_MODE: dict(good_ratio=0.5, floor_done=0.5)},
-                      "motorcycle": {bf.DEFAULT_MODE: dict(good_ratio=1.0, floor_done=0.7)}}}
-    assert len(bf.check(bad)) == 3
+    bad = {"scenes": {"x": {bf.DEFAULT_MODE: dict(good_ratio=0.5, level_done=0.5)},
+                      "motorcycle": {bf.DEFAULT_MODE: dict(good_ratio=1.0, level_done=0.7)},
+                      "grey": {"appearance_mode": "luma", "off": dict(accuracy=0.9),
+                               bf.DEFAULT_MODE: dict(good_ratio=1.0, level_done=1.0,
+                                                     accuracy=0.89)}}}
+    assert len(bf.check(bad)) == 4
     assert bf.main(["--out", str(tmp_path), "--scene", "nowhere"]) == 2
     assert capsys.readouterr().err.startswith("error: unknown scene")
 
@@ -83,3 +89,23 @@ def test_beside_obstacle_finds_the_obstacle_of_the_same_disparity():
     rec = np.zeros(5, RECORD_DTYPE_V2)
     rec["x"], rec["y"], rec["d16"] = [4, 3, 4, 8, 6], [0, 0, 0, 1, 0], [160, 160, 16 * 13, 160, 4]
     assert bf.beside_obstacle(gt, floor, rec).tolist() == [True, False, False, False, False]
+
+
+def test_floor_matches_at_the_floors_disparity_and_outline_points():
+    """score: a record at a floor pixel within 2 px of the floor's disparity is a floor match
+    at the floor's disparity; one with the disparity of an obstacle within 2 columns is an
+    outline point; any other is a mismatch; flagged ones are not counted as left."""
+    import sim.bench.floor as bf
+    from golden.matcher import RECORD_DTYPE_V2
+    floor = np.ones((4, 20), bool)
+    floor[:, 10] = False
+    gt = np.full((4, 20), 4.0)
+    gt[:, 10] = 12.0
+    rec = np.zeros(4, RECORD_DTYPE_V2)
+    # floor's disparity (flagged), floor's disparity, outline (x 8, obstacle at x 10), mismatch
+    rec["x"], rec["y"], rec["d16"] = [3, 4, 8, 16], [1, 2, 1, 2], [64, 70, 190, 160]
+    flags = np.array([1, 0, 0, 0], np.uint8)
+    stats = {"evaluations": 1, "edge_pixels": 1}
+    v = bf.score(rec, stats, flags, gt, floor)
+    assert (v["floor_matches"], v["floor_level"], v["floor_level_unflagged"]) == (4, 2, 1)
+    assert (v["outline"], v["outline_unflagged"], v["other_unflagged"]) == (1, 1, 1)
