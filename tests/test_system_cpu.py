@@ -56,6 +56,12 @@ def test_busy_scene_keeps_up():
     assert res["fifo_overflow"] == 0 and res["drops"] == 0
     assert res["radio_packets"] >= 1 and res["radio_exact"] and sum(res["radio_frames"]) >= 3
     assert res["cpu"]["busy_fraction"] <= 0.5
+    # the image flags by the motorcycle camera's floor line (its generated table), not the
+    # nominal rig's, whose line lies above many of its obstacle points
+    from sim.flows.floor_table import scene_line
+    line = scene_line("motorcycle")
+    assert res["floor_line"] == [line.slope, line.offset]
+    assert 0 < res["floor_points"] < res["records"] // 50
 
 
 @pytest.mark.parametrize("argv", [

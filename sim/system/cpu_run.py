@@ -19,7 +19,8 @@ Checks (the JSON line):
     flag with the installed camera's line (its image's ``floor_table.h``: the scene's line,
     ``sim.flows.floor_table.scene_line``, else FLOOR_LINE's reset value,
     ``hdl.regmap.RIG_FLOOR_LINE``) and learns none (``firmware/include/app.h`` APP_FLOOR_LEARN): golden flags by that line
-    (``golden.floor.floor_flags``); ``floor_points`` counts the flagged records.
+    (``golden.floor.floor_flags``); ``floor_points`` counts the flagged records, ``floor_line``
+    is that line (slope, offset).
 ``radio_packets``, ``radio_exact``
     The packets decoded from the pin; each one's bands equal the firmware's summary rule
     (``golden.bands``: :func:`~golden.bands.band_values` of :func:`~golden.bands.merge_tops` of
@@ -278,6 +279,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
         "record_fields": ["x", "y", "d", "floor"],
         "floor_points": sum(r[3] for f in out_frames for r in f),
+        "floor_line": [floor.initial.slope, floor.initial.offset],
         "radio_packets": len(packets),
         "radio_exact": bool(packets) and all(exact_packets),
         "radio_bands": [list(p.bands) for _c, p, _n in packets],
