@@ -121,8 +121,9 @@ class FloorParams:
     """The floor decision's parameters (the FLOOR registers of ``hdl/regmap.py`` hold ``tol``,
     ``tol_shift`` and the line; the learning parameters are the CPU's)."""
     mode: str = "learn"
-    #: Flag tolerance above the line, 1/16 px (24: 1.5 px), and its growth ``line16 >>
-    #: tol_shift`` (3: 1/8 of the floor's disparity).
+    #: Flag tolerance above the line, 1/16 px (4: 1/4 px), and its growth ``line16 >>
+    #: tol_shift`` (6: 1/64 of the floor's disparity): a point up to about a centimetre above
+    #: the floor of the nominal rig is a floor point (an obstacle's foot too).
     tol: int = 4
     tol_shift: int = 6
     #: Learning: slopes searched (1/256 px per row), the band half-width in bins, the weight
