@@ -86,8 +86,8 @@ static inline int hal_expired(uint32_t deadline)
     return (uint32_t)(hal_ticks() - deadline) < 0x80000000u;
 }
 
-/** Poll the register at addr until a bit of mask is set, at most timeout_us (hal_expired)
- *  and, as the backstop, HAL_POLL_CAP(timeout_us) reads. Returns FW_OK when the bit came,
+/** Poll the register at addr until a bit of mask is set, at most timeout_us (> 0, on
+ *  hal_expired) and, as the backstop, HAL_POLL_CAP(timeout_us) reads. Returns FW_OK when the bit came,
  *  FW_ERR_TIMEOUT otherwise. */
 int32_t hal_wait_set(uint32_t addr, uint32_t mask, uint32_t timeout_us);
 
