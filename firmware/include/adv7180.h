@@ -42,9 +42,12 @@
 
 /** After a soft reset the decoder does not answer for a while (datasheet: wait 5 ms before
  *  further IIC writes; Linux waits 5..10 ms). The driver polls PWR_MAN every
- *  ADV7180_RESET_POLL_US, at most ADV7180_RESET_POLLS times (20 ms in all). */
-#define ADV7180_RESET_POLL_US 1000u
-#define ADV7180_RESET_POLLS   20u
+ *  ADV7180_RESET_POLL_US until ADV7180_RESET_TIMEOUT_US (twice Linux's longest wait) have
+ *  passed on the timer, and at most ADV7180_RESET_POLLS times: the backstop for a clock that
+ *  does not advance, twice the polls the deadline allows (hal.h "Timeouts"). */
+#define ADV7180_RESET_POLL_US    1000u
+#define ADV7180_RESET_TIMEOUT_US 20000u
+#define ADV7180_RESET_POLLS      (2u * ADV7180_RESET_TIMEOUT_US / ADV7180_RESET_POLL_US)
 
 typedef struct {
     uint8_t reg; /**< register number */

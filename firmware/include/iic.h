@@ -1,8 +1,10 @@
 /**
  * @file iic.h
  * Polled IIC master driver for the AXI IIC-style controller (hdl/iic.py), dynamic mode.
- * Every wait is bounded by `timeout_polls` status-register reads and returns
- * FW_ERR_TIMEOUT when it runs out; after any error the controller is soft-reset so that the
+ * Every wait (the bus free, a received byte, the end of a transfer) ends at a deadline of
+ * IIC_TIMEOUT_US on the timer (hal_deadline_us) and returns FW_ERR_BUS_BUSY or
+ * FW_ERR_TIMEOUT; `timeout_polls` status polls end it too, a backstop for a clock that does
+ * not advance (hal.h "Timeouts"). After any error the controller is soft-reset so that the
  * next transfer starts clean.
  */
 #ifndef IIC_H
@@ -10,20 +12,30 @@
 
 #include <stdint.h>
 #include "fw_status.h"
+#include "hal.h"
 
-/** Default poll bound. One poll is an I/O-bus read plus loop overhead, about 10 cycles on
- *  an MCS at 50 MHz, so 20000 polls = about 4 ms: more than a whole 4-byte transfer at
- *  100 kHz (about 0.4 ms) with generous clock stretching. */
-#define IIC_DEFAULT_TIMEOUT_POLLS 20000u
+/** Deadline of one wait. The longest of this driver's waits is for the first byte of a
+ *  read: START, address, register, repeated START, address and the byte, five bytes of 9
+ *  SCL clocks, 0.45 ms at 100 kHz (hdl/iic.py's rate at 50 MHz; 0.11 ms at 400 kHz). 2 ms
+ *  leaves four times that for a device stretching SCL. */
+#ifndef IIC_TIMEOUT_US
+#define IIC_TIMEOUT_US 2000u
+#endif
+
+/** Default poll cap: never reached before IIC_TIMEOUT_US on a running timer (hal.h
+ *  HAL_POLL_CAP). */
+#define IIC_DEFAULT_TIMEOUT_POLLS HAL_POLL_CAP(IIC_TIMEOUT_US)
 
 typedef struct {
     uint32_t base;           /**< controller base address */
-    uint32_t timeout_polls;  /**< bound of every wait */
+    uint32_t timeout_polls;  /**< poll cap of every wait (the backstop to IIC_TIMEOUT_US) */
     uint32_t polls;          /**< polls used by the last call (for tests and tuning) */
     uint32_t errors;         /**< transfers that returned an error since iic_init */
 } iic_dev_t;
 
-/** Reset and enable the controller. timeout_polls 0 selects IIC_DEFAULT_TIMEOUT_POLLS. */
+/** Reset and enable the controller. timeout_polls 0 selects IIC_DEFAULT_TIMEOUT_POLLS; a
+ *  smaller cap ends a wait before its deadline when the polls are fast (the co-simulation's
+ *  host build, whose clock stands still while it polls, uses one). */
 fw_status_t iic_init(iic_dev_t *dev, uint32_t base, uint32_t timeout_polls);
 
 /** Write one 8-bit register: START, addr7+W, reg, val, STOP. */

@@ -15,10 +15,12 @@
  *  3. switches its UART to 115200 baud and checks again in API mode that AP = 2 and MY is
  *     the configured address.
  *
- * Every response is checked and every wait is bounded (XBEE_RESPONSE_US per response, the
- * guard times around "+++"): with no module at all it returns FW_ERR_TIMEOUT after about
- * 2 x (2 x XBEE_GUARD_US + XBEE_RESPONSE_US) + 3 x XBEE_RESPONSE_US. A module that answers
- * something else ("ERROR", a wrong value, a bad frame) gives FW_ERR_RX.
+ * Every response is checked and every wait is bounded: XBEE_RESPONSE_US per byte of a
+ * response, on the timer (hal_deadline_us, with XBEE_RESPONSE_POLLS polls as the backstop,
+ * hal.h "Timeouts"), and the guard times around "+++" (delays). With no module at all it
+ * returns FW_ERR_TIMEOUT after about 2 x (2 x XBEE_GUARD_US + XBEE_RESPONSE_US) +
+ * 3 x XBEE_RESPONSE_US. A module that answers something else ("ERROR", a wrong value, a bad
+ * frame) gives FW_ERR_RX.
  */
 #ifndef XBEE_H
 #define XBEE_H
@@ -30,10 +32,16 @@
 #define XBEE_LINK_BAUD      115200u
 #define XBEE_BD_LINK        7u         /**< ATBD value for 115200 baud */
 #define XBEE_GUARD_US       1100000u   /**< GT (1 s factory default) plus 10 % */
-#define XBEE_RESPONSE_US    200000u    /**< longest wait for one response */
+/** Longest wait for a byte of a response: the first byte covers the module's work on the
+ *  command (WR, which writes its flash, takes longest), the next ones follow within a frame
+ *  (1.04 ms at 9600 baud). */
+#define XBEE_RESPONSE_US    200000u
 #define XBEE_POLL_US        20u        /**< delay between two polls of an empty UART: below one
                                              byte time at 115200 baud (87 us), as the UART
                                              holds one received byte */
+/** Poll cap of one response wait: twice the polls XBEE_RESPONSE_US allows, as each poll
+ *  waits XBEE_POLL_US. */
+#define XBEE_RESPONSE_POLLS (2u * XBEE_RESPONSE_US / XBEE_POLL_US)
 #define XBEE_AT_FRAME_ID    0x52u      /**< frame id of the API-mode AT queries */
 #define XBEE_ROBOT_ADDR     0x0002u    /**< MY of the robot's module */
 #define XBEE_STATION_ADDR   0x0001u    /**< DL: the base station (app.h APP_RADIO_DEST) */

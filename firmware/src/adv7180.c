@@ -61,11 +61,13 @@ fw_status_t adv7180_check_id(adv7180_t *dec)
 fw_status_t adv7180_reset(adv7180_t *dec)
 {
     uint32_t i;
+    uint32_t deadline;
     fw_status_t st = iic_write_reg8(dec->iic, dec->addr7, ADV7180_REG_PWR_MAN,
                                     ADV7180_PWR_MAN_RES);
     if (st != FW_OK) {
         return st;
     }
+    deadline = hal_deadline_us(ADV7180_RESET_TIMEOUT_US);
     for (i = 0u; i < ADV7180_RESET_POLLS; i++) {
         uint8_t pwr = 0xFFu;
         hal_delay_us(ADV7180_RESET_POLL_US);
@@ -75,6 +77,9 @@ fw_status_t adv7180_reset(adv7180_t *dec)
         }
         if (st != FW_OK && st != FW_ERR_NACK) {
             return st; /* a timeout or a lost arbitration is not "still resetting" */
+        }
+        if (hal_expired(deadline)) {
+            break;
         }
     }
     return FW_ERR_TIMEOUT;

@@ -40,12 +40,9 @@ int32_t hal_uart_write(const uint8_t *data, uint32_t len)
 {
     uint32_t i;
     for (i = 0; i < len; i++) {
-        uint32_t polls = 0u;
-        while ((Xil_In32(HAL_UART_BASEADDR + HAL_UART_STATUS_OFFSET) & HAL_UART_STATUS_TX_READY)
-               == 0u) {
-            if (++polls >= HAL_UART_TIMEOUT_POLLS) {
-                return FW_ERR_TIMEOUT;
-            }
+        if (hal_wait_set(HAL_UART_BASEADDR + HAL_UART_STATUS_OFFSET, HAL_UART_STATUS_TX_READY,
+                         HAL_UART_TX_TIMEOUT_US) != FW_OK) {
+            return FW_ERR_TIMEOUT;
         }
         Xil_Out32(HAL_UART_BASEADDR + HAL_UART_DATA_OFFSET, data[i]);
     }
@@ -92,10 +89,18 @@ void Xil_Out32(uint32_t addr, uint32_t value)
 }
 
 static uint32_t host_ticks;
+static hal_ticks_fn ticks_hook;
+static void *ticks_ctx;
+
+void hal_set_ticks_hook(hal_ticks_fn ticks, void *ctx)
+{
+    ticks_hook = ticks;
+    ticks_ctx = ctx;
+}
 
 void hal_delay_us(uint32_t us)
 {
-    host_ticks += us * (HAL_CPU_HZ / 1000000u);
+    host_ticks += us * HAL_TICKS_PER_US;
     if (hook_delay != NULL) {
         hook_delay(hook_ctx, us);
     }
@@ -103,7 +108,7 @@ void hal_delay_us(uint32_t us)
 
 uint32_t hal_ticks(void)
 {
-    return host_ticks;
+    return host_ticks + (ticks_hook != NULL ? ticks_hook(ticks_ctx) : 0u);
 }
 
 int32_t hal_uart_write(const uint8_t *data, uint32_t len)
@@ -123,6 +128,21 @@ int32_t hal_uart_put(uint8_t byte)
 }
 
 #endif
+
+int32_t hal_wait_set(uint32_t addr, uint32_t mask, uint32_t timeout_us)
+{
+    uint32_t deadline = hal_deadline_us(timeout_us);
+    uint32_t polls;
+    for (polls = 0u; polls < HAL_POLL_CAP(timeout_us); polls++) {
+        if ((Xil_In32(addr) & mask) != 0u) {
+            return FW_OK;
+        }
+        if (hal_expired(deadline)) {
+            break;
+        }
+    }
+    return FW_ERR_TIMEOUT;
+}
 
 const char *fw_status_str(fw_status_t st)
 {

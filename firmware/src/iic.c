@@ -3,9 +3,10 @@
  * Polled IIC master over the AXI IIC register layout (PG090 "Dynamic Controller Logic
  * Flow"): a START flag on the address word, a STOP flag on the last data word, and for a
  * read, the byte count written after the address. Unlike Xilinx's XIic_Send/XIic_Recv, every
- * poll loop here has a bound and returns a status.
+ * wait here ends at a deadline (iic.h) and returns a status.
  */
 #include "iic.h"
+#include "hal.h"
 #include "xiic_l.h"
 
 static void iic_clear_isr(uint32_t base)
@@ -36,19 +37,6 @@ fw_status_t iic_init(iic_dev_t *dev, uint32_t base, uint32_t timeout_polls)
     return FW_OK;
 }
 
-/** Wait until the bus is free (no transfer of ours or anybody else's in progress). */
-static fw_status_t iic_wait_bus_free(iic_dev_t *dev)
-{
-    uint32_t n;
-    for (n = 0u; n < dev->timeout_polls; n++) {
-        dev->polls++;
-        if ((XIic_ReadReg(dev->base, XIIC_SR_REG_OFFSET) & XIIC_SR_BUS_BUSY_MASK) == 0u) {
-            return FW_OK;
-        }
-    }
-    return FW_ERR_BUS_BUSY;
-}
-
 /** Check the interrupt status for the two errors a transfer can end with. */
 static fw_status_t iic_isr_error(uint32_t isr)
 {
@@ -61,44 +49,46 @@ static fw_status_t iic_isr_error(uint32_t isr)
     return FW_OK;
 }
 
-/** Wait until the transfer queued in the TX FIFO ends: TX FIFO empty and the STOP sent
- *  (bus not busy), or an error. */
-static fw_status_t iic_wait_done(iic_dev_t *dev)
+/* what iic_wait waits for */
+#define IIC_WAIT_BUS_FREE 0u  /* no transfer of ours or anybody else's in progress */
+#define IIC_WAIT_DONE     1u  /* the queued transfer ended: TX FIFO empty and the STOP sent */
+#define IIC_WAIT_RX       2u  /* one received byte, into *byte */
+
+/** One wait: until `what` (or an error, but for IIC_WAIT_BUS_FREE), at most IIC_TIMEOUT_US,
+ *  and dev->timeout_polls polls as the backstop. FW_ERR_BUS_BUSY or FW_ERR_TIMEOUT when it
+ *  runs out. */
+static fw_status_t iic_wait(iic_dev_t *dev, uint32_t what, uint8_t *byte)
 {
+    uint32_t deadline = hal_deadline_us(IIC_TIMEOUT_US);
     uint32_t n;
     for (n = 0u; n < dev->timeout_polls; n++) {
         uint32_t sr;
         fw_status_t st;
         dev->polls++;
-        st = iic_isr_error(XIic_ReadReg(dev->base, XIIC_IISR_OFFSET));
-        if (st != FW_OK) {
-            return st;
+        if (what == IIC_WAIT_RX) {
+            if ((XIic_ReadReg(dev->base, XIIC_SR_REG_OFFSET) & XIIC_SR_RX_FIFO_EMPTY_MASK) == 0u) {
+                *byte = (uint8_t)(XIic_ReadReg(dev->base, XIIC_DRR_REG_OFFSET) & 0xFFu);
+                return FW_OK;
+            }
         }
-        sr = XIic_ReadReg(dev->base, XIIC_SR_REG_OFFSET);
-        if ((sr & XIIC_SR_TX_FIFO_EMPTY_MASK) != 0u && (sr & XIIC_SR_BUS_BUSY_MASK) == 0u) {
-            return FW_OK;
+        if (what != IIC_WAIT_BUS_FREE) {
+            st = iic_isr_error(XIic_ReadReg(dev->base, XIIC_IISR_OFFSET));
+            if (st != FW_OK) {
+                return st;
+            }
         }
-    }
-    return FW_ERR_TIMEOUT;
-}
-
-/** Wait for one received byte. */
-static fw_status_t iic_wait_rx(iic_dev_t *dev, uint8_t *byte)
-{
-    uint32_t n;
-    for (n = 0u; n < dev->timeout_polls; n++) {
-        fw_status_t st;
-        dev->polls++;
-        if ((XIic_ReadReg(dev->base, XIIC_SR_REG_OFFSET) & XIIC_SR_RX_FIFO_EMPTY_MASK) == 0u) {
-            *byte = (uint8_t)(XIic_ReadReg(dev->base, XIIC_DRR_REG_OFFSET) & 0xFFu);
-            return FW_OK;
+        if (what != IIC_WAIT_RX) {
+            sr = XIic_ReadReg(dev->base, XIIC_SR_REG_OFFSET);
+            if ((sr & XIIC_SR_BUS_BUSY_MASK) == 0u &&
+                (what == IIC_WAIT_BUS_FREE || (sr & XIIC_SR_TX_FIFO_EMPTY_MASK) != 0u)) {
+                return FW_OK;
+            }
         }
-        st = iic_isr_error(XIic_ReadReg(dev->base, XIIC_IISR_OFFSET));
-        if (st != FW_OK) {
-            return st;
+        if (hal_expired(deadline)) {
+            break;
         }
     }
-    return FW_ERR_TIMEOUT;
+    return what == IIC_WAIT_BUS_FREE ? FW_ERR_BUS_BUSY : FW_ERR_TIMEOUT;
 }
 
 /** End of every transfer: count errors, leave the controller clean. */
@@ -108,7 +98,7 @@ static fw_status_t iic_finish(iic_dev_t *dev, fw_status_t st)
         dev->errors++;
         if (st == FW_ERR_NACK || st == FW_ERR_ARBITRATION) {
             /* the controller sends STOP itself after a NACK: give it the time to */
-            (void)iic_wait_bus_free(dev);
+            (void)iic_wait(dev, IIC_WAIT_BUS_FREE, NULL);
         }
         iic_reinit(dev->base);
     }
@@ -119,7 +109,7 @@ static fw_status_t iic_start(iic_dev_t *dev)
 {
     fw_status_t st;
     dev->polls = 0u;
-    st = iic_wait_bus_free(dev);
+    st = iic_wait(dev, IIC_WAIT_BUS_FREE, NULL);
     if (st != FW_OK) {
         return st;
     }
@@ -141,7 +131,7 @@ fw_status_t iic_write_reg8(iic_dev_t *dev, uint8_t addr7, uint8_t reg, uint8_t v
                   XIIC_TX_DYN_START_MASK | ((uint32_t)addr7 << 1) | XIIC_WRITE_OPERATION);
     XIic_WriteReg(dev->base, XIIC_DTR_REG_OFFSET, reg);
     XIic_WriteReg(dev->base, XIIC_DTR_REG_OFFSET, XIIC_TX_DYN_STOP_MASK | val);
-    return iic_finish(dev, iic_wait_done(dev));
+    return iic_finish(dev, iic_wait(dev, IIC_WAIT_DONE, NULL));
 }
 
 fw_status_t iic_read_regs(iic_dev_t *dev, uint8_t addr7, uint8_t reg, uint8_t *buf,
@@ -163,12 +153,12 @@ fw_status_t iic_read_regs(iic_dev_t *dev, uint8_t addr7, uint8_t reg, uint8_t *b
                   XIIC_TX_DYN_START_MASK | ((uint32_t)addr7 << 1) | XIIC_READ_OPERATION);
     XIic_WriteReg(dev->base, XIIC_DTR_REG_OFFSET, XIIC_TX_DYN_STOP_MASK | len);
     for (i = 0u; i < len; i++) {
-        st = iic_wait_rx(dev, &buf[i]);
+        st = iic_wait(dev, IIC_WAIT_RX, &buf[i]);
         if (st != FW_OK) {
             return iic_finish(dev, st);
         }
     }
-    return iic_finish(dev, iic_wait_done(dev));
+    return iic_finish(dev, iic_wait(dev, IIC_WAIT_DONE, NULL));
 }
 
 fw_status_t iic_read_reg8(iic_dev_t *dev, uint8_t addr7, uint8_t reg, uint8_t *val)

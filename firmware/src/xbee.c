@@ -3,22 +3,28 @@
  * AT-command start-up of the XBee module (see xbee.h for the sequence and the bounds).
  */
 #include "xbee.h"
+#include "hal.h"
 #include "radio.h"
 
 #include <stddef.h>
 
-/* Read one byte within XBEE_RESPONSE_US. */
+/* Read one byte within XBEE_RESPONSE_US on the timer (hal_deadline_us), polling every
+ * XBEE_POLL_US; XBEE_RESPONSE_POLLS polls end it too, the backstop for a clock that does not
+ * advance (hal.h "Timeouts"). */
 static int read_byte(const xbee_io_t *io, uint8_t *b)
 {
-    uint32_t waited = 0u;
-    while (io->read(io->ctx, b) == 0) {
-        if (waited >= XBEE_RESPONSE_US) {
-            return 0;
+    uint32_t deadline = hal_deadline_us(XBEE_RESPONSE_US);
+    uint32_t polls;
+    for (polls = 0u; polls < XBEE_RESPONSE_POLLS; polls++) {
+        if (io->read(io->ctx, b) != 0) {
+            return 1;
+        }
+        if (hal_expired(deadline)) {
+            break;
         }
         io->delay_us(io->ctx, XBEE_POLL_US);
-        waited += XBEE_POLL_US;
     }
-    return 1;
+    return 0;
 }
 
 static void drain(const xbee_io_t *io)

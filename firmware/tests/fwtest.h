@@ -34,6 +34,7 @@ void fwt_run(const char *name, fwt_fn fn);
 #define FWT_RUN(fn) fwt_run(#fn, fn)
 
 /* suites, one per firmware module */
+void suite_hal(void);
 void suite_iic(void);
 void suite_adv7180(void);
 void suite_pipeline(void);

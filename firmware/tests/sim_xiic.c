@@ -264,9 +264,27 @@ static void sim_uart(void *ctx, const uint8_t *data, uint32_t len)
 void sim_install(sim_xiic_t *s)
 {
     hal_set_bus_hook(sim_read, sim_write, sim_delay, sim_uart, s);
+    hal_set_ticks_hook(NULL, NULL);
 }
 
 void sim_uninstall(void)
 {
     hal_set_bus_hook(NULL, NULL, NULL, NULL, NULL);
+    hal_set_ticks_hook(NULL, NULL);
+}
+
+static uint32_t sim_ticks(void *ctx)
+{
+    sim_xiic_t *s = ctx;
+    return s->ticks_base + s->accesses * s->ticks_per_access;
+}
+
+void sim_clock(sim_xiic_t *s, uint32_t ticks_per_access, uint32_t start)
+{
+    uint32_t delays;
+    hal_set_ticks_hook(NULL, NULL);
+    delays = hal_ticks();                    /* the delays' share of hal_ticks */
+    s->ticks_per_access = ticks_per_access;
+    s->ticks_base = start - delays - s->accesses * ticks_per_access;
+    hal_set_ticks_hook(sim_ticks, s);
 }

@@ -45,6 +45,8 @@ typedef struct {
     int n_devs;
     uint32_t accesses;
     uint32_t delays_us;
+    uint32_t ticks_per_access;   /**< sim_clock: core cycles a bus access costs */
+    uint32_t ticks_base;         /**< sim_clock: the ticks hook's count at 0 accesses */
     uint32_t regfile[64];     /**< register block model (RW, no side effects) */
     uint32_t result_fifo[256];   /**< RESULT words of the queued records */
     uint32_t result_ext[256];    /**< their RESULT_EXT words */
@@ -57,8 +59,12 @@ typedef struct {
 void sim_init(sim_xiic_t *s, uint32_t base);
 sim_dev_t *sim_add_dev(sim_xiic_t *s, uint8_t addr7);
 sim_dev_t *sim_add_adv7180(sim_xiic_t *s, uint8_t addr7);
-/** Install s as the HAL bus hook. */
+/** Install s as the HAL bus hook (and no ticks hook: polls take no time). */
 void sim_install(sim_xiic_t *s);
 void sim_uninstall(void);
+/** From now on every bus access costs ticks_per_access core cycles on the HAL's clock
+ *  (hal_set_ticks_hook), which reads `start` now: a modelled poll cost, so that a wait's
+ *  deadline passes while it polls. */
+void sim_clock(sim_xiic_t *s, uint32_t ticks_per_access, uint32_t start);
 
 #endif /* SIM_XIIC_H */

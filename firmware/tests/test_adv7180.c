@@ -87,7 +87,29 @@ static void test_reset_never_ends(void)
     d->busy_after_reset = 1000;
     adv7180_bind(&dec, &iic, 0x20);
     FWT_CHECK_EQ(adv7180_init(&dec), FW_ERR_TIMEOUT);
-    FWT_CHECK_EQ(sim.delays_us, ADV7180_RESET_POLLS * ADV7180_RESET_POLL_US);
+    /* only the delays take time here: the deadline passes after its number of polls */
+    FWT_CHECK_EQ(sim.delays_us, ADV7180_RESET_TIMEOUT_US);
+}
+
+static void test_reset_wait_counts_the_bus_time(void)
+{
+    /* each bus access costs 5 us, a poll's IIC read about 0.1 ms: the deadline passes after
+     * fewer polls than with free reads, within one poll of it */
+    adv7180_t dec;
+    sim_dev_t *d;
+    uint32_t t0, elapsed;
+    setup();
+    d = sim_add_adv7180(&sim, 0x20);
+    d->busy_after_reset = 1000;
+    adv7180_bind(&dec, &iic, 0x20);
+    sim_clock(&sim, 5u * HAL_TICKS_PER_US, 0u - 1000u);
+    t0 = hal_ticks();
+    FWT_CHECK_EQ(adv7180_reset(&dec), FW_ERR_TIMEOUT);
+    elapsed = hal_ticks() - t0;
+    FWT_CHECK(sim.delays_us < ADV7180_RESET_TIMEOUT_US);
+    FWT_CHECK(elapsed >= ADV7180_RESET_TIMEOUT_US * HAL_TICKS_PER_US);
+    FWT_CHECK(elapsed <= (ADV7180_RESET_TIMEOUT_US + 2u * ADV7180_RESET_POLL_US) * HAL_TICKS_PER_US);
+    sim_uninstall();
 }
 
 static void test_nack_and_stuck(void)
@@ -146,6 +168,7 @@ void suite_adv7180(void)
     FWT_RUN(test_init_writes_table);
     FWT_RUN(test_wrong_id);
     FWT_RUN(test_reset_never_ends);
+    FWT_RUN(test_reset_wait_counts_the_bus_time);
     FWT_RUN(test_nack_and_stuck);
     FWT_RUN(test_two_decoders);
     FWT_RUN(test_table_stops_at_first_error);

@@ -1,5 +1,6 @@
 /* IIC driver against the simulated AXI IIC controller. */
 #include "fwtest.h"
+#include "hal.h"
 #include "iic.h"
 #include "sim_xiic.h"
 #include "stereo_regs.h"
@@ -96,6 +97,71 @@ static void test_held_scl_times_out(void)
     FWT_CHECK_EQ(iic.errors, 2);
 }
 
+/* A modelled poll cost: 25 core cycles a bus access (0.5 us at 50 MHz). */
+#define ACCESS_TICKS 25u
+#define DEADLINE_TICKS (IIC_TIMEOUT_US * HAL_TICKS_PER_US)
+/* what a call does besides its polls: set-up, the TX FIFO words, the recovery */
+#define OVERHEAD_TICKS (20u * ACCESS_TICKS)
+
+/* A transfer whose end never comes fails at the deadline, with the clock started at `start`:
+ * not before it, and within one poll plus the call's overhead after it. */
+static void check_held_scl_at_deadline(uint32_t start)
+{
+    sim_dev_t *d;
+    uint8_t v = 0u;
+    uint32_t t0, elapsed;
+    sim_init(&sim, STEREO_IIC_BASEADDR);
+    sim_install(&sim);
+    iic_init(&iic, STEREO_IIC_BASEADDR, 0u);
+    d = sim_add_dev(&sim, 0x21);
+    d->hold_scl = 1;
+    sim_clock(&sim, ACCESS_TICKS, start);
+    t0 = hal_ticks();
+    FWT_CHECK_EQ(t0, start);
+    FWT_CHECK_EQ(iic_write_reg8(&iic, 0x21, 0x00, 0x00), FW_ERR_TIMEOUT);
+    elapsed = hal_ticks() - t0;
+    FWT_CHECK(elapsed >= DEADLINE_TICKS);
+    FWT_CHECK(elapsed <= DEADLINE_TICKS + OVERHEAD_TICKS);
+    FWT_CHECK(iic.polls < iic.timeout_polls);        /* the deadline ended it, not the cap */
+    /* the bus stays busy: the next transfer waits for it until the deadline too */
+    t0 = hal_ticks();
+    FWT_CHECK_EQ(iic_read_reg8(&iic, 0x21, 0x00, &v), FW_ERR_BUS_BUSY);
+    elapsed = hal_ticks() - t0;
+    FWT_CHECK(elapsed >= DEADLINE_TICKS);
+    FWT_CHECK(elapsed <= DEADLINE_TICKS + OVERHEAD_TICKS);
+    sim_uninstall();
+}
+
+static void test_wait_ends_at_the_deadline(void)
+{
+    check_held_scl_at_deadline(1000u);
+}
+
+static void test_deadline_across_the_tick_counters_wrap(void)
+{
+    /* the deadline lies past 2^32: a plain comparison would end the wait at once */
+    check_held_scl_at_deadline(0u - DEADLINE_TICKS / 2u);
+    check_held_scl_at_deadline(0u - 1u);
+}
+
+static void test_transfer_ends_before_the_deadline(void)
+{
+    sim_dev_t *d;
+    uint8_t buf[4] = { 0 };
+    uint32_t t0;
+    setup();
+    iic_init(&iic, STEREO_IIC_BASEADDR, 0u);
+    d = sim_add_dev(&sim, 0x10);
+    d->regs[3] = 0x77;
+    sim_clock(&sim, ACCESS_TICKS, 0u - 100u);       /* the counter wraps during the transfer */
+    t0 = hal_ticks();
+    FWT_CHECK_EQ(iic_read_regs(&iic, 0x10, 3, buf, 4), FW_OK);
+    FWT_CHECK_EQ(buf[0], 0x77);
+    FWT_CHECK(hal_ticks() - t0 < DEADLINE_TICKS / 10u);
+    FWT_CHECK_EQ(iic.errors, 0);
+    sim_uninstall();
+}
+
 static void test_no_hook_never_hangs(void)
 {
     /* an empty bus reads all ones: BUS_BUSY set forever -> bounded BUS_BUSY */
@@ -118,6 +184,9 @@ void suite_iic(void)
     FWT_RUN(test_absent_device_nacks);
     FWT_RUN(test_nacking_device);
     FWT_RUN(test_held_scl_times_out);
+    FWT_RUN(test_wait_ends_at_the_deadline);
+    FWT_RUN(test_deadline_across_the_tick_counters_wrap);
+    FWT_RUN(test_transfer_ends_before_the_deadline);
     FWT_RUN(test_no_hook_never_hangs);
     FWT_RUN(test_status_strings);
 }

@@ -5,6 +5,8 @@ extern int fwt_failed;
 
 int main(void)
 {
+    printf("# hal\n");
+    suite_hal();
     printf("# iic\n");
     suite_iic();
     printf("# adv7180\n");

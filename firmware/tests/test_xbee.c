@@ -1,6 +1,7 @@
 /* XBee AT-command start-up against a simulated module (command mode with guard times,
  * AT commands applied at CN, API mode 2 AT queries, a baud rate that must match). */
 #include "fwtest.h"
+#include "hal.h"
 #include "radio.h"
 #include "xbee.h"
 
@@ -32,6 +33,7 @@ typedef struct {
     const char *error_cmd;   /* answer ERROR to this command */
     uint32_t nv_writes;
     uint32_t commands;
+    uint32_t read_cost_us;   /* time a read of the UART takes */
 } sim_xbee_t;
 
 static void out_put(sim_xbee_t *m, const uint8_t *d, uint32_t n)
@@ -198,6 +200,7 @@ static void sim_write(void *ctx, const uint8_t *d, uint32_t n)
 static int sim_read(void *ctx, uint8_t *b)
 {
     sim_xbee_t *m = ctx;
+    m->now_us += m->read_cost_us;
     if (m->out_head == m->out_tail) {
         return 0;
     }
@@ -240,10 +243,17 @@ static void factory(sim_xbee_t *m)
 
 static const xbee_config_t cfg = { 0x0002, 0x0001, 0x1234 };
 
+/* The HAL's clock (the firmware's deadlines) is the module's time. */
+static uint32_t sim_ticks(void *ctx)
+{
+    return ((sim_xbee_t *)ctx)->now_us * HAL_TICKS_PER_US;
+}
+
 static void io_of(xbee_io_t *io, sim_xbee_t *m)
 {
     io->write = sim_write; io->read = sim_read; io->set_baud = sim_set_baud;
     io->delay_us = sim_delay; io->ctx = m;
+    hal_set_ticks_hook(sim_ticks, m);
 }
 
 static void test_factory_module_is_configured(void)
@@ -314,6 +324,39 @@ static void test_no_module_times_out_in_bounds(void)
     FWT_CHECK_EQ(xbee_configure(&io, &cfg, NULL), FW_ERR_TIMEOUT);
     FWT_CHECK(m.now_us <= 2u * (2u * XBEE_GUARD_US + XBEE_RESPONSE_US) + 3u * XBEE_RESPONSE_US
               + 10000u);
+}
+
+/* With no module, the time xbee_configure takes: the first API query's wait, then command
+ * mode at both bauds (a guard time either side of "+++" and the wait for "OK"). */
+#define NO_MODULE_US (XBEE_RESPONSE_US + 2u * (2u * XBEE_GUARD_US + XBEE_RESPONSE_US))
+
+static void test_response_waits_end_at_their_deadlines(void)
+{
+    static sim_xbee_t m;
+    xbee_io_t io;
+    factory(&m);
+    m.present = 0;
+    io_of(&io, &m);
+    FWT_CHECK_EQ(xbee_configure(&io, &cfg, NULL), FW_ERR_TIMEOUT);
+    FWT_CHECK(m.now_us >= NO_MODULE_US);
+    FWT_CHECK(m.now_us <= NO_MODULE_US + 3u * XBEE_POLL_US);
+}
+
+static void test_slow_reads_count_against_the_deadline(void)
+{
+    /* every read of the UART takes longer than the pause between polls: the waits still end
+     * at their deadlines, after fewer polls */
+    static sim_xbee_t m;
+    xbee_io_t io;
+    factory(&m);
+    m.present = 0;
+    m.read_cost_us = 3u * XBEE_POLL_US;
+    io_of(&io, &m);
+    FWT_CHECK_EQ(xbee_configure(&io, &cfg, NULL), FW_ERR_TIMEOUT);
+    FWT_CHECK(m.now_us >= NO_MODULE_US);
+    /* past each of the three deadlines by at most a poll, and a read to drain the UART
+     * before each */
+    FWT_CHECK(m.now_us <= NO_MODULE_US + 3u * (XBEE_POLL_US + 2u * m.read_cost_us));
 }
 
 static void test_error_answer_stops_before_writing(void)
@@ -392,4 +435,7 @@ void suite_xbee(void)
     FWT_RUN(test_wrong_address_is_rewritten);
     FWT_RUN(test_no_module_times_out_in_bounds);
     FWT_RUN(test_error_answer_stops_before_writing);
+    FWT_RUN(test_response_waits_end_at_their_deadlines);
+    FWT_RUN(test_slow_reads_count_against_the_deadline);
+    hal_set_ticks_hook(NULL, NULL);
 }
