@@ -2,7 +2,8 @@
 sections and its memory words.
 
 ``build_image()`` runs the cross build (cheap when up to date), serialised with the host
-build's lock; ``sections()`` gives the ELF's loaded sections and their sizes (``size -A``);
+build's lock; ``build_image(defines)`` a variant with macros of its own (a test's shorter
+timeouts) in a folder of its own; ``sections()`` gives the ELF's loaded sections and their sizes (``size -A``);
 ``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
 :class:`hdl.cpu.RiscvCPU` starts from.
 """
@@ -15,7 +16,7 @@ from pathlib import Path
 from sim.paths import ROOT
 
 __all__ = ["BUILD", "ELF", "BIN", "HEX", "LOADED", "RAM_BYTES", "STACK_BYTES", "build_image",
-           "sections", "image_bytes", "image_words"]
+           "variant_dir", "sections", "image_bytes", "image_words"]
 
 BUILD = ROOT / "build" / "firmware"
 ELF = BUILD / "firmware.elf"
@@ -31,18 +32,34 @@ class FirmwareBuildError(RuntimeError):
     """The cross build failed (its output is the message)."""
 
 
-def build_image() -> Path:
+def variant_dir(defines=None) -> Path:
+    """The folder of the image built with ``defines`` (``{macro: value}``; None or empty: the
+    production image, :data:`BUILD`): ``build/firmware/variants/<hash of the macros>``."""
+    if not defines:
+        return BUILD
+    import hashlib
+    key = hashlib.sha256(repr(sorted(defines.items())).encode()).hexdigest()[:12]
+    return BUILD / "variants" / key
+
+
+def build_image(defines=None) -> Path:
     """``make -C firmware rv32``: build/firmware/firmware.{elf,bin,hex,size}; returns the .bin.
-    Raises :class:`FirmwareBuildError` with the build's output when it fails (no cross
-    compiler: ``make setup`` installs it)."""
+    ``defines`` (``{macro: value}``, e.g. ``{"RADIO_RETRY_PERIODS": "1u"}``): a variant built
+    with those ``-D`` macros (``FIRMWARE_DEFS``, only macros the sources give a default with
+    ``#ifndef``) into :func:`variant_dir`. Raises :class:`FirmwareBuildError` with the build's
+    output when it fails (no cross compiler: ``make setup`` installs it)."""
     BUILD.mkdir(parents=True, exist_ok=True)
+    cmd = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"]
+    out = variant_dir(defines)
+    if defines:
+        cmd += [f"RV_BUILD={out}",
+                "FIRMWARE_DEFS=" + " ".join(f"-D{k}={v}" for k, v in sorted(defines.items()))]
     with open(BUILD / ".build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        r = subprocess.run(["make", "-s", "-C", str(ROOT / "firmware"), "rv32"],
-                           capture_output=True, text=True)
+        r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         raise FirmwareBuildError(f"make -C firmware rv32 failed:\n{r.stdout}{r.stderr}")
-    return BIN
+    return out / BIN.name
 
 
 def sections(elf: Path = ELF) -> dict:
