@@ -26,7 +26,8 @@ Checks (the JSON line):
     reached the unit) between the previous packet's first byte and this one's: the firmware
     merges each frame's summary as the unit publishes it and closes its summary right before
     sending. A frame it missed, or merged twice, makes a packet differ. ``radio_frames``: the
-    frames each packet covers; ``radio_health``: each packet's health counters that are not 0
+    frames each packet covers; ``radio_cycles``: the core cycle of each packet's first byte on
+    the pin; ``radio_health``: each packet's health counters that are not 0
     (``station.wire`` field names, ``cam_errors`` as left and right).
 ``cpu``
     ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
@@ -321,6 +322,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "radio_exact": bool(packets) and all(exact_packets),
         "radio_bands": [list(p.bands) for _c, p, _n in packets],
         "radio_frames": [n for _c, _p, n in packets],
+        "radio_cycles": [int(c) for c, _p, _n in packets],
         "radio_flags": flags,
         "radio_health": per_packet,
         "radio_queries": queries,
