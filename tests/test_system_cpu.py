@@ -8,6 +8,7 @@ import json
 import pytest
 
 from sim.system.command import main
+from sim.system.cpu_run import LOST_FIELDS
 from station.wire import HEALTH_FLAGS
 
 
@@ -96,3 +97,63 @@ def test_decoder_not_answering_is_bounded_and_the_other_runs():
     assert res["bit_exact"] and res["fault_counted"] and res["frames_out"] == 5
     assert res["radio_packets"] >= 2 and res["radio_exact"]
     assert res["radio_flags"][0] & 0b100 == 0 and res["radio_flags"][-1] & 0b111 == 0b111
+
+
+def test_camera_lost_counts_the_loss_and_the_pipeline_resumes_exact():
+    """--fault camera-lost-left: the left decoder gets no byte for LOST_FIELDS fields from the
+    end of field 0. The right camera's fields of that time have no partner and the pairing
+    drops them, one by one: the packets' health counts them (drops), no FIFO overflows, the
+    packets go on, and the pipeline resumes with (L5, R5) bit-exact."""
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["--scene", "mixed", "--frames", "10", "--fault", "camera-lost-left"])
+    res = json.loads(buf.getvalue().strip().splitlines()[-1])
+    assert code == 0, res
+    assert res["bit_exact"] and res["fault_counted"] and res["radio_exact"]
+    assert res["frames_out"] == 10 - LOST_FIELDS and res["records"] == res["golden_records"] > 0
+    assert res["drops"] == LOST_FIELDS and res["mispaired"] == 0
+    assert res["fifo_overflow"] == 0 and res["errors"] == {"camera_left": 0, "camera_right": 0,
+                                                           "matcher": 0}
+    # a packet tells the loss, and the packets after it carry the resumed pairs
+    assert res["radio_packets"] >= 2
+    assert sum(h.get("drops", 0) for h in res["radio_health"]) == LOST_FIELDS
+    assert res["radio_health"][-1].get("drops", 0) == 0 and res["radio_health"][-1]["pairs_ok"] > 0
+
+
+#: The waits of the image the no-radio-module test runs (firmware/Makefile FIRMWARE_DEFS).
+SHORT_RADIO_WAITS = {"XBEE_GUARD_US": "10000u", "XBEE_RESPONSE_US": "2000u",
+                     "RADIO_RETRY_PERIODS": "1u"}
+
+
+def test_missing_radio_module_is_bounded_retried_and_reported():
+    """--fault no-radio-module on the core: nothing answers the XBee. The start-up
+    configuration gives up after its bounded waits, the pipeline runs, every packet carries
+    RADIO_FAULT (health bit 5), and the firmware queries the module again (an API-mode AT
+    query on the TX pin) right before each report, one retry period apart.
+
+    This runs a variant of the image with shortened waits (SHORT_RADIO_WAITS: XBee guard time
+    10 ms and response time 2 ms for 1.1 s and 200 ms, a retry every report period for every
+    20): with the production values the configuration alone takes 5 s of simulated time and
+    the retries come 2 s apart, which is most of an hour under Verilator. The code is the
+    production code; only those constants differ (main.c and xbee.h take them with #ifndef)."""
+    from sim.system.cpu_run import REPORT_PS, run_cpu_system
+    from sim.system.run import CORE_PS, scene_pair
+    ms = 10**9 // CORE_PS                                   # core cycles a millisecond
+    res = run_cpu_system(*scene_pair("mixed", 720, 240), frames=2, fault="no-radio-module",
+                         defines=SHORT_RADIO_WAITS, min_packets=2)
+    assert res["bit_exact"] and res["fault_counted"] and res["radio_exact"], res
+    assert res["records"] == res["golden_records"] > 0 and not res["cpu"]["trapped"]
+    assert res["cpu"]["defines"] == SHORT_RADIO_WAITS
+    flags = res["radio_flags"]
+    assert len(flags) >= 2 and all(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
+    assert all(f & 0b111 == 0b111 for f in flags)           # both decoders locked, video on
+    # bounded: the configuration's waits (3 responses, 4 guard times), the rest of the start-up
+    # (the decoders' configuration over IIC, "+++" at 9600 baud: under 40 ms), then one report
+    # period and at most a frame's wait (17 ms) for the first report; then one a period
+    period = REPORT_PS // CORE_PS
+    packets, queries = res["radio_cycles"], res["radio_queries"]
+    assert packets[0] < (3 * 2 + 4 * 10 + 40 + 17) * ms + period
+    assert all(abs(b - a - period) < 18 * ms for a, b in zip(packets, packets[1:]))
+    # the start-up's query, then a retry right before each report
+    assert queries[0] < 1 * ms and len(queries) == 1 + len(packets)
+    assert all(0 < p - q < 2 * ms for q, p in zip(queries[1:], packets))

@@ -31,11 +31,17 @@
 #define XBEE_FACTORY_BAUD   9600u
 #define XBEE_LINK_BAUD      115200u
 #define XBEE_BD_LINK        7u         /**< ATBD value for 115200 baud */
+/* A build may shorten the two waits (-D, firmware/Makefile FIRMWARE_DEFS), as the simulation's
+ * test of a missing module does: with the module's factory GT they take seconds to simulate. */
+#ifndef XBEE_GUARD_US
 #define XBEE_GUARD_US       1100000u   /**< GT (1 s factory default) plus 10 % */
+#endif
+#ifndef XBEE_RESPONSE_US
 /** Longest wait for a byte of a response: the first byte covers the module's work on the
  *  command (WR, which writes its flash, takes longest), the next ones follow within a frame
  *  (1.04 ms at 9600 baud). */
 #define XBEE_RESPONSE_US    200000u
+#endif
 #define XBEE_POLL_US        20u        /**< delay between two polls of an empty UART: below one
                                              byte time at 115200 baud (87 us), as the UART
                                              holds one received byte */

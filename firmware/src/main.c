@@ -48,8 +48,12 @@
 #define DECODER_TRIES 2u
 /** A radio module that did not answer its configuration is queried again (xbee_probe_query,
  *  between two reports) every RADIO_RETRY_PERIODS periods; its answer is looked for in every
- *  step, so the frame loop never waits for it. */
+ *  step, so the frame loop never waits for it. A build may give another period
+ *  (-DRADIO_RETRY_PERIODS=n, at least 1: firmware/Makefile FIRMWARE_DEFS), as the simulation's
+ *  test of a missing module does to see several retries in a short run. */
+#ifndef RADIO_RETRY_PERIODS
 #define RADIO_RETRY_PERIODS 20u
+#endif
 
 static app_t app;
 static pose_t pose;

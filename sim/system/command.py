@@ -75,9 +75,9 @@ def main(argv=None):
                                "firmware's geometry and the register defaults): give --cpu "
                                "host for others")
         if not host and args.fault == "camera-lost-left" and \
-                args.frames < FAULT_FIELD + LOST_FIELDS + 3:
+                args.frames < FAULT_FIELD + LOST_FIELDS + 1:
             raise SystemError_(f"--fault camera-lost-left needs --frames at least "
-                               f"{FAULT_FIELD + LOST_FIELDS + 3}")
+                               f"{FAULT_FIELD + LOST_FIELDS + 1}")
         if not host and args.right_lead != _run.RIGHT_LEAD_BYTES:
             raise SystemError_("--right-lead runs with the host firmware: give --cpu host")
         if abs(args.right_lead) > 100_000:

@@ -28,7 +28,9 @@ Checks (the JSON line):
     reached the unit) between the previous packet's first byte and this one's: the firmware
     merges each frame's summary as the unit publishes it and closes its summary right before
     sending. A frame it missed, or merged twice, makes a packet differ. ``radio_frames``: the
-    frames each packet covers.
+    frames each packet covers; ``radio_cycles``: the core cycle of each packet's first byte on
+    the pin; ``radio_health``: each packet's health counters that are not 0
+    (``station.wire`` field names, ``cam_errors`` as left and right).
 ``cpu``
     ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
     ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
@@ -38,10 +40,23 @@ Checks (the JSON line):
 Health (``frames``, ``drops``, ``fifo_overflow``, ...) is the sum of the packets' health fields:
 what the firmware reported. The run goes on after the last frame until a packet has covered it.
 
-Faults: ``camera-lost-left`` (the left decoder sends nothing for :data:`LOST_FIELDS` fields
-from field 1, whose bytes are lost, then its stream goes on), ``iic-nack`` (the right decoder never answers), ``no-radio-module``
-(nothing answers the XBee queries: counted when every packet's health carries the RADIO_FAULT
-flag, ``station.wire.HEALTH_FLAGS``).
+Faults:
+
+``camera-lost-left``
+    The left decoder sends nothing for :data:`LOST_FIELDS` fields, from the end of field 0
+    (right after the EAV that ends its last active line: a BT.656 decoder ends a line at the
+    next EAV, so field 0 is whole) to the same point of field ``1 + LOST_FIELDS``; the bytes of
+    that time are lost, then the stream goes on. The right camera's fields of that time have no
+    partner: the pairing drops them (``drops``, rule 2 of ``golden.pairing``). Bit-exact: the
+    pipeline sees the pairs (L0, R0), (L5, R5), ... of identical fields, so the frames out equal
+    golden's first ``frames - LOST_FIELDS``, and the loss is counted in the packets' health.
+``iic-nack``
+    The right decoder never answers its IIC address: counted when the firmware addressed it.
+``no-radio-module``
+    Nothing answers the XBee queries: counted when every packet's health carries the
+    RADIO_FAULT flag (``station.wire.HEALTH_FLAGS``). ``radio_queries``: the core cycles of the
+    API-mode AT query frames seen on the TX pin (the start-up configuration's and the
+    firmware's later probes of the module).
 """
 from __future__ import annotations
 
@@ -127,22 +142,37 @@ def _xbee_answer(frame):
     return encode_frame(bytes([API_AT_RESPONSE, fid]) + cmd + b"\x00" + values[cmd])
 
 
-def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, floor_line=None):
+#: firmware/include/xbee.h: the guard time around "+++" and the wait for one response
+XBEE_GUARD_US, XBEE_RESPONSE_US = 1_100_000, 200_000
+
+
+def _macro(defines, name, default):
+    """An integer macro of ``defines`` (``"10000u"``), or ``default``."""
+    value = (defines or {}).get(name)
+    return default if value is None else int(str(value).rstrip("uUlL"), 0)
+
+
+def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, floor_line=None,
+                   defines=None, min_packets=1):
     """Simulate with the CPU inside; returns the result dict (the JSON line's fields).
     ``floor_line``: the installed camera's floor line (``golden.floor.FloorLine``) the image is
-    built with (None: the nominal rig's)."""
+    built with (None: the nominal rig's). ``defines``: macros of a firmware variant
+    (:func:`sim.system.firmware.build_image`), e.g. shorter XBee waits for a test; None: the
+    production image. The run ends once a packet has covered the last frame and at least
+    ``min_packets`` packets came (or at a bound of the start-up, the streams and
+    ``min_packets + 1`` report periods)."""
     from sim.system import firmware
     from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
                                 _field_spans, camera_streams)
     from golden.bands import band_values, frame_top, merge_tops
     from station.radio import FrameDecoder
     from station.wire import DEFAULT_MIN_SUPPORT, HEALTH_FLAGS
-    from station.wire import API_TX16
+    from station.wire import API_AT_COMMAND, API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
-    image_path = firmware.build_image(floor_line)
-    image = firmware.image_words(image_path)
-    sections = firmware.sections(image_path.with_suffix(".elf"))
+    binary = firmware.build_image(floor_line, defines)
+    image = firmware.image_words(binary)
+    sections = firmware.sections(binary.with_suffix(".elf"))
     ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
     rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
@@ -167,8 +197,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         raise RuntimeError("the firmware image does not fit the CPU's RAM")
     lib.sys_start()
     if fault == "camera-lost-left":
-        # from field 1's first timing code, for LOST_FIELDS fields (1716 x 262.5 bytes each)
-        pos = _field_spans(ldata)[FAULT_FIELD]["codes"][0] - 3
+        # right after field 1's first timing code, the EAV that ends field 0's last active
+        # line, for LOST_FIELDS fields (1716 x 262.5 bytes each)
+        pos = _field_spans(ldata)[FAULT_FIELD]["codes"][0] + 1
         lib.sys_camera_stop(0, pos, int(LOST_FIELDS * 1716 * 262.5) * CAM_PS)
     decoder = FrameDecoder()
     ended = []                      # (marker cycle, x, d) of frames not yet in a packet
@@ -176,11 +207,17 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     out_frames, current, aborted = [], [], 0
     total_records = 0
     stream_ps = max(len(ldata), len(rdata)) * CAM_PS
-    # start-up (the XBee, the decoders: two report periods more when one does not answer, up to
-    # 6 s without a radio module) + the streams + two report periods
-    startup_ps = {"no-radio-module": 7 * 10**12, "iic-nack": 3 * REPORT_PS}.get(fault, REPORT_PS)
-    end_ps = startup_ps + stream_ps + 2 * REPORT_PS
+    # start-up (the XBee, the decoders: two report periods more when one does not answer; the
+    # XBee's waits without a radio module, xbee.h: 3 responses and 4 guard times, 5.2 s) + the
+    # streams + two report periods
+    guard_us = _macro(defines, "XBEE_GUARD_US", XBEE_GUARD_US)
+    response_us = _macro(defines, "XBEE_RESPONSE_US", XBEE_RESPONSE_US)
+    startup_ps = {"no-radio-module": (4 * guard_us + 5 * response_us) * 10**6 + 2 * REPORT_PS,
+                  "iic-nack": 3 * REPORT_PS}.get(fault, REPORT_PS)
+    end_ps = startup_ps + stream_ps + (min_packets + 1) * REPORT_PS
     last_frame_cycle = None
+    frames_expected = frames - LOST_FIELDS if fault == "camera-lost-left" else frames
+    queries = []                    # core cycles of the AT query frames on the TX pin
     cyc = (C.c_uint64 * 65536)()
     words = (C.c_uint32 * 65536)()
     txb = (C.c_uint8 * 65536)()
@@ -203,7 +240,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                         ended.append((cyc[i], [r[0] for r in current if not r[3]],
                                       [r[2] for r in current if not r[3]]))
                         current = []
-                        if len(out_frames) == frames:
+                        if len(out_frames) == frames_expected:
                             last_frame_cycle = cyc[i]
                     else:
                         current.append((word & 0x3FF, word >> 10 & 0x3FF, word >> 20 & 0xFF,
@@ -214,6 +251,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                     if b == 0x7E:
                         frame_start_cycle = cyc[i]
                     for f in decoder.feed_frames(bytes([b])):
+                        if f.api == API_AT_COMMAND:
+                            queries.append(int(frame_start_cycle))
                         if fault != "no-radio-module" and (answer := _xbee_answer(f)):
                             lib.sys_send_rx(answer, len(answer))
                         if f.api == API_TX16 and f.packet is not None:
@@ -226,7 +265,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                                 if tops else [0] * n
                             packets.append((frame_start_cycle, pkt, len(mine)))
                             exact_packets.append(tuple(pkt.bands) == tuple(int(v) for v in expect))
-            if last_frame_cycle is not None and any(c > last_frame_cycle for c, _p, _n in packets):
+            if last_frame_cycle is not None and len(packets) >= min_packets and \
+                    any(c > last_frame_cycle for c, _p, _n in packets):
                 break
         cycles = lib.sys_core_cycles()
         idle = lib.sys_idle_cycles()
@@ -243,7 +283,12 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                              "fifo_overflow")}
     cam_errors = [0, 0]
     flags = []
+    per_packet = []
     for _c, pkt, _n in packets:
+        counts = {k: getattr(pkt.health, k) for k in health}
+        counts.update(cam_errors_left=pkt.health.cam_errors[0],
+                      cam_errors_right=pkt.health.cam_errors[1])
+        per_packet.append({k: v for k, v in counts.items() if v})
         for k in health:
             health[k] += getattr(pkt.health, k)
         cam_errors = [a + b for a, b in zip(cam_errors, pkt.health.cam_errors)]
@@ -252,10 +297,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         exact = out_frames[:frames] == want if fault is None else \
             len(out_frames) >= frames and out_frames[:frames] == want
     else:
-        tail = frames - FAULT_FIELD - 2 - LOST_FIELDS
-        exact = (tail > 0 and len(out_frames) >= FAULT_FIELD + tail
-                 and out_frames[:FAULT_FIELD] == want[:FAULT_FIELD]
-                 and out_frames[len(out_frames) - tail:] == want[frames - tail:])
+        # the pairs the pipeline saw: (L0, R0), then from (L1+LOST, R1+LOST) on
+        exact = frames_expected > FAULT_FIELD and out_frames == want[:frames_expected]
     if fault == "camera-lost-left":
         counted = health["mispaired"] + health["drops"] + sum(cam_errors) > 0 or \
             any(not f & 1 for f in flags)
@@ -276,7 +319,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "errors": {"camera_left": cam_errors[0], "camera_right": cam_errors[1],
                    "matcher": health["matcher_errors"]},
         "fifo_overflow": health["fifo_overflow"], "aborted_frames": aborted,
-        "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want),
+        "records": sum(len(f) for f in out_frames), "golden_records": sum(len(f) for f in want[:frames_expected]),
         "record_fields": ["x", "y", "d", "floor"],
         "floor_points": sum(r[3] for f in out_frames for r in f),
         "floor_line": [floor.initial.slope, floor.initial.offset],
@@ -284,12 +327,15 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "radio_exact": bool(packets) and all(exact_packets),
         "radio_bands": [list(p.bands) for _c, p, _n in packets],
         "radio_frames": [n for _c, _p, n in packets],
+        "radio_cycles": [int(c) for c, _p, _n in packets],
         "radio_flags": flags,
+        "radio_health": per_packet,
+        "radio_queries": queries,
         "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
                 "instructions": int(instructions),
                 "busy_fraction": round(busy / span, 4) if span > 0 else None,
                 "cycles_per_record": round(busy / drained, 1) if drained else None,
-                "trapped": trapped},
+                "trapped": trapped, "defines": dict(defines or {})},
         "core_cycles": int(cycles), "sim_seconds": round(seconds, 1),
         "build_seconds": round(build_s, 1),
     }

@@ -2,8 +2,9 @@
 sections and its memory words.
 
 ``build_image()`` runs the cross build (cheap when up to date), serialised with the host
-build's lock; ``sections()`` gives the ELF's loaded sections and their sizes (``size -A``);
-``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
+build's lock; ``build_image(floor_line, defines)`` a variant with the installed camera's floor
+line or macros of its own (a test's shorter timeouts) in a folder of its own; ``sections()``
+gives the ELF's loaded sections and their sizes (``size -A``); ``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
 :class:`hdl.cpu.RiscvCPU` starts from.
 """
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 from sim.paths import ROOT
 
 __all__ = ["BUILD", "ELF", "BIN", "HEX", "LOADED", "RAM_BYTES", "STACK_BYTES", "build_image",
-           "sections", "image_bytes", "image_words"]
+           "variant_dir", "sections", "image_bytes", "image_words"]
 
 BUILD = ROOT / "build" / "firmware"
 ELF = BUILD / "firmware.elf"
@@ -31,30 +32,50 @@ class FirmwareBuildError(RuntimeError):
     """The cross build failed (its output is the message)."""
 
 
-def build_image(floor_line=None) -> Path:
+def variant_dir(floor_line=None, defines=None) -> Path:
+    """The folder of the image built with the installed camera's ``floor_line``
+    (``golden.floor.FloorLine``) and ``defines`` (``{macro: value}``); neither: the production
+    image, :data:`BUILD`. A floor line alone: ``build/firmware/line-<FLOOR_LINE word>/``; with
+    macros: ``build/firmware/variants/<hash of both>/``."""
+    if floor_line is None and not defines:
+        return BUILD
+    if not defines:
+        from sim.flows.floor_table import register_word
+        return BUILD / f"line-{register_word(floor_line):08x}"
+    import hashlib
+    key = repr((floor_line, sorted(defines.items())))
+    return BUILD / "variants" / hashlib.sha256(key.encode()).hexdigest()[:12]
+
+
+def build_image(floor_line=None, defines=None) -> Path:
     """``make -C firmware rv32``: build/firmware/firmware.{elf,bin,hex,size}; returns the .bin.
     With a ``floor_line`` (``golden.floor.FloorLine``, the installed camera's) the image takes
-    it from a generated table (``sim/flows/floor_table.py``) instead of the committed one, and
-    goes to a folder of its own, ``build/firmware/line-<FLOOR_LINE word>/`` (its ``.elf``
-    beside the returned ``.bin``). Raises :class:`FirmwareBuildError` with the build's output
-    when it fails (no cross compiler: ``make setup`` installs it)."""
+    it from a generated table (``sim/flows/floor_table.py``) instead of the committed one;
+    ``defines`` (``{macro: value}``, e.g. ``{"RADIO_RETRY_PERIODS": "1u"}``) build a variant
+    with those ``-D`` macros (``FIRMWARE_DEFS``, only macros the sources give a default with
+    ``#ifndef``). Either goes to :func:`variant_dir` (its ``.elf`` beside the returned
+    ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
+    cross compiler: ``make setup`` installs it)."""
     BUILD.mkdir(parents=True, exist_ok=True)
-    cmd, out = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"], BIN
+    cmd = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"]
+    folder = variant_dir(floor_line, defines)
     with open(BUILD / ".build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
+        if folder != BUILD:
+            folder.mkdir(parents=True, exist_ok=True)
+            cmd.append(f"RV_BUILD={folder}")
         if floor_line is not None:
-            from sim.flows.floor_table import register_word, render
-            folder = BUILD / f"line-{register_word(floor_line):08x}"
-            folder.mkdir(exist_ok=True)
+            from sim.flows.floor_table import render
             table, text = folder / "floor_table.h", render(floor_line)
             if not table.exists() or table.read_text() != text:
                 table.write_text(text)
-            cmd += [f"RV_BUILD={folder}", f"FLOOR_TABLE_DIR={folder}"]
-            out = folder / BIN.name
+            cmd.append(f"FLOOR_TABLE_DIR={folder}")
+        if defines:
+            cmd.append("FIRMWARE_DEFS=" + " ".join(f"-D{k}={v}" for k, v in sorted(defines.items())))
         r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         raise FirmwareBuildError(f"make -C firmware rv32 failed:\n{r.stdout}{r.stderr}")
-    return out
+    return folder / BIN.name
 
 
 def sections(elf: Path = ELF) -> dict:
