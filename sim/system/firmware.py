@@ -4,7 +4,8 @@ sections and its memory words.
 ``build_image()`` runs the cross build (cheap when up to date), serialised with the host
 build's lock; ``build_image(floor_line, defines)`` a variant with the installed camera's floor
 line or macros of its own (a test's shorter timeouts) in a folder of its own; ``sections()``
-gives the ELF's loaded sections and their sizes (``size -A``); ``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
+gives the ELF's loaded sections and their sizes (``size -A``);
+``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
 :class:`hdl.cpu.RiscvCPU` starts from.
 """
 from __future__ import annotations
