@@ -143,7 +143,7 @@ class Rectify(FramedUnit):
             cols.map_we.eq(self.map_we), cols.enable.eq(self.enable),
             buf.luma.eq(px.y), buf.ground.eq(px.ground), buf.sof.eq(px.sof),
             buf.eol.eq(px.eol), buf.eof.eq(px.eof), buf.accept.eq(tr.accept), buf.x.eq(tr.x),
-            buf.y.eq(tr.y), buf.in_frame.eq(tr.in_frame),
+            buf.y.eq(tr.y), buf.filling.eq(tr.in_frame & ~buf.in_done),
             self.i.ready.eq(~buf.block), tr.beat.eq(self.i.valid & self.i.ready),
             tr.sof.eq(px.sof), tr.eol.eq(px.eol), tr.eof.eq(px.eof),
             start.eq(tr.accept & px.sof),

@@ -127,8 +127,10 @@ class LineBuffer(wiring.Component):
     each ``slots / 2`` rows of ``ceil(max_width / 2)`` words of 9 bits (``luma``, ``ground``).
     ``rows_in`` counts the frame's completed rows, ``in_done`` is set by the accepted ``eof``
     (``last_row`` its row) and cleared by the next ``sof``. ``block`` (the input's not-ready):
-    after ``eof`` while the output still sends the frame (``out_busy``), or inside a frame
-    while the completed rows pass ``gate_row`` (one past the last row the output may read).
+    after ``eof`` while the output still sends the frame (``out_busy``), or while ``filling``
+    (the unit's frame tracker is inside a frame, before its ``eof``: ``in_frame & ~in_done``,
+    formed by the unit) and the completed rows pass ``gate_row`` (one past the last row the
+    output may read).
 
     Read side: ``read_slot0/1`` and ``read_col0/1`` (two rows, two columns, one of each parity
     unless they are equal) address the four banks; with ``read_en`` the words come out on
@@ -141,7 +143,7 @@ class LineBuffer(wiring.Component):
         self.bank_depth = slots // 2 * self.bank_stride
         ports = dict(
             luma=In(8), ground=In(1), sof=In(1), eol=In(1), eof=In(1), accept=In(1),
-            x=In(range(max_width)), y=In(range(max_height)), in_frame=In(1),
+            x=In(range(max_width)), y=In(range(max_height)), filling=In(1),
             gate_row=In(range(max_height + span + 2)), out_busy=In(1),
             block=Out(1), rows_in=Out(range(max_height + 1)), in_done=Out(1),
             last_row=Out(range(max_height)),
@@ -162,8 +164,7 @@ class LineBuffer(wiring.Component):
                       for s in range(N // 2))
         slot_in = Signal(range(N))
         m.d.comb += self.block.eq((self.in_done & self.out_busy)
-                                  | (self.in_frame & ~self.in_done
-                                     & (self.rows_in > self.gate_row)))
+                                  | (self.filling & (self.rows_in > self.gate_row)))
         write_slot = Signal(range(N))
         m.d.comb += write_slot.eq(Mux(self.sof, 0, slot_in))
         for b, (wp, _) in enumerate(banks):

@@ -93,14 +93,14 @@ def test_line_buffer_banks_and_gate():
                 for port, v in ((dut.luma, p & 0xFF), (dut.ground, p >> 8), (dut.x, x),
                                 (dut.y, r), (dut.sof, r == 0 and x == 0), (dut.eol, x == w - 1),
                                 (dut.eof, r == h - 1 and x == w - 1), (dut.accept, 1),
-                                (dut.in_frame, not (r == 0 and x == 0))):
+                                (dut.filling, not (r == 0 and x == 0))):
                     ctx.set(port, v)
                 await ctx.tick()
             assert ctx.get(dut.rows_in) == r + 1
             if r < h - 1:
                 assert ctx.get(dut.block) == (r + 1 > 2)
         ctx.set(dut.accept, 0)
-        ctx.set(dut.in_frame, 0)
+        ctx.set(dut.filling, 0)
         assert (ctx.get(dut.in_done), ctx.get(dut.last_row)) == (1, h - 1)
         ctx.set(dut.out_busy, 1)
         assert ctx.get(dut.block) == 1
