@@ -18,12 +18,12 @@ registers below can change), and the map's node columns 0, 1 and 2 are blended d
 cell (``c_k``, one multiply each; the map memory is read twice per node column). Along the row
 it only adds: the offset accumulator starts at ``32 c_0`` and adds ``c_(i+1) - c_i`` each
 pixel; at every cell boundary the node columns move on and the next one but one is fetched
-(it takes six cycles of the 32 the cell lasts). Then, one stage each: the offsets rounded to
+(it takes seven cycles of the 32 the cell lasts). Then, one stage each: the offsets rounded to
 1/16 px; the source column and the source row relative to ``v`` with their fractions; both
 clamped (columns to the image, rows to ``max(lo, -v) .. min(lo + span, last - v)``, the
 buffer's window cut by the image); the rows' slots; the four memory reads; the four pixels
-routed; the horizontal blends; the vertical blend's product; the vertical blend and the
-ground bit, into the output register.
+routed; the horizontal blends; the vertical blend's difference; its product; the vertical
+blend and the ground bit, into the output register.
 
 Parts (:mod:`hdl.rectify_parts`): :class:`~hdl.rectify_parts.NodeColumns` (the map memory
 and the node columns' blend), :class:`~hdl.rectify_parts.LineBuffer` (the four banks, the
@@ -36,7 +36,7 @@ reads only rows ``v + lo .. v + lo + span``, so the input waits at row ``v + lo 
 the output waits for rows as said. After the input's ``eof`` the input waits until the output
 has sent its own ``eof`` (the next frame's rows would overwrite the last ones). So the output is
 the input delayed by ``lo + span`` rows plus a few pixels, each output row starts after about
-twenty cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
+twenty-five cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
 
 Registers: ``lo`` (signed, ``-span .. 0``: the first buffered row relative to the output row;
 sampled at each frame's start) and ``enable`` (0: a zero map, the image passes unchanged),
@@ -143,7 +143,7 @@ class Rectify(FramedUnit):
             cols.map_we.eq(self.map_we), cols.enable.eq(self.enable),
             buf.luma.eq(px.y), buf.ground.eq(px.ground), buf.sof.eq(px.sof),
             buf.eol.eq(px.eol), buf.eof.eq(px.eof), buf.accept.eq(tr.accept), buf.x.eq(tr.x),
-            buf.y.eq(tr.y), buf.in_frame.eq(tr.in_frame),
+            buf.y.eq(tr.y), buf.filling.eq(tr.in_frame & ~buf.in_done),
             self.i.ready.eq(~buf.block), tr.beat.eq(self.i.valid & self.i.ready),
             tr.sof.eq(px.sof), tr.eol.eq(px.eol), tr.eof.eq(px.eof),
             start.eq(tr.accept & px.sof),

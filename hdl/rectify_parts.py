@@ -34,8 +34,9 @@ class NodeColumns(wiring.Component):
     ``column`` of the cell rows around output row ``row`` down to that row, ``top (32 - f) +
     bottom f`` rounded with ``f = row mod 32`` (zero while ``enable`` is low), and writes it
     into column register ``target`` (0: ``left``, 1: ``right``, 2: ``ahead``). The memory is
-    read twice (top node, then bottom node), one multiply; ``busy`` is high from the cycle
-    after ``go`` for five cycles, the result is registered at the end of the fifth. ``row``
+    read twice (top node, then bottom node), then the difference, its product with ``f`` and
+    the blend each take a cycle: ``busy`` is high from the cycle after ``go`` for
+    :attr:`FETCH_CYCLES` (six) cycles, the result is registered at the end of the last. ``row``
     must hold during a fetch. ``advance`` moves the columns on by one cell: ``left`` takes
     ``right``, ``right`` takes ``ahead`` (a fetch in the same cycle into ``left`` or ``right``
     loses).
@@ -44,6 +45,9 @@ class NodeColumns(wiring.Component):
     ``target``, ``advance`` in; ``busy`` and ``left_x/y``, ``right_x/y``, ``ahead_x/y``
     (signed, 1/16 px) out.
     """
+
+    #: cycles a fetch is ``busy``
+    FETCH_CYCLES = 6
 
     def __init__(self, *, node_rows, node_stride, map_depth, max_height, init):
         self.node_rows = node_rows
@@ -73,6 +77,7 @@ class NodeColumns(wiring.Component):
         phase = Signal(3)
         top = [Signal(signed(OFFSET_BITS), name=f"top_{c}") for c in "xy"]
         bottom = [Signal(signed(OFFSET_BITS), name=f"bottom_{c}") for c in "xy"]
+        diff = [Signal(signed(OFFSET_BITS + 1), name=f"diff_{c}") for c in "xy"]
         prod = [Signal(signed(OFFSET_BITS + SHIFT + 1), name=f"prod_{c}") for c in "xy"]
         cell_row = Signal(range(self.node_rows))
         frac = Signal(SHIFT)
@@ -80,7 +85,8 @@ class NodeColumns(wiring.Component):
         m.d.comb += rd.addr.eq(Mux(phase == 0, Cat(column, cell_row), Cat(column, cell_row + 1)))
         words = [rd.data[:OFFSET_BITS].as_signed(), rd.data[OFFSET_BITS:].as_signed()]
         # phase 0: the top node's address; 1: top word read, the bottom node's address;
-        # 2: bottom word read; 3: (bottom - top) frac; 4: the blend written
+        # 2: bottom word read; 3: bottom - top; 4: its product with the fraction; 5: the
+        # blend written (the subtraction and the multiply in stages of their own)
         with m.If(self.go):
             m.d.sync += [phase.eq(0), self.busy.eq(1), column.eq(self.column),
                          target.eq(self.target)]
@@ -91,8 +97,10 @@ class NodeColumns(wiring.Component):
             with m.If(phase == 2):
                 m.d.sync += [bottom[c].eq(words[c]) for c in range(2)]
             with m.If(phase == 3):
-                m.d.sync += [prod[c].eq((bottom[c] - top[c]) * frac) for c in range(2)]
+                m.d.sync += [diff[c].eq(bottom[c] - top[c]) for c in range(2)]
             with m.If(phase == 4):
+                m.d.sync += [prod[c].eq(diff[c] * frac) for c in range(2)]
+            with m.If(phase == self.FETCH_CYCLES - 1):
                 m.d.sync += self.busy.eq(0)
                 for c in range(2):
                     blend = Signal(signed(COLUMN_BITS + 6), name=f"blend_{'xy'[c]}")
@@ -119,8 +127,10 @@ class LineBuffer(wiring.Component):
     each ``slots / 2`` rows of ``ceil(max_width / 2)`` words of 9 bits (``luma``, ``ground``).
     ``rows_in`` counts the frame's completed rows, ``in_done`` is set by the accepted ``eof``
     (``last_row`` its row) and cleared by the next ``sof``. ``block`` (the input's not-ready):
-    after ``eof`` while the output still sends the frame (``out_busy``), or inside a frame
-    while the completed rows pass ``gate_row`` (one past the last row the output may read).
+    after ``eof`` while the output still sends the frame (``out_busy``), or while ``filling``
+    (the unit's frame tracker is inside a frame, before its ``eof``: ``in_frame & ~in_done``,
+    formed by the unit) and the completed rows pass ``gate_row`` (one past the last row the
+    output may read).
 
     Read side: ``read_slot0/1`` and ``read_col0/1`` (two rows, two columns, one of each parity
     unless they are equal) address the four banks; with ``read_en`` the words come out on
@@ -133,7 +143,7 @@ class LineBuffer(wiring.Component):
         self.bank_depth = slots // 2 * self.bank_stride
         ports = dict(
             luma=In(8), ground=In(1), sof=In(1), eol=In(1), eof=In(1), accept=In(1),
-            x=In(range(max_width)), y=In(range(max_height)), in_frame=In(1),
+            x=In(range(max_width)), y=In(range(max_height)), filling=In(1),
             gate_row=In(range(max_height + span + 2)), out_busy=In(1),
             block=Out(1), rows_in=Out(range(max_height + 1)), in_done=Out(1),
             last_row=Out(range(max_height)),
@@ -154,8 +164,7 @@ class LineBuffer(wiring.Component):
                       for s in range(N // 2))
         slot_in = Signal(range(N))
         m.d.comb += self.block.eq((self.in_done & self.out_busy)
-                                  | (self.in_frame & ~self.in_done
-                                     & (self.rows_in > self.gate_row)))
+                                  | (self.filling & (self.rows_in > self.gate_row)))
         write_slot = Signal(range(N))
         m.d.comb += write_slot.eq(Mux(self.sof, 0, slot_in))
         for b, (wp, _) in enumerate(banks):
@@ -294,11 +303,14 @@ class Sampler(wiring.Component):
     fractions ``frac_x/y`` (1/16 px), ``flags`` (``sof, eol, eof``) and ``valid``, registered
     with the request; the banks' words ``even_even`` .. ``odd_odd`` one cycle later. Stages:
     the four pixels routed (top-left, top-right, bottom-left, bottom-right); the horizontal
-    blends and the ground bit (the nearest of the four pixels'); the vertical blend's product;
-    the vertical blend rounded, into ``o``. ``step`` (out) is high when the output register is
-    empty or taken: every stage of the unit moves with it. Latency five ``step``s from the
-    request.
+    blends and the ground bit (the nearest of the four pixels'); the vertical blend's
+    difference; its product with the fraction; the vertical blend rounded, into ``o``. ``step``
+    (out) is high when the output register is empty or taken: every stage of the unit moves
+    with it. Latency :attr:`LATENCY` (six) ``step``s from the request.
     """
+
+    #: ``step``s from a read request to its pixel in the output register
+    LATENCY = 6
 
     def __init__(self):
         super().__init__(dict(
@@ -342,27 +354,33 @@ class Sampler(wiring.Component):
                 ground7.eq(Mux(ay[3], Mux(ax[3], q11[8], q10[8]), Mux(ax[3], q01[8], q00[8]))),
                 ay7.eq(ay), flags7.eq(flags_q),
             ]
-        # the vertical blend's product
-        top8, prod8, ground8, flags8 = Signal(12), Signal(signed(18)), Signal(), Signal(3)
+        # the vertical blend's difference
+        top8, diff8, ay8, ground8, flags8 = (Signal(12), Signal(signed(13)), Signal(4),
+                                             Signal(), Signal(3))
         with m.If(step):
-            m.d.sync += [top8.eq(top), prod8.eq((bot - top) * ay7), ground8.eq(ground7),
+            m.d.sync += [top8.eq(top), diff8.eq(bot - top), ay8.eq(ay7), ground8.eq(ground7),
                          flags8.eq(flags7)]
+        # the vertical blend's product
+        top9, prod9, ground9, flags9 = Signal(12), Signal(signed(18)), Signal(), Signal(3)
+        with m.If(step):
+            m.d.sync += [top9.eq(top8), prod9.eq(diff8 * ay8), ground9.eq(ground8),
+                         flags9.eq(flags8)]
         valid = [Signal(name=n) for n in ("route_valid", "pixels_valid", "blend_valid",
-                                          "product_valid")]
+                                          "difference_valid", "product_valid")]
         with m.If(self.abandon):
             m.d.sync += [s.eq(0) for s in valid]
         with m.Elif(step):
-            m.d.sync += [valid[0].eq(self.valid), valid[1].eq(valid[0]), valid[2].eq(valid[1]),
-                         valid[3].eq(valid[2])]
+            m.d.sync += [valid[0].eq(self.valid)] + [valid[k].eq(valid[k - 1])
+                                                     for k in range(1, len(valid))]
         # output register
         luma = Signal(8)
-        m.d.comb += luma.eq(((top8 << 4) + prod8 + 128) >> 8)
+        m.d.comb += luma.eq(((top9 << 4) + prod9 + 128) >> 8)
         with m.If(step):
-            m.d.sync += [self.o.payload.y.eq(luma), self.o.payload.ground.eq(ground8),
-                         self.o.payload.sof.eq(flags8[0]), self.o.payload.eol.eq(flags8[1]),
-                         self.o.payload.eof.eq(flags8[2])]
+            m.d.sync += [self.o.payload.y.eq(luma), self.o.payload.ground.eq(ground9),
+                         self.o.payload.sof.eq(flags9[0]), self.o.payload.eol.eq(flags9[1]),
+                         self.o.payload.eof.eq(flags9[2])]
         with m.If(self.abandon):
             m.d.sync += o_valid.eq(0)
         with m.Elif(step):
-            m.d.sync += o_valid.eq(valid[3])
+            m.d.sync += o_valid.eq(valid[-1])
         return m

@@ -17,7 +17,7 @@ def simulate(dut, bench):
 
 
 def test_node_columns_blend_down_the_cell():
-    """A fetch is busy five cycles, then holds ``top (32 - f) + bottom f`` rounded (``f`` the
+    """A fetch is busy ``FETCH_CYCLES`` cycles, then holds ``top (32 - f) + bottom f`` rounded (``f`` the
     row within the cell) in its target; ``advance`` moves right into left and ahead into
     right; with ``enable`` low a fetch gives 0."""
     rng = random.Random(1)
@@ -49,7 +49,7 @@ def test_node_columns_blend_down_the_cell():
             ctx.set(dut.go, 1)
             await ctx.tick()
             ctx.set(dut.go, 0)
-            for _ in range(5):
+            for _ in range(NodeColumns.FETCH_CYCLES):
                 assert ctx.get(dut.busy) == 1
                 await ctx.tick()
             assert ctx.get(dut.busy) == 0
@@ -69,7 +69,7 @@ def test_node_columns_blend_down_the_cell():
         ctx.set(dut.go, 1)
         await ctx.tick()
         ctx.set(dut.go, 0)
-        await ctx.tick().repeat(5)
+        await ctx.tick().repeat(NodeColumns.FETCH_CYCLES)
         assert [ctx.get(p) for p in outs[1]] == [0, 0]
 
     simulate(dut, bench)
@@ -93,14 +93,14 @@ def test_line_buffer_banks_and_gate():
                 for port, v in ((dut.luma, p & 0xFF), (dut.ground, p >> 8), (dut.x, x),
                                 (dut.y, r), (dut.sof, r == 0 and x == 0), (dut.eol, x == w - 1),
                                 (dut.eof, r == h - 1 and x == w - 1), (dut.accept, 1),
-                                (dut.in_frame, not (r == 0 and x == 0))):
+                                (dut.filling, not (r == 0 and x == 0))):
                     ctx.set(port, v)
                 await ctx.tick()
             assert ctx.get(dut.rows_in) == r + 1
             if r < h - 1:
                 assert ctx.get(dut.block) == (r + 1 > 2)
         ctx.set(dut.accept, 0)
-        ctx.set(dut.in_frame, 0)
+        ctx.set(dut.filling, 0)
         assert (ctx.get(dut.in_done), ctx.get(dut.last_row)) == (1, h - 1)
         ctx.set(dut.out_busy, 1)
         assert ctx.get(dut.block) == 1
@@ -171,7 +171,7 @@ def test_source_address_against_model(horizontal):
 
 
 def test_sampler_against_model():
-    """Five steps from the read request to the output register: the four words routed by the
+    """``LATENCY`` steps from the read request to the output register: the four words routed by the
     request's parities, blended across then down (rounded), the nearest pixel's ground bit;
     the output holds while not taken."""
     rng = random.Random(5)
@@ -203,16 +203,17 @@ def test_sampler_against_model():
                 for port, v in zip(banks, words[i - 1]):
                     ctx.set(port, v)
             await ctx.tick()
-            if i >= 4:
+            lag = Sampler.LATENCY - 1
+            if i >= lag:
                 p = dut.o.payload
-                want = model(sent[i - 4], words[i - 4])
+                want = model(sent[i - lag], words[i - lag])
                 got = (ctx.get(p.y), ctx.get(p.ground),
                        ctx.get(p.sof) | ctx.get(p.eol) << 1 | ctx.get(p.eof) << 2)
                 assert got == want, i
-                assert ctx.get(dut.o.valid) == sent[i - 4][7]
+                assert ctx.get(dut.o.valid) == sent[i - lag][7]
         # a held output: no step, the output and the stages behind it stay
         ctx.set(dut.valid, 1)
-        await ctx.tick().repeat(5)
+        await ctx.tick().repeat(Sampler.LATENCY)
         ctx.set(dut.o.ready, 0)
         assert (ctx.get(dut.o.valid), ctx.get(dut.step)) == (1, 0)
         held = [ctx.get(dut.o.payload.as_value())]

@@ -208,10 +208,11 @@ def test_run_rejects_what_it_cannot_rectify(tmp_path, capsys):
     assert err.startswith("error: cannot rectify") and len(err.splitlines()) == 1
 
 
-def test_random_map_icarus_with_stalls():
-    """The exported Verilog of the rectified pipeline on Icarus, one frame of a crop with a
-    random map, with stalls: equal to the rectified golden pipeline."""
-    backend = "icarus"
+@pytest.mark.parametrize("backend", ["amaranth", "verilator", "icarus", "ghdl"])
+def test_random_map_on_every_backend_with_stalls(backend):
+    """The rectified pipeline on every backend (the Amaranth simulator, the exported Verilog on
+    Verilator and Icarus, its VHDL on GHDL), one frame of a crop with a random map, with
+    stalls: equal to the rectified golden pipeline, every status port resolved."""
     l, r = _crop_pair()
     h, w = l.shape[:2]
     params = default_params(w, h, ground="luma", d_max=31, window=5)
