@@ -1,6 +1,7 @@
 """Misaligned rigs: the motorcycle pair re-shot through each rig of :data:`sim.scenes.rig.RIGS`,
 matched by the golden pipeline (default configuration, ground model off) without and with the
-right camera's rectification from a calibration of checkerboards rendered through the rig.
+rectification of a calibration of checkerboards rendered through the rig (the right camera's
+alone, or both cameras' when the lenses distort: :func:`golden.rectify.both_sides`).
 
 Per rig: the calibration's figures (views, RMS, Bouguet's and the module's vertical
 residual, the map's vertical warp in rows), then the matches, the points within 2 px of the
@@ -63,8 +64,7 @@ def score(records, gt, camera=None, calibrated=None):
 def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workdir=None):
     """One rig's row of the table (a dict)."""
     from golden.pipeline import default_params, pipeline_frames
-    from golden.rectify import (RectifyParams, build_map, fits, rectified_pipeline_frames,
-                                row_window)
+    from golden.rectify import both_sides, params_for_rig, rectified_pipeline_frames
     from sim.cli.calibrate import calibrate
     from sim.scenes.camera import MOTORCYCLE
     from sim.scenes.data import motorcycle
@@ -77,22 +77,22 @@ def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workd
         cal = calibrate(folder, (9, 6), 0.03, grid=grid)
     t_cal = time.time() - t0
     cam = cal["camera"]
-    crig = cam.rectified
-    doffs, focus = cam.rig["doffs"], cam.rig.get("focus")
     l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
     h, w = l2.shape[:2]
     params = default_params(w, h, ground="off")
     unrect = pipeline_frames([l2], [r2], params)[0]
-    nodes = build_map(crig, doffs, grid=grid, focus=focus)
-    lo = row_window(nodes, w, h, span, grid)
-    rect = RectifyParams(nodes, lo, span, horizontal)
-    rectified = rectified_pipeline_frames([l2], [r2], params, rect)[0]
+    rect = params_for_rig(cam, w, h, span=span, horizontal=horizontal)
+    lrect = (params_for_rig(cam, w, h, span=span, horizontal=horizontal, side="left")
+             if both_sides(cam) else None)
+    rectified = rectified_pipeline_frames([l2], [r2], params, rect, lrect)[0]
     u = score(unrect.records, gt)
     r = score(rectified.records, gt, MOTORCYCLE, cam)
     return {"rig": name, "views": cal["views"], "rms_px": cal["rms_px"],
             "residual_px": cal["residual_px"], "module_residual_px": cal["module_residual_px"],
-            "warp_rows": cal["vertical_span_rows"], "lo": lo, "span": span,
-            "fits": fits(nodes, w, h, lo, span, grid),
+            "rectified_sides": cal["rectified"], "scale": cam.rig.get("left_rect", {}).get(
+                "scale", 1.0),
+            "warp_rows": cal["vertical_span_rows"], "lo": rect.lo, "span": rect.span,
+            "left_lo_span": None if lrect is None else [lrect.lo, lrect.span],
             "unrectified": dict(zip(("matches", "within2", "bad2"), u)),
             "rectified": dict(zip(("matches", "within2", "bad2"), r)),
             "seconds": round(time.time() - t0, 1), "calibration_s": round(t_cal, 1)}
@@ -104,15 +104,18 @@ def run(names=None, **kw):
 
 
 def markdown(rows):
-    out = ["| rig | views | RMS px | residual px (Bouguet / module) | warp rows | lo, span | "
-           "unrectified matches / within 2 / bad-2 | rectified matches / within 2 / bad-2 |",
+    out = ["| rig | views | RMS px | residual px (Bouguet / module) | warp rows | "
+           "lo, span (right; left) | unrectified matches / within 2 / bad-2 | "
+           "rectified matches / within 2 / bad-2 |",
            "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         u, c = r["unrectified"], r["rectified"]
         out.append(f"| {r['rig']} | {r['views']} | {r['rms_px']:.3f} | "
                    f"{r['residual_px']:.3f} / {r['module_residual_px']:.3f} | "
                    f"{r['warp_rows'][0]:+.2f} .. {r['warp_rows'][1]:+.2f} | "
-                   f"{r['lo']}, {r['span']}{'' if r['fits'] else ' (does not fit)'} | "
+                   f"{r['lo']}, {r['span']}"
+                   f"{'' if r['left_lo_span'] is None else '; %d, %d' % tuple(r['left_lo_span'])}"
+                   f" | "
                    f"{u['matches']:,} / {u['within2']:,} / {100 * u['bad2']:.1f} % | "
                    f"{c['matches']:,} / {c['within2']:,} / {100 * c['bad2']:.1f} % |")
     return "\n".join(out)
