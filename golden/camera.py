@@ -171,6 +171,9 @@ class Camera:
                     from None
             doffs = self.rig.get("doffs", 0.0)
             _number("rig.doffs", doffs)
+            if self.rig.get("left_rect") is not None:
+                from .rig import check_left_rect
+                check_left_rect(self.rig["left_rect"])
             window = self.rig.get("window")
             if window is not None and not (
                     isinstance(window, (list, tuple)) and len(window) == 2

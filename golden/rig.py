@@ -58,7 +58,7 @@ __all__ = ["Lens", "Rig", "rotation", "rodrigues", "distort", "undistort", "proj
            "align_rotation", "rectified_lens", "left_rect_map", "right_rect_map",
            "triangulate_rectified", "rect_vertical_span", "rect_geometry", "row_curve",
            "row_curve_inverse", "PINHOLE_ROWS", "distortion_px",
-           "calibrated_points"]
+           "calibrated_points", "check_left_rect"]
 
 
 @dataclass(frozen=True)
@@ -457,6 +457,26 @@ def distortion_px(lens, width, height):
     u = lens.fx * xn + lens.cx
     v = lens.fy * yn + lens.cy
     return float(np.hypot(u - gx, v - gy).max())
+
+
+def check_left_rect(lr):
+    """ValueError unless ``lr`` is a calibration's ``left_rect``: ``R`` a rotation matrix,
+    ``scale`` a number in (0, 2], ``g`` (optional) three numbers with ``g0 > 0``."""
+    if not isinstance(lr, dict) or set(lr) - {"R", "scale", "g"} or not {"R", "scale"} <= set(lr):
+        raise ValueError(f"left_rect must be an object with R, scale and g, not {lr!r}")
+    try:
+        R = np.asarray(lr["R"], np.float64).reshape(3, 3)
+        scale = float(lr["scale"])
+        g = [float(v) for v in lr.get("g", PINHOLE_ROWS)]
+    except (TypeError, ValueError):
+        raise ValueError(f"left_rect: R must be 3 x 3 numbers, scale and g numbers, not "
+                         f"{lr!r}") from None
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError("left_rect.R must be a rotation matrix")
+    if not 0 < scale <= 2:
+        raise ValueError(f"left_rect.scale must be within (0, 2], not {lr['scale']!r}")
+    if len(g) != 3 or not all(math.isfinite(v) for v in g) or g[0] <= 0:
+        raise ValueError(f"left_rect.g must be three numbers with g0 > 0, not {lr.get('g')!r}")
 
 
 def calibrated_points(cal, x, y, d):

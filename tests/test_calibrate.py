@@ -137,3 +137,10 @@ def test_camera_file_rig_key_is_checked(tmp_path):
         Camera.from_dict({**base, "rig": {**rig, "window": [40, 20]}})
     cam.to_json(tmp_path / "c.json")
     assert Camera.from_json(tmp_path / "c.json").rig["doffs"] == 31.0
+    both = {"R": np.eye(3).tolist(), "scale": 0.98, "g": [0.97, -0.28, 0.08]}
+    assert Camera.from_dict({**base, "rig": {**rig, "left_rect": both}}).rig["left_rect"] == both
+    for bad, what in (({**both, "R": [[1, 0, 0], [0, 2, 0], [0, 0, 1]]}, "rotation"),
+                      ({**both, "scale": 0}, "scale"), ({**both, "g": [0, 0, 0]}, "g0"),
+                      ({"R": both["R"]}, "object")):
+        with pytest.raises(ValueError, match=what):
+            Camera.from_dict({**base, "rig": {**rig, "left_rect": bad}})
