@@ -19,7 +19,9 @@ distortion, the right camera's pose (:meth:`golden.rig.Rig.to_dict` keys), ``dof
 principal points' distance of the module's rectification, :mod:`golden.rectify`), ``window``
 (``[d_min, d_max]`` that fits the rig) and the calibration's figures. With it, the image is
 the left camera's as captured (distorted) and the right image is rectified into its geometry;
-``fx fy cx cy`` are the left camera's, ``doffs_px`` the rectification's.
+``fx fy cx cy`` are the left camera's, ``doffs_px`` the rectification's. With ``left_rect``
+(``{"R": R1, "scale": s}``, lenses that distort) both images are rectified into one pinhole
+geometry (:mod:`golden.rig`), and ``fx fy cx cy doffs_px`` are that geometry's.
 
 Geometry. Pixel ``(x, y)`` is column, row, the centre of the top-left pixel at (0, 0). The
 camera frame has X right, Y down, Z along the optical axis, pitched down by ``tilt_deg``.
@@ -36,8 +38,10 @@ Points in the left camera's own frame (:meth:`Camera.points`, ``matches.csv``'s 
 cam_y_m cam_z_m``): x right, y down, z forward, metres, OpenCV's convention. Without ``rig``
 they are the ideal rig's, ``(x - cx) z / fx, (y - cy) z / fy, z``; with it, the calibration's
 (:func:`golden.rig.triangulate`: the left lens' distortion removed, the right pixel taken
-through the module's rectification with the rig's ``doffs`` and ``focus``), so a point is where
-the left camera as calibrated, before rectification, sees it. The rig-centre and ground-plane
+through the module's rectification with the rig's ``doffs`` and ``focus``; with ``left_rect``,
+both images rectified, :func:`golden.rig.triangulate_rectified`, the left camera's
+rectifying turn undone), so a point is where the left camera as calibrated, before
+rectification, sees it. The rig-centre and ground-plane
 coordinates (:meth:`Camera.robot_frame`: ``x_m``, ``forward_m``, ``up_m``, the top view) are
 taken from these points: ``x_m = cam_x - baseline_m / 2``, ``forward = cam_z cos(tilt) - cam_y
 sin(tilt)``, ``up = height_m - cam_y cos(tilt) - cam_z sin(tilt)``; without ``rig`` they equal
@@ -167,6 +171,9 @@ class Camera:
                     from None
             doffs = self.rig.get("doffs", 0.0)
             _number("rig.doffs", doffs)
+            if self.rig.get("left_rect") is not None:
+                from .rig import check_left_rect
+                check_left_rect(self.rig["left_rect"])
             window = self.rig.get("window")
             if window is not None and not (
                     isinstance(window, (list, tuple)) and len(window) == 2
@@ -338,11 +345,9 @@ class Camera:
             z = self.depth(d)
             return np.stack(np.broadcast_arrays((x - self.cx) * z / self.fx,
                                                 (y - self.cy) * z / self.fy, z), axis=-1)
-        from .rig import triangulate
-        focus = self.rig.get("focus")
-        p = triangulate(rig, x + (rig.left.cx - self.cx), y + (rig.left.cy - self.cy), d,
-                        float(self.rig.get("doffs", 0.0)),
-                        None if focus is None else float(focus))
+        from .rig import calibrated_points
+        p = calibrated_points(self.rig, x + (rig.left.cx - self.cx), y + (rig.left.cy - self.cy),
+                              d)
         return np.where(np.isfinite(p[..., 2:3]) & (p[..., 2:3] > 0), p, np.nan)
 
     def robot_frame(self, points):

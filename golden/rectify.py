@@ -1,5 +1,10 @@
-"""Rectification of the right camera on the chip: the bit-exact resampling of its luminance and
-ground bit into the left camera's geometry (:func:`golden.rig.right_to_left_map`).
+"""Rectification on the chip: the bit-exact resampling of a camera's luminance and ground bit.
+A calibration whose lenses hardly distort warps the right camera alone, into the left camera's
+geometry (:func:`golden.rig.right_to_left_map`); one whose lenses distort warps both, into one
+pinhole geometry (its ``left_rect``, :func:`golden.rig.left_rect_map`,
+:func:`golden.rig.right_rect_map`), because a one-sided warp leaves the distortion's vertical
+parallax at every depth but one (:func:`both_sides`). Each camera's map has the representation
+below.
 
 The map. A grid of nodes every ``GRID`` = 32 pixels, from (0, 0) to the first multiple of 32
 past the last column and row (``grid_shape``), holds for each node the source position
@@ -43,7 +48,7 @@ import numpy as np
 __all__ = ["GRID", "FRAC", "MAP_DTYPE", "grid_shape", "build_map", "source_positions",
            "rectify", "fits", "row_window", "valid_region", "RectifyParams", "node_words",
            "RectifiedPipelineModel", "rectified_pipeline_frames", "SPAN", "MAX_SPAN",
-           "needs_rectification", "params_for_rig"]
+           "needs_rectification", "params_for_rig", "both_sides", "source_map"]
 
 #: Pixels between map nodes (a power of two).
 GRID = 32
@@ -65,18 +70,40 @@ def grid_shape(width, height, grid=GRID):
     return (height - 1) // grid + 2, (width - 1) // grid + 2
 
 
-def build_map(rig, doffs, width=None, height=None, grid=GRID, focus=None):
-    """The map of ``rig`` (:func:`golden.rig.right_to_left_map` with ``doffs`` and ``focus``)
-    at its nodes,
+def source_map(rig, xs, ys, doffs, focus=None, side="right", both=None):
+    """Source pixels of output pixels ``(xs, ys)`` of one camera's rectified image.
+    ``both`` None: the right camera into the left's geometry
+    (:func:`golden.rig.right_to_left_map` with ``doffs`` and ``focus``; ``side`` must be
+    ``"right"``: the left image stays as it is). ``both`` a dict ``{"R": R1, "scale": s}``
+    (a calibration's ``left_rect``, optionally with the row curve ``"g"``): both cameras into
+    one geometry whose rows are epipolar lines
+    (:func:`golden.rig.left_rect_map`, :func:`golden.rig.right_rect_map`)."""
+    from golden.rig import PINHOLE_ROWS, left_rect_map, right_rect_map, right_to_left_map
+    if side not in ("left", "right"):
+        raise ValueError(f"side must be 'left' or 'right', not {side!r}")
+    if both is None:
+        if side == "left":
+            raise ValueError("a one-sided rectification leaves the left image as it is")
+        return right_to_left_map(rig, xs, ys, doffs, focus)
+    R1, scale = np.asarray(both["R"], np.float64), float(both["scale"])
+    g = tuple(both.get("g", PINHOLE_ROWS))
+    if side == "left":
+        return left_rect_map(rig, xs, ys, R1, scale, g)
+    return right_rect_map(rig, xs, ys, doffs, R1, scale, g)
+
+
+def build_map(rig, doffs, width=None, height=None, grid=GRID, focus=None, side="right",
+              both=None):
+    """The map of ``rig`` (:func:`source_map` with ``doffs``, ``focus``, ``side`` and
+    ``both``) at its nodes,
     rounded to 1/16 px: a (rows, cols) array of :data:`MAP_DTYPE`. ValueError when an offset
     does not fit :data:`OFFSET_BITS` bits."""
-    from golden.rig import right_to_left_map
     width = rig.width if width is None else width
     height = rig.height if height is None else height
     gr, gc = grid_shape(width, height, grid)
     gx, gy = np.meshgrid(np.arange(gc, dtype=np.float64) * grid,
                          np.arange(gr, dtype=np.float64) * grid)
-    sx, sy = right_to_left_map(rig, gx, gy, doffs, focus)
+    sx, sy = source_map(rig, gx, gy, doffs, focus, side, both)
     out = np.zeros((gr, gc), MAP_DTYPE)
     lim = 1 << (OFFSET_BITS - 1)
     for k, d in (("dx", sx - gx), ("dy", sy - gy)):
@@ -143,7 +170,7 @@ def node_words(nodes, stride):
 
 
 def rectify(y, ground, nodes, lo, span, grid=GRID, horizontal="linear"):
-    """The rectified luminance (uint8) and ground bit (uint8 0/1) of one right image (see the
+    """The rectified luminance (uint8) and ground bit (uint8 0/1) of one image (see the
     module text). A map of zeros (the rectifier's enable bit off) gives the image back."""
     y = np.asarray(y)
     h, w = y.shape
@@ -175,14 +202,17 @@ def rectify(y, ground, nodes, lo, span, grid=GRID, horizontal="linear"):
     return luma.astype(np.uint8), g.astype(np.uint8)
 
 
-def valid_region(rig, doffs, grid=GRID, focus=None):
-    """``[x, y, w, h]``: a rectangle of the rectified right image whose pixels all have their
-    source inside the right image (the largest found by trimming the side with the most
-    pixels outside, one line at a time)."""
-    nodes = build_map(rig, doffs, grid=grid, focus=focus)
-    sx, sy = source_positions(nodes, rig.width, rig.height, grid)
-    bad = ((sx < 0) | (sx > (rig.width - 1) << FRAC) | (sy < 0)
-           | (sy > (rig.height - 1) << FRAC))
+def valid_region(rig, doffs, grid=GRID, focus=None, both=None):
+    """``[x, y, w, h]``: a rectangle of the rectified right image (and with ``both``, of the
+    rectified left image too) whose pixels all have their source inside the camera's image
+    (the largest found by trimming the side with the most pixels outside, one line at a
+    time)."""
+    bad = np.zeros((rig.height, rig.width), bool)
+    for side in ("right",) if both is None else ("left", "right"):
+        nodes = build_map(rig, doffs, grid=grid, focus=focus, side=side, both=both)
+        sx, sy = source_positions(nodes, rig.width, rig.height, grid)
+        bad |= ((sx < 0) | (sx > (rig.width - 1) << FRAC) | (sy < 0)
+                | (sy > (rig.height - 1) << FRAC))
     x0, y0, x1, y1 = 0, 0, rig.width, rig.height
     while x1 > x0 and y1 > y0:
         b = bad[y0:y1, x0:x1]
@@ -206,13 +236,22 @@ def needs_rectification(nodes):
     return bool(np.any(nodes["dx"]) or np.any(nodes["dy"]))
 
 
-def params_for_rig(camera, width, height, span=SPAN, horizontal="nearest", max_span=MAX_SPAN):
-    """The :class:`RectifyParams` of a calibrated camera (:class:`golden.camera.Camera` with
-    ``rig``, as ``python -m sim calibrate`` writes it) for width x height images: the map of
-    its rig with its ``doffs`` and ``focus``, ``span`` the least even number of rows from
-    ``span`` up to ``max_span`` that holds the map's vertical warp, ``lo`` fitted to it.
-    ValueError when the camera has no calibration, its map grid is not :data:`GRID`, its size
-    is not the images', or its warp needs more than ``max_span`` rows."""
+def both_sides(camera):
+    """Whether a calibrated camera's rectification warps both cameras (its calibration has
+    ``left_rect``: lenses that distort) rather than the right one alone."""
+    return camera.rig is not None and camera.rig.get("left_rect") is not None
+
+
+def params_for_rig(camera, width, height, span=SPAN, horizontal="nearest", max_span=MAX_SPAN,
+                   side="right"):
+    """The :class:`RectifyParams` of one camera (``side``) of a calibrated camera file
+    (:class:`golden.camera.Camera` with ``rig``, as ``python -m sim calibrate`` writes it) for
+    width x height images: the map of its rig with its ``doffs``, ``focus`` and ``left_rect``
+    (:func:`source_map`), ``span`` the least even number of rows from ``span`` up to
+    ``max_span`` that holds the map's vertical warp, ``lo`` fitted to it. ValueError when the
+    camera has no calibration, ``side`` is ``"left"`` and the rectification is one-sided
+    (:func:`both_sides`), its map grid is not :data:`GRID`, its size is not the images', or its
+    warp needs more than ``max_span`` rows."""
     cal = camera.rig
     if cal is None:
         raise ValueError("the camera has no calibration (rig): nothing to rectify")
@@ -222,7 +261,8 @@ def params_for_rig(camera, width, height, span=SPAN, horizontal="nearest", max_s
                          f"{width}x{height}")
     if cal.get("grid", GRID) != GRID:
         raise ValueError(f"the calibration's map grid is {cal['grid']} px; the module's is {GRID}")
-    nodes = build_map(rig, cal.get("doffs", 0.0), focus=cal.get("focus"))
+    nodes = build_map(rig, cal.get("doffs", 0.0), focus=cal.get("focus"), side=side,
+                      both=cal.get("left_rect"))
     for s in range(max(2, span + span % 2), max_span + 1, 2):
         lo = row_window(nodes, width, height, s)
         if fits(nodes, width, height, lo, s):
@@ -233,7 +273,7 @@ def params_for_rig(camera, width, height, span=SPAN, horizontal="nearest", max_s
 
 @dataclass(frozen=True)
 class RectifyParams:
-    """What the right camera's rectifier runs with: the map ``nodes`` (:data:`MAP_DTYPE`
+    """What one camera's rectifier runs with: the map ``nodes`` (:data:`MAP_DTYPE`
     array), the buffer's first row ``lo`` (a register) and its depth less one ``span`` (an
     elaboration parameter), the horizontal interpolation, and the enable bit (off: the pixels
     pass unchanged)."""
@@ -250,37 +290,46 @@ class RectifyParams:
 
 class RectifiedPipelineModel:
     """:class:`golden.pipeline.PipelineModel` with the right camera's luminance and ground bit
-    rectified between its ground classifier and its Sobel unit (its free space is the
+    (``rect``), and optionally the left camera's (``left``, a :class:`RectifyParams` or None),
+    rectified between the camera's ground classifier and its Sobel unit (its free space is the
     classifier's, unrectified)."""
 
-    def __init__(self, params, rect):
+    def __init__(self, params, rect, left=None):
         from .pipeline import PipelineModel
         self.inner = PipelineModel(params)
         self.rect = rect
+        self.left = left
 
-    def step(self, left_rgb, right_rgb):
+    @staticmethod
+    def _front(unit, rgb, r):
+        """One camera's front end with its rectifier ``r`` (None: the plain front end)."""
         from .color import rgb_to_yhs
         from .frontend import FrontEndFrame
-        from .matcher import match
-        from .pipeline import PipelineFrame
         from .sobel import sobel_edges
-        m = self.inner
-        lf = m.left.step(left_rgb)
-        y, h, s = rgb_to_yhs(right_rgb)
-        status = (m.right.ground.sets is not None, m.right.ground.hue_fallback)
-        sets = m.right.ground.sets
-        mask = m.right.ground.step(y, h, s)
-        r = self.rect
+        if r is None:
+            return unit.step(rgb)
+        y, h, s = rgb_to_yhs(rgb)
+        status = (unit.ground.sets is not None, unit.ground.hue_fallback)
+        sets = unit.ground.sets
+        mask = unit.ground.step(y, h, s)
         nodes = r.nodes if r.enable else np.zeros_like(r.nodes)
         ry, rmask = rectify(y, mask, nodes, r.lo, r.span, horizontal=r.horizontal)
-        edge, neg = sobel_edges(ry, rmask, m.right.params.sobel)
-        rf = FrontEndFrame(ry, h, s, rmask, edge, neg, status, sets,
-                           m.right.params.free.rows(mask))
+        edge, neg = sobel_edges(ry, rmask, unit.params.sobel)
+        return FrontEndFrame(ry, h, s, rmask, edge, neg, status, sets,
+                             unit.params.free.rows(mask))
+
+    def step(self, left_rgb, right_rgb):
+        from .matcher import match
+        from .pipeline import PipelineFrame
+        m = self.inner
+        lf = self._front(m.left, left_rgb, self.left)
+        rf = self._front(m.right, right_rgb, self.rect)
         records, stats = match(lf.output(), rf.output(), m.params.matcher)
         return PipelineFrame(lf, rf, records, stats)
 
 
-def rectified_pipeline_frames(left_frames, right_frames, params, rect):
-    """:func:`golden.pipeline.pipeline_frames` with the right camera rectified (``rect``)."""
-    model = RectifiedPipelineModel(params, rect)
+def rectified_pipeline_frames(left_frames, right_frames, params, rect, left=None):
+    """:func:`golden.pipeline.pipeline_frames` with the right camera rectified (``rect``),
+    and the left one too with ``left``."""
+    model = RectifiedPipelineModel(params, rect, left)
     return [model.step(l, r) for l, r in zip(left_frames, right_frames)]

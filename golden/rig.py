@@ -31,6 +31,17 @@ Two rectifications:
   the left lens' distortion. The distortion's vertical parallax is cancelled at one chosen
   disparity instead of at infinity (``focus``, the middle of the disparity window), which
   shrinks it over the window.
+* Both cameras rectified (:func:`left_rect_map`, :func:`right_rect_map`), for lenses that
+  distort: the one-sided warp above cannot remove the distortion's vertical parallax at every
+  depth. Both images are resampled into one geometry whose rows are planes through the
+  baseline (so corresponding points share a row at every depth): turned by ``R1``
+  (:func:`align_rotation`: the least turn of the left camera that puts the baseline on its x
+  axis; the right camera turned to the same orientation), columns linear in the ray
+  (``scale fx``, :func:`rectified_lens`; the right image's principal point ``doffs``
+  further right), rows a curve of the ray's height that follows the lenses
+  (:func:`row_curve`), so that the warp needs few rows of line buffer
+  (:func:`rect_geometry`). :func:`triangulate_rectified` takes matches back to the left
+  camera's own frame (undoing ``R1``).
 
 The rig's fields are floats and tuples so that a rig can be a frozen dataclass and a JSON
 object (:meth:`Rig.to_dict`, :meth:`Rig.from_dict`).
@@ -43,7 +54,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 __all__ = ["Lens", "Rig", "rotation", "rodrigues", "distort", "undistort", "project",
-           "bouguet", "right_to_left_map", "triangulate", "map_vertical_span"]
+           "bouguet", "right_to_left_map", "triangulate", "map_vertical_span",
+           "align_rotation", "rectified_lens", "left_rect_map", "right_rect_map",
+           "triangulate_rectified", "rect_vertical_span", "rect_geometry", "row_curve",
+           "row_curve_inverse", "PINHOLE_ROWS", "distortion_px",
+           "calibrated_points", "check_left_rect"]
 
 
 @dataclass(frozen=True)
@@ -287,3 +302,194 @@ def map_vertical_span(rig, doffs=0.0, step=8, focus=None):
     _, sy = right_to_left_map(rig, gx, gy, doffs, focus)
     dv = sy - gy
     return float(dv.min()), float(dv.max())
+
+
+# -- both cameras rectified: undistorted into one pinhole geometry ------------------------------
+
+def align_rotation(rig):
+    """``R1``: the least rotation of the left camera's frame that turns the baseline (the right
+    camera's centre, :attr:`Rig.centre`) onto its x axis (the identity when it lies there)."""
+    c = rig.centre / np.linalg.norm(rig.centre)
+    axis = np.cross(c, [1.0, 0.0, 0.0])
+    s = float(np.linalg.norm(axis))
+    if s < 1e-15:
+        return np.eye(3)
+    return rodrigues(axis / s * math.atan2(s, float(c[0])))
+
+
+def rectified_lens(rig, scale, doffs=0.0):
+    """The rectified images' pinhole lens in x (and at their centre row in y): the left
+    camera's ``fx`` times ``scale``, its ``fy`` and principal point (``doffs`` pixels further
+    right for the right image)."""
+    L = rig.left
+    return Lens(L.fx * scale, L.fy, L.cx + doffs, L.cy)
+
+
+#: The row curve of a pinhole image (:func:`row_curve`).
+PINHOLE_ROWS = (1.0, 0.0, 0.0)
+
+
+def row_curve(yn, g):
+    """The rectified row of normalised ray height ``yn`` (in units of ``fy``):
+    ``g0 yn + g1 yn^3 + g2 yn^5``."""
+    yn = np.asarray(yn, np.float64)
+    y2 = yn * yn
+    return yn * (g[0] + y2 * (g[1] + y2 * g[2]))
+
+
+def row_curve_inverse(t, g, iterations=20):
+    """The normalised ray height whose rectified row is ``t`` (:func:`row_curve`, Newton)."""
+    t = np.asarray(t, np.float64)
+    y = t / g[0]
+    if not (g[1] or g[2]):
+        return y
+    for _ in range(iterations):
+        y2 = y * y
+        f = y * (g[0] + y2 * (g[1] + y2 * g[2])) - t
+        df = g[0] + y2 * (3 * g[1] + 5 * g[2] * y2)
+        y = y - f / df
+    return y
+
+
+def _rect_rays(rig, xs, ys, scale, doffs, g=PINHOLE_ROWS):
+    lens = rectified_lens(rig, scale, doffs)
+    xn = (np.asarray(xs, np.float64) - lens.cx) / lens.fx
+    yn = row_curve_inverse((np.asarray(ys, np.float64) - lens.cy) / lens.fy, g)
+    return np.stack(np.broadcast_arrays(xn, yn, np.ones_like(xn)), axis=-1)
+
+
+def left_rect_map(rig, xs, ys, R1, scale, g=PINHOLE_ROWS):
+    """Source pixels in the left image of output pixels ``(xs, ys)`` of the rectified left
+    image: the ray ``R1^T (x_n, y_n, 1)`` through the left lens, with ``x_n = (x - cx) /
+    (scale fx)`` and ``y_n`` the ray height of row ``y`` (:func:`row_curve_inverse` of ``(y -
+    cy) / fy``). Every row is one plane through the baseline: rows stay epipolar lines."""
+    return project(rig.left, _rect_rays(rig, xs, ys, scale, 0.0, g) @ np.asarray(R1, np.float64))
+
+
+def right_rect_map(rig, xs, ys, doffs, R1, scale, g=PINHOLE_ROWS):
+    """Source pixels in the right image of output pixels of the rectified right image: as
+    :func:`left_rect_map` with the principal point ``doffs`` pixels right, at the right
+    camera's centre, turned like the rectified left camera; the ray ``R R1^T (x_n, y_n, 1)``
+    through the right lens."""
+    rays = _rect_rays(rig, xs, ys, scale, doffs, g) @ np.asarray(R1, np.float64) @ rig.Rm.T
+    return project(rig.right, rays)
+
+
+def triangulate_rectified(rig, x, y, d, doffs, R1, scale, g=PINHOLE_ROWS):
+    """Points (N x 3, metres) in the left camera's frame as calibrated of matches at pixel
+    ``(x, y)`` of the rectified left image with disparity ``d`` (both images rectified:
+    :func:`left_rect_map`, :func:`right_rect_map`): depth ``scale fx B / (d + doffs)`` in
+    the rectified frame (``B`` the baseline's length), the point on the left pixel's rectified
+    ray, turned back by ``R1^T``. NaN where ``d + doffs`` is not positive."""
+    lens = rectified_lens(rig, scale)
+    den = np.asarray(d, np.float64) + doffs
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(den > 0, lens.fx * np.linalg.norm(rig.centre) / den, np.nan)
+    p = _rect_rays(rig, x, y, scale, 0.0, g) * z[..., None]
+    return p @ np.asarray(R1, np.float64)
+
+
+def _grid(rig, step):
+    xs = np.unique(np.r_[np.arange(0, rig.width, step), rig.width - 1]).astype(np.float64)
+    ys = np.unique(np.r_[np.arange(0, rig.height, step), rig.height - 1]).astype(np.float64)
+    return np.meshgrid(xs, ys)
+
+
+def rect_vertical_span(rig, doffs, R1, scale, g=PINHOLE_ROWS, step=8):
+    """``((lo, hi) left, (lo, hi) right)``: the least and greatest source-row minus output-row
+    of :func:`left_rect_map` and :func:`right_rect_map` (sampled every ``step`` pixels and on
+    the last row and column)."""
+    gx, gy = _grid(rig, step)
+    out = []
+    for sy in (left_rect_map(rig, gx, gy, R1, scale, g)[1],
+               right_rect_map(rig, gx, gy, doffs, R1, scale, g)[1]):
+        dv = sy - gy
+        out.append((float(dv.min()), float(dv.max())))
+    return tuple(out)
+
+
+def rect_geometry(rig, doffs_px, R1, max_dx=31.5, step=8, grid=32):
+    """``(scale, g)``: the rectified geometry that needs the fewest rows of line buffer.
+
+    Rows: an undistorted pinhole image of a barrel lens pulls the image corners many rows
+    outwards; the rows instead follow the lenses (:func:`row_curve`: ``g`` fitted to the middle
+    of the source rows that each rectified row spans across the image, in both cameras), so
+    the vertical warp is only the distortion's difference between the middle and the edges of
+    a row. Columns stay linear in the ray (``scale fx``, so that the disparity is ``scale fx B
+    / z - doffs`` as before), ``scale`` the largest of 1, 0.995, ... whose horizontal warp
+    stays within ``max_dx`` pixels at the map's nodes (every ``grid`` pixels, to a node past
+    the last column: the node words' range). ``doffs_px`` is the principal
+    points' distance at scale 1 (it scales with ``scale``)."""
+    for scale in np.arange(1.0, 0.7, -0.005):
+        gx, gy = _grid(rig, step)
+        lens = rectified_lens(rig, scale)
+        xn = (gx[0] - lens.cx) / lens.fx
+        y0 = max(lens.cy, rig.height - 1 - lens.cy) / lens.fy
+        yn = np.linspace(-1.3 * y0, 1.3 * y0, 53)
+        rx, ry = np.meshgrid(xn, yn)
+        q = np.stack([rx, ry, np.ones_like(rx)], -1) @ np.asarray(R1, np.float64)
+        rows = [project(rig.left, q)[1],
+                project(rig.right, np.stack([rx + doffs_px * scale / lens.fx, ry,
+                                             np.ones_like(rx)], -1)
+                        @ np.asarray(R1, np.float64) @ rig.Rm.T)[1]]
+        rows = np.concatenate(rows, axis=1)
+        mid = ((rows.min(axis=1) + rows.max(axis=1)) / 2 - lens.cy) / lens.fy
+        keep = np.abs(yn) > 1e-9
+        A = np.stack([yn[keep], yn[keep] ** 3, yn[keep] ** 5], -1)
+        g = tuple(float(v) for v in np.linalg.lstsq(A, mid[keep], rcond=None)[0])
+        # the map's nodes, every grid pixels up to a node past the last column and row
+        nx, ny = np.meshgrid(np.arange((rig.width - 1) // grid + 2) * float(grid),
+                             np.arange((rig.height - 1) // grid + 2) * float(grid))
+        sxl = left_rect_map(rig, nx, ny, R1, scale, g)[0]
+        sxr = right_rect_map(rig, nx, ny, doffs_px * scale, R1, scale, g)[0]
+        if max(np.abs(sxl - nx).max(), np.abs(sxr - nx).max()) <= max_dx:
+            return round(float(scale), 4), tuple(round(v, 6) for v in g)
+    raise ValueError(f"no rectified geometry keeps the horizontal warp within {max_dx} px")
+
+
+def distortion_px(lens, width, height):
+    """The largest displacement (pixels) the lens' distortion gives any pixel of a width x
+    height image (sampled on the border and a coarse grid)."""
+    xs = np.linspace(0, width - 1, 17)
+    ys = np.linspace(0, height - 1, 17)
+    gx, gy = np.meshgrid(xs, ys)
+    xn, yn = undistort(lens, gx, gy)
+    u = lens.fx * xn + lens.cx
+    v = lens.fy * yn + lens.cy
+    return float(np.hypot(u - gx, v - gy).max())
+
+
+def check_left_rect(lr):
+    """ValueError unless ``lr`` is a calibration's ``left_rect``: ``R`` a rotation matrix,
+    ``scale`` a number in (0, 2], ``g`` (optional) three numbers with ``g0 > 0``."""
+    if not isinstance(lr, dict) or set(lr) - {"R", "scale", "g"} or not {"R", "scale"} <= set(lr):
+        raise ValueError(f"left_rect must be an object with R, scale and g, not {lr!r}")
+    try:
+        R = np.asarray(lr["R"], np.float64).reshape(3, 3)
+        scale = float(lr["scale"])
+        g = [float(v) for v in lr.get("g", PINHOLE_ROWS)]
+    except (TypeError, ValueError):
+        raise ValueError(f"left_rect: R must be 3 x 3 numbers, scale and g numbers, not "
+                         f"{lr!r}") from None
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError("left_rect.R must be a rotation matrix")
+    if not 0 < scale <= 2:
+        raise ValueError(f"left_rect.scale must be within (0, 2], not {lr['scale']!r}")
+    if len(g) != 3 or not all(math.isfinite(v) for v in g) or g[0] <= 0:
+        raise ValueError(f"left_rect.g must be three numbers with g0 > 0, not {lr.get('g')!r}")
+
+
+def calibrated_points(cal, x, y, d):
+    """Points (N x 3) in the left camera's frame as calibrated of matches at ``(x, y, d)`` of
+    a calibration ``cal`` (a camera file's ``rig`` object): both cameras rectified when it has
+    ``left_rect`` (``{"R": R1, "scale": s, "g": [g0, g1, g2]}``, :func:`triangulate_rectified`), else the
+    right camera into the left's geometry (:func:`triangulate` with ``doffs`` and ``focus``)."""
+    rig = Rig.from_dict(cal)
+    lr = cal.get("left_rect")
+    if lr is not None:
+        return triangulate_rectified(rig, x, y, d, float(cal.get("doffs", 0.0)),
+                                     np.asarray(lr["R"], np.float64), float(lr["scale"]),
+                                     tuple(lr.get("g", PINHOLE_ROWS)))
+    focus = cal.get("focus")
+    return triangulate(rig, x, y, d, float(cal.get("doffs", 0.0)),
+                       None if focus is None else float(focus))

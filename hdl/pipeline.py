@@ -90,10 +90,20 @@ class StereoPipeline(wiring.Component):
     The right camera's edges then reach the matcher ``lo + span`` rows after the left's: the
     left stalls for them (with ``drop_mode`` and cameras that cannot stall, ``extra_rows`` must
     cover them). The default build has no rectifier.
+
+    ``rectify_left`` (None, or a dict like ``rectify``; only with ``rectify``): a second
+    rectifier on the left camera's path, at the same place (golden
+    :class:`golden.rectify.RectifiedPipelineModel` with ``left``), for rigs whose lenses
+    distort (both images undistorted into one geometry, :func:`golden.rectify.both_sides`),
+    with its own registers and map memory, the ports ``rect_left_lo``, ``rect_left_enable``,
+    ``rect_left_map_addr``, ``rect_left_map_data``, ``rect_left_map_we`` (as ``rect_*``). The
+    matcher then waits for whichever camera's edges come later. It costs a second line buffer
+    and map memory.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, extra_rows=0, cost="census", rectify=None, free_space=True):
+                 queue_depth=16, extra_rows=0, cost="census", rectify=None, rectify_left=None,
+                 free_space=True):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._free_space = bool(free_space)
         self.rectify = None if rectify is None else dict(rectify)
@@ -104,6 +114,17 @@ class StereoPipeline(wiring.Component):
             self._rect_span = self.rectify.get("span", 8)
             self._rect_horizontal = self.rectify.get("horizontal", "linear")
             self._rect_nodes = None if nodes is None else (
+                nodes.shape, tuple(int(v) for v in nodes["dx"].ravel()),
+                tuple(int(v) for v in nodes["dy"].ravel()))
+        if rectify_left is not None and rectify is None:
+            raise ValueError("rectify_left needs rectify: the left camera is rectified only "
+                             "together with the right one")
+        self.rectify_left = None if rectify_left is None else dict(rectify_left)
+        if rectify_left is not None:
+            nodes = self.rectify_left.get("nodes")
+            self._rect_left_span = self.rectify_left.get("span", 8)
+            self._rect_left_horizontal = self.rectify_left.get("horizontal", "linear")
+            self._rect_left_nodes = None if nodes is None else (
                 nodes.shape, tuple(int(v) for v in nodes["dx"].ravel()),
                 tuple(int(v) for v in nodes["dy"].ravel()))
         self._matcher = dict(max_disparity=max_disparity, window=window,
@@ -138,9 +159,12 @@ class StereoPipeline(wiring.Component):
             ports[f"{side}_free_lost"] = Out(16)
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
-        if rectify is not None:
-            ports.update(rect_lo=In(signed(6)), rect_enable=In(1), rect_map_addr=In(12),
-                         rect_map_data=In(2 * OFFSET_BITS), rect_map_we=In(1))
+        for prefix, r in (("rect", rectify), ("rect_left", rectify_left)):
+            if r is not None:
+                ports.update({f"{prefix}_lo": In(signed(6)), f"{prefix}_enable": In(1),
+                              f"{prefix}_map_addr": In(12),
+                              f"{prefix}_map_data": In(2 * OFFSET_BITS),
+                              f"{prefix}_map_we": In(1)})
         super().__init__(ports)
         #: the map memory's row stride (rect_map_addr of node (j, k): j * stride + k)
         self.rect_node_stride = None if rectify is None else \
@@ -155,15 +179,14 @@ class StereoPipeline(wiring.Component):
         m.submodules.ground_search = search = GroundSearch(units=2)
         m.d.comb += search.config.eq(self.ground)
         for k, side in enumerate(("left", "right")):
+            rect = self.rectify if side == "right" else self.rectify_left
             fe = SharedSearchFrontEnd(**self._size, census=self._matcher["cost"] == "census",
-                                      rectify=self.rectify if side == "right" else None,
-                                      free_space=self._free_space)
+                                      rectify=rect, free_space=self._free_space)
             m.submodules[f"{side}_frontend"] = fe
-            if side == "right" and self.rectify is not None:
-                m.d.comb += [fe.rect_lo.eq(self.rect_lo), fe.rect_enable.eq(self.rect_enable),
-                             fe.rect_map_addr.eq(self.rect_map_addr),
-                             fe.rect_map_data.eq(self.rect_map_data),
-                             fe.rect_map_we.eq(self.rect_map_we)]
+            if rect is not None:
+                prefix = "rect" if side == "right" else "rect_left"
+                m.d.comb += [getattr(fe, f"rect_{k}").eq(getattr(self, f"{prefix}_{k}"))
+                             for k in ("lo", "enable", "map_addr", "map_data", "map_we")]
             wiring.connect(m, fe.search, getattr(search, f"unit{k}"))
             wiring.connect(m, wiring.flipped(getattr(self, side)), fe.i)
             wiring.connect(m, fe.o, getattr(matcher, side))

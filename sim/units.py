@@ -25,7 +25,8 @@ class Job:
     """What to run: consecutive RGB frames of one or two cameras and the parameters;
     ``rect`` (a :class:`golden.rectify.RectifyParams`): the right camera rectified (the
     pipeline's golden model is then :func:`golden.rectify.rectified_pipeline_frames` and its
-    RTL is elaborated with the rectifier, the map in its memory's initial contents)."""
+    RTL is elaborated with the rectifier, the map in its memory's initial contents);
+    ``rect_left`` (with ``rect``): the left camera rectified too, by a second rectifier."""
     left: list
     right: list
     params: PipelineParams
@@ -33,12 +34,14 @@ class Job:
     max_height: int = 1024
     max_disparity: int = MAX_DISPARITY
     rect: object = None
+    rect_left: object = None
 
     @cached_property
     def golden(self):
         if self.right and self.rect is not None:
             from golden.rectify import rectified_pipeline_frames
-            return rectified_pipeline_frames(self.left, self.right, self.params, self.rect)
+            return rectified_pipeline_frames(self.left, self.right, self.params, self.rect,
+                                             self.rect_left)
         if self.right:
             return pipeline_frames(self.left, self.right, self.params)
         # one camera: frames with only the left front end's result
@@ -223,12 +226,18 @@ def pipeline_for(job, *, extra_rows=0):
     (``fixed_config``, :func:`sim.config.config_values`)."""
     from hdl.pipeline import StereoPipeline
     mp = _rtl_matcher(job)
-    r = job.rect
-    rectify = None if r is None else dict(span=r.span, horizontal=r.horizontal, nodes=r.nodes)
+    r, rl = job.rect, job.rect_left
+
+    def unit(p):
+        return None if p is None else dict(span=p.span, horizontal=p.horizontal, nodes=p.nodes)
+
     dut = StereoPipeline(**_size(job), max_disparity=job.max_disparity, window=mp.window,
-                         extra_rows=extra_rows, cost=mp.cost, rectify=rectify)
+                         extra_rows=extra_rows, cost=mp.cost, rectify=unit(r),
+                         rectify_left=unit(rl))
     if r is not None:
         dut.fixed_config = {"rect_lo": r.lo, "rect_enable": int(r.enable)}
+    if rl is not None:
+        dut.fixed_config.update(rect_left_lo=rl.lo, rect_left_enable=int(rl.enable))
     return dut
 
 

@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from golden.camera import Camera
-from golden.rig import map_vertical_span
+from golden.rig import map_vertical_span, rect_vertical_span
 from sim.cli.main import main
 from sim.scenes.rig import board_views, rig_named, write_views
 
@@ -44,14 +44,39 @@ def test_calibration_recovers_the_rig(boards, tmp_path, capsys):
         assert abs(a.fx - b.fx) < 5 and abs(a.cx - b.cx) < 4 and abs(a.cy - b.cy) < 4
         assert abs(a.dist[0] - b.dist[0]) < 0.03
     assert np.degrees(np.abs(got.Rm - rig.Rm).max()) < 0.15
-    # the module's line buffer: the calibrated map's vertical warp is the true one's
+    # lenses that distort: both cameras rectified, rows epipolar to well under a pixel
+    assert figures["rectified"] == "both" and cam.rig["focus"] is None
+    assert figures["module_residual_px"] < 0.3
+    both = cam.rig["left_rect"]
+    assert 0.9 < both["scale"] <= 1 and abs(cam.fx - both["scale"] * got.left.fx) < 1e-6
+    # the line buffers: the calibrated maps' vertical warp is the true rig's with them
+    spans = rect_vertical_span(rig, cam.doffs_px, np.array(both["R"]), both["scale"],
+                               both["g"])
+    lo, hi = figures["vertical_span_rows"]
+    assert abs(lo - min(a for a, _ in spans)) < 1.5 and abs(hi - max(b for _, b in spans)) < 1.5
+    assert hi - lo < 20
+    assert cam.rig["window"] == figures["window"] == [0, 63]
+    x, y, w, h = cam.valid
+    assert w > 0.9 * rig.width and h > 0.9 * rig.height
+
+
+def test_a_rig_without_distortion_rectifies_the_right_camera_alone(tmp_path, capsys):
+    """A rolled, row-offset rig with distortion-free lenses: the right camera warped into
+    the left's geometry (one line buffer), its distortion centred on the middle of the
+    window, its warp the true rig's."""
+    rig = rig_named("roll 0.5").with_errors(row_offset=2.0)
+    folder = tmp_path / "boards"
+    write_views(folder, board_views(rig, views=6, seed=3))
+    out = tmp_path / "rig.json"
+    assert _calibrate(folder, out) == 0
+    figures = json.loads(capsys.readouterr().out)
+    cam = Camera.from_json(out)
+    assert figures["rectified"] == "right" and "left_rect" not in cam.rig
+    assert figures["module_residual_px"] < 0.3
+    assert cam.rig["focus"] == 31.5         # the middle of the window
     lo, hi = figures["vertical_span_rows"]
     tlo, thi = map_vertical_span(rig, cam.doffs_px, focus=cam.rig["focus"])
     assert abs(lo - tlo) < 1.5 and abs(hi - thi) < 1.5
-    assert cam.rig["window"] == figures["window"] == [0, 63]
-    assert cam.rig["focus"] == 31.5         # the middle of the window
-    x, y, w, h = cam.valid
-    assert w > 0.9 * rig.width and h > 0.9 * rig.height
 
 
 def test_near_sets_the_window(boards, tmp_path, capsys):
@@ -112,3 +137,10 @@ def test_camera_file_rig_key_is_checked(tmp_path):
         Camera.from_dict({**base, "rig": {**rig, "window": [40, 20]}})
     cam.to_json(tmp_path / "c.json")
     assert Camera.from_json(tmp_path / "c.json").rig["doffs"] == 31.0
+    both = {"R": np.eye(3).tolist(), "scale": 0.98, "g": [0.97, -0.28, 0.08]}
+    assert Camera.from_dict({**base, "rig": {**rig, "left_rect": both}}).rig["left_rect"] == both
+    for bad, what in (({**both, "R": [[1, 0, 0], [0, 2, 0], [0, 0, 1]]}, "rotation"),
+                      ({**both, "scale": 0}, "scale"), ({**both, "g": [0, 0, 0]}, "g0"),
+                      ({"R": both["R"]}, "object")):
+        with pytest.raises(ValueError, match=what):
+            Camera.from_dict({**base, "rig": {**rig, "left_rect": bad}})

@@ -1,6 +1,7 @@
 """Misaligned rigs: the motorcycle pair re-shot through each rig of :data:`sim.scenes.rig.RIGS`,
 matched by the golden pipeline (default configuration, ground model off) without and with the
-right camera's rectification from a calibration of checkerboards rendered through the rig.
+rectification of a calibration of checkerboards rendered through the rig (the right camera's
+alone, or both cameras' when the lenses distort: :func:`golden.rectify.both_sides`).
 
 Per rig: the calibration's figures (views, RMS, Bouguet's and the module's vertical
 residual, the map's vertical warp in rows), then the matches, the points within 2 px of the
@@ -11,7 +12,10 @@ rectified match's ``cam_x_m cam_y_m cam_z_m``, as ``matches.csv`` has them
 distortion removed), is projected into the original left image with its documented camera,
 and its disparity there (``f B / z - doffs``) compared with the ground truth at the nearest
 pixel. An unrectified match is what the module gives today: its pixel and disparity
-taken as the original image's.
+taken as the original image's. The last column leaves out the rectified matches whose left
+or right pixel shows the re-shoot's blank surround instead of the scene (:func:`inside_scene`):
+a lens that distorts sees more than the original pair holds, so the re-shot images have black
+borders whose edges no real camera would show.
 
 ``python -m sim.bench.rig [--rigs NAME,...] [--views N] [--span ROWS] [--horizontal
 linear|nearest]`` prints the table.
@@ -26,7 +30,7 @@ import time
 
 import numpy as np
 
-__all__ = ["score", "run_rig", "run", "markdown"]
+__all__ = ["score", "inside_scene", "run_rig", "run", "markdown"]
 
 
 def score(records, gt, camera=None, calibrated=None):
@@ -60,11 +64,43 @@ def score(records, gt, camera=None, calibrated=None):
     return len(records), int(within.sum()), (n - int(within.sum())) / n if n else float("nan")
 
 
+def inside_scene(records, camera, rig, ideal, margin=4):
+    """Whether each match's left pixel and right pixel (``x - d``) see the scene the
+    re-shoot had: their sources, through the calibration's rectification of ``camera`` (None:
+    the pixels as captured) and then the true ``rig`` back into the ideal rig ``ideal``'s
+    original images, lie at least ``margin`` pixels inside them. A pixel that does not shows
+    the re-shoot's blank surround (:func:`sim.scenes.rig.reshoot` is black where the
+    original pair has no pixel), which a real lens would fill with the scene."""
+    from golden.matcher import record_disparity
+    from golden.rectify import source_map
+    from golden.rig import project, undistort
+    x = records["x"].astype(np.float64)
+    y = records["y"].astype(np.float64)
+    d = record_disparity(records).astype(np.float64)
+    w, h = ideal.width, ideal.height
+    ok = np.ones(len(x), bool)
+    for side in ("left", "right"):
+        u = x if side == "left" else x - d
+        if camera is None or (side == "left" and camera.rig.get("left_rect") is None):
+            su, sv = u, y
+        else:
+            cal = camera.rig
+            su, sv = source_map(camera.rectified, u, y, cal.get("doffs", 0.0), cal.get("focus"),
+                                side, cal.get("left_rect"))
+        lens, orig = (rig.left, ideal.left) if side == "left" else (rig.right, ideal.right)
+        xn, yn = undistort(lens, su, sv)
+        rays = np.stack([xn, yn, np.ones_like(xn)], axis=-1)
+        if side == "right":
+            rays = rays @ (rig.Rm @ ideal.Rm.T)       # the right camera's own turn undone
+        ou, ov = project(orig, rays)
+        ok &= (ou >= margin) & (ou <= w - 1 - margin) & (ov >= margin) & (ov <= h - 1 - margin)
+    return ok
+
+
 def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workdir=None):
     """One rig's row of the table (a dict)."""
     from golden.pipeline import default_params, pipeline_frames
-    from golden.rectify import (RectifyParams, build_map, fits, rectified_pipeline_frames,
-                                row_window)
+    from golden.rectify import both_sides, params_for_rig, rectified_pipeline_frames
     from sim.cli.calibrate import calibrate
     from sim.scenes.camera import MOTORCYCLE
     from sim.scenes.data import motorcycle
@@ -77,24 +113,28 @@ def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workd
         cal = calibrate(folder, (9, 6), 0.03, grid=grid)
     t_cal = time.time() - t0
     cam = cal["camera"]
-    crig = cam.rectified
-    doffs, focus = cam.rig["doffs"], cam.rig.get("focus")
     l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
     h, w = l2.shape[:2]
     params = default_params(w, h, ground="off")
     unrect = pipeline_frames([l2], [r2], params)[0]
-    nodes = build_map(crig, doffs, grid=grid, focus=focus)
-    lo = row_window(nodes, w, h, span, grid)
-    rect = RectifyParams(nodes, lo, span, horizontal)
-    rectified = rectified_pipeline_frames([l2], [r2], params, rect)[0]
+    rect = params_for_rig(cam, w, h, span=span, horizontal=horizontal)
+    lrect = (params_for_rig(cam, w, h, span=span, horizontal=horizontal, side="left")
+             if both_sides(cam) else None)
+    rectified = rectified_pipeline_frames([l2], [r2], params, rect, lrect)[0]
     u = score(unrect.records, gt)
     r = score(rectified.records, gt, MOTORCYCLE, cam)
+    ideal = motorcycle_rig()
+    keep = inside_scene(rectified.records, cam, rig, ideal)
+    r_in = score(rectified.records[keep], gt, MOTORCYCLE, cam)
     return {"rig": name, "views": cal["views"], "rms_px": cal["rms_px"],
             "residual_px": cal["residual_px"], "module_residual_px": cal["module_residual_px"],
-            "warp_rows": cal["vertical_span_rows"], "lo": lo, "span": span,
-            "fits": fits(nodes, w, h, lo, span, grid),
+            "rectified_sides": cal["rectified"], "scale": cam.rig.get("left_rect", {}).get(
+                "scale", 1.0),
+            "warp_rows": cal["vertical_span_rows"], "lo": rect.lo, "span": rect.span,
+            "left_lo_span": None if lrect is None else [lrect.lo, lrect.span],
             "unrectified": dict(zip(("matches", "within2", "bad2"), u)),
             "rectified": dict(zip(("matches", "within2", "bad2"), r)),
+            "rectified_in_scene": dict(zip(("matches", "within2", "bad2"), r_in)),
             "seconds": round(time.time() - t0, 1), "calibration_s": round(t_cal, 1)}
 
 
@@ -104,17 +144,21 @@ def run(names=None, **kw):
 
 
 def markdown(rows):
-    out = ["| rig | views | RMS px | residual px (Bouguet / module) | warp rows | lo, span | "
-           "unrectified matches / within 2 / bad-2 | rectified matches / within 2 / bad-2 |",
-           "|---|---|---|---|---|---|---|---|"]
+    out = ["| rig | views | RMS px | residual px (Bouguet / module) | warp rows | "
+           "lo, span (right; left) | unrectified matches / within 2 / bad-2 | "
+           "rectified matches / within 2 / bad-2 | rectified, inside the re-shot scene |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        u, c = r["unrectified"], r["rectified"]
+        u, c, i = r["unrectified"], r["rectified"], r["rectified_in_scene"]
         out.append(f"| {r['rig']} | {r['views']} | {r['rms_px']:.3f} | "
                    f"{r['residual_px']:.3f} / {r['module_residual_px']:.3f} | "
                    f"{r['warp_rows'][0]:+.2f} .. {r['warp_rows'][1]:+.2f} | "
-                   f"{r['lo']}, {r['span']}{'' if r['fits'] else ' (does not fit)'} | "
+                   f"{r['lo']}, {r['span']}"
+                   f"{'' if r['left_lo_span'] is None else '; %d, %d' % tuple(r['left_lo_span'])}"
+                   f" | "
                    f"{u['matches']:,} / {u['within2']:,} / {100 * u['bad2']:.1f} % | "
-                   f"{c['matches']:,} / {c['within2']:,} / {100 * c['bad2']:.1f} % |")
+                   f"{c['matches']:,} / {c['within2']:,} / {100 * c['bad2']:.1f} % | "
+                   f"{i['matches']:,} / {i['within2']:,} / {100 * i['bad2']:.1f} % |")
     return "\n".join(out)
 
 

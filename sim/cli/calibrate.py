@@ -35,6 +35,9 @@ __all__ = ["MIN_VIEWS", "calibrate", "add_parser", "cmd_calibrate", "parse_board
 
 #: Fewest pairs in which the board must be found in both images.
 MIN_VIEWS = 4
+#: Lens distortion (the largest displacement of a pixel, in pixels) above which both cameras
+#: are rectified: below it the one-sided warp's vertical parallax is a small part of a pixel.
+DISTORTION_PX = 1.0
 
 
 def parse_board(text):
@@ -95,8 +98,7 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     (the module's rectification, the same), ``vertical_span_rows`` and ``window``. CliError on
     bad input (see :func:`cmd_calibrate`)."""
     import cv2
-    from golden.camera import Camera
-    from golden.rig import Lens, Rig, map_vertical_span, undistort, project
+    from golden.rig import Lens, Rig, distortion_px, map_vertical_span, undistort, project
     if not square > 0:
         raise CliError(f"square size must be positive, not {square}")
     pairs = _pairs(folder)
@@ -142,13 +144,16 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     yl = cv2.undistortPointsIter(al, K1, D1, R1, P1, crit)[:, 0, 1]
     yr = cv2.undistortPointsIter(ar, K2, D2, R2, P2, crit)[:, 0, 1]
     residual = float(np.median(np.abs(yl - yr)))
-    # the module's rectification: right corners into the left camera's geometry, the
-    # distortion centred for the middle of the disparity window
     doffs = float(K2[0, 2] - K1[0, 2])
     baseline = float(rig.centre[0])
     if baseline <= 0:
         raise CliError("the right camera is not to the right of the left one: swap the "
                        "left_ and right_ images")
+    if max(distortion_px(rig.left, w, h), distortion_px(rig.right, w, h)) > DISTORTION_PX:
+        return _calibrated(folder, rig, both_rect(rig, doffs, al, ar, near_m, grid),
+                           rms, residual, len(obj), len(pairs))
+    # the module's rectification: right corners into the left camera's geometry, the
+    # distortion centred for the middle of the disparity window
     window = _window(rig.left.fx * baseline, doffs, near_m)
     from golden.rectify import valid_region
     # the middle of the window, or nearer infinity when the map's offsets would not fit
@@ -168,19 +173,73 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     _, vr = project(vl, rays + np.array([shift / rig.left.fx, 0, 0]) * rays[:, 2:3])
     module_residual = float(np.median(np.abs(vr - al[:, 0, 1])))
     lo, hi = map_vertical_span(rig, doffs, focus=focus)
-    extra = {**rig.to_dict(), "doffs": doffs, "focus": focus, "grid": grid,
-             "window": list(window),
-             "rms_px": round(float(rms), 4), "views": len(obj),
-             "residual_px": round(residual, 4), "module_residual_px": round(module_residual, 4),
-             "vertical_span_rows": [round(lo, 3), round(hi, 3)]}
-    camera = Camera(fx=float(K1[0, 0]), fy=float(K1[1, 1]), cx=float(K1[0, 2]),
-                    cy=float(K1[1, 2]), baseline_m=baseline, doffs_px=doffs, width=w, height=h,
-                    valid=valid, rig=extra, source=f"calibration of {folder}")
-    return {"camera": camera, "views": len(obj), "pairs": len(pairs),
-            "rms_px": round(float(rms), 4), "residual_px": round(residual, 4),
-            "module_residual_px": round(module_residual, 4),
-            "vertical_span_rows": [round(lo, 3), round(hi, 3)], "window": list(window)}
+    rect = {"doffs": doffs, "focus": focus, "grid": grid, "window": list(window),
+            "valid": valid, "module_residual_px": round(module_residual, 4),
+            "vertical_span_rows": [round(lo, 3), round(hi, 3)],
+            "scale": 1.0, "baseline": baseline}
+    return _calibrated(folder, rig, rect, rms, residual, len(obj), len(pairs))
 
+
+def both_rect(rig, doffs, al, ar, near_m, grid):
+    """The rectification of both cameras (:mod:`golden.rig`: resampled into one geometry
+    whose rows are epipolar lines, turned by :func:`golden.rig.align_rotation`, the column
+    scale and row curve of :func:`golden.rig.rect_geometry`) for a rig with distorting lenses, with its vertical
+    residual at the corners ``al``, ``ar`` (both cameras' corners, (N, 1, 2)): the figures
+    :func:`_calibrated` takes."""
+    from golden.rectify import valid_region
+    from golden.rig import (align_rotation, rect_geometry, rect_vertical_span, rectified_lens,
+                            row_curve, undistort)
+    R1 = align_rotation(rig)
+    try:
+        scale, g = rect_geometry(rig, doffs, R1)
+    except ValueError as e:
+        raise CliError(f"the rig's rectification does not fit the module's map: {e}") from None
+    rdoffs = doffs * scale
+    lens = rectified_lens(rig, scale)
+    baseline = float(np.linalg.norm(rig.centre))
+    window = _window(lens.fx * baseline, rdoffs, near_m)
+    both = {"R": R1.tolist(), "scale": scale, "g": list(g)}
+    try:
+        valid = valid_region(rig, rdoffs, grid, both=both)
+    except ValueError as e:
+        raise CliError(f"the rig's rectification does not fit the module's map: {e}") from None
+    rows = []
+    for lens_c, pts, turn in ((rig.left, al, R1), (rig.right, ar, R1 @ rig.Rm.T)):
+        xn, yn = undistort(lens_c, pts[:, 0, 0], pts[:, 0, 1])
+        q = np.stack([xn, yn, np.ones_like(xn)], -1) @ turn.T
+        rows.append(lens.fy * row_curve(q[:, 1] / q[:, 2], g) + lens.cy)
+    module_residual = float(np.median(np.abs(rows[0] - rows[1])))
+    spans = rect_vertical_span(rig, rdoffs, R1, scale, g)
+    return {"doffs": rdoffs, "focus": None, "grid": grid, "window": list(window),
+            "valid": valid, "module_residual_px": round(module_residual, 4),
+            "vertical_span_rows": [round(min(a for a, _ in spans), 3),
+                                   round(max(b for _, b in spans), 3)],
+            "vertical_span_rows_left": [round(v, 3) for v in spans[0]],
+            "left_rect": both, "scale": scale, "baseline": baseline}
+
+
+def _calibrated(folder, rig, rect, rms, residual, views, pairs):
+    """The result of :func:`calibrate` from the rig and its rectification's figures."""
+    from golden.camera import Camera
+    s = rect["scale"]
+    extra = {**rig.to_dict(), "doffs": rect["doffs"], "focus": rect["focus"],
+             "grid": rect["grid"], "window": rect["window"],
+             "rms_px": round(float(rms), 4), "views": views,
+             "residual_px": round(residual, 4),
+             "module_residual_px": rect["module_residual_px"],
+             "vertical_span_rows": rect["vertical_span_rows"]}
+    if "left_rect" in rect:
+        extra["left_rect"] = rect["left_rect"]
+        extra["vertical_span_rows_left"] = rect["vertical_span_rows_left"]
+    camera = Camera(fx=rig.left.fx * s, fy=rig.left.fy, cx=rig.left.cx, cy=rig.left.cy,
+                    baseline_m=rect["baseline"], doffs_px=rect["doffs"], width=rig.width,
+                    height=rig.height, valid=rect["valid"], rig=extra,
+                    source=f"calibration of {folder}")
+    return {"camera": camera, "views": views, "pairs": pairs,
+            "rms_px": round(float(rms), 4), "residual_px": round(residual, 4),
+            "module_residual_px": rect["module_residual_px"],
+            "rectified": "both" if "left_rect" in rect else "right",
+            "vertical_span_rows": rect["vertical_span_rows"], "window": rect["window"]}
 
 def _window(fb, doffs, near_m, width=64):
     """``(d_min, d_max)``: a window of ``width`` disparities. With ``near_m`` it ends at the

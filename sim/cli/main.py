@@ -410,25 +410,33 @@ def _run_inputs(args):
 
 
 def rectification(args, camera, w, h):
-    """``(RectifyParams or None, summary entry)`` of ``run``: a calibrated camera (``--camera``
-    with ``rig``) whose map moves pixels has its right image rectified, golden and RTL, with the
-    least line buffer that holds its warp (``--rectify off``: never). CliError when the rig
+    """``(right RectifyParams or None, left RectifyParams or None, summary entry)`` of
+    ``run``: a calibrated camera (``--camera`` with ``rig``) whose map moves pixels has its
+    right image rectified, golden and RTL, with the least line buffer that holds its warp, and
+    its left image too when the calibration rectifies both (lenses that distort,
+    :func:`golden.rectify.both_sides`) (``--rectify off``: never). CliError when the rig
     cannot be rectified here."""
-    from golden.rectify import GRID, needs_rectification, params_for_rig
+    from golden.rectify import GRID, both_sides, needs_rectification, params_for_rig
     if camera.rig is None or args.rectify == "off":
         why = "--rectify off" if camera.rig is not None else "the camera has no calibration"
-        return None, {"on": False, "why": why}
+        return None, None, {"on": False, "why": why}
     if args.crop:
         raise CliError("--crop with a calibrated camera: the rectification map is of the "
                        "whole image (give uncropped images, or --rectify off)")
     try:
         rect = params_for_rig(camera, w, h)
+        left = params_for_rig(camera, w, h, side="left") if both_sides(camera) else None
     except ValueError as e:
         raise CliError(f"cannot rectify with {args.camera!r}: {e}") from None
-    if not needs_rectification(rect.nodes):
-        return None, {"on": False, "why": "the rig's map is the identity"}
+    if left is None and not needs_rectification(rect.nodes):
+        return None, None, {"on": False, "why": "the rig's map is the identity"}
     dy = rect.nodes["dy"]
-    return rect, {"on": True, "side": "right", "span": rect.span, "lo": rect.lo,
+    extra = {} if left is None else {
+        "left": {"span": left.span, "lo": left.lo,
+                 "node_dy_px": [round(int(left.nodes["dy"].min()) / 16, 3),
+                                round(int(left.nodes["dy"].max()) / 16, 3)]}}
+    return rect, left, {"on": True, "side": "right" if left is None else "both",
+                        "span": rect.span, "lo": rect.lo, **extra,
                   "horizontal": rect.horizontal, "grid": GRID,
                   "node_rows_cols": list(rect.nodes.shape),
                   "node_dy_px": [round(int(dy.min()) / 16, 3), round(int(dy.max()) / 16, 3)],
@@ -456,10 +464,11 @@ def cmd_run(args, flags):
         raise CliError(str(e)) from None
     check_size(w, h, args)
     params = build_params(args, flags, w, h, grey, ground_default)
-    rect, rectified = rectification(args, camera, w, h)
+    rect, rect_left, rectified = rectification(args, camera, w, h)
     unit = UNITS["pipeline"]
     job = Job([left] * args.frames, [right] * args.frames, params, max_width=args.max_width,
-              max_height=args.max_height, max_disparity=args.max_disparity, rect=rect)
+              max_height=args.max_height, max_disparity=args.max_disparity, rect=rect,
+              rect_left=rect_left)
     dut = make_dut(unit, job)
     prepare_out(args.out)
     ground = params.frontend.ground
@@ -603,7 +612,12 @@ def _print_run(summary, last, failure, paths, args):
     print(f"  measurable depth {near:.3g} m to {far:.3g} m (disparity {cam['disparity_range_px'][1]}"
           f" to {cam['far_disparity_px']} px; camera: {cam['source']})")
     rc = summary.get("rectified")
-    if rc and rc["on"]:
+    if rc and rc["on"] and rc["side"] == "both":
+        print(f"  both cameras rectified into one undistorted geometry (line buffers of "
+              f"{rc['span'] + 1} rows, lo {rc['lo']} right and {rc['left']['span'] + 1} rows, "
+              f"lo {rc['left']['lo']} left, {rc['horizontal']} columns; summary.json "
+              f"'rectified')")
+    elif rc and rc["on"]:
         print(f"  right camera rectified into the left's geometry (line buffer of "
               f"{rc['span'] + 1} rows, lo {rc['lo']}, {rc['horizontal']} columns; "
               f"summary.json 'rectified')")
