@@ -128,17 +128,19 @@ from functools import reduce
 from types import SimpleNamespace
 from operator import or_
 
-from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array
+from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array, signed
 from amaranth.lib import wiring, stream, data, fifo
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
+from golden.floor import OFFSET_BITS, SLOPE_BITS
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS, SUBPIXEL_BITS
 
 from .types import EdgePixel
 from .counter import saturating_sum, wide_accumulator, wide_counter
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_post import SubpixelConfidence
+from .matcher_start import MARGIN_BITS
 from .matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, STORE_VIEW, Scanner,
                            job_layout)
 from .matcher_store import LineStore, LineWidths
@@ -146,7 +148,11 @@ from .matcher_cost import CostTree, term_max
 from .matcher_winner import Winner
 from .fifos import DistributedSyncFIFOBuffered
 
-__all__ = ["Matcher", "match_record_layout", "has_subpixel", "MATCHER_WIDEN"]
+__all__ = ["Matcher", "match_record_layout", "has_subpixel", "MATCHER_WIDEN", "SEARCH_MARGIN"]
+
+#: The search start's margin under the floor line at reset, 1/16 px (2 px: the default of
+#: golden :func:`golden.floor.search_start16`).
+SEARCH_MARGIN = 32
 
 def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, *,
                         cost="sad", window=7):
@@ -228,15 +234,23 @@ class Matcher(wiring.Component):
         both trackers (saturating, cleared by reset; both two cycles after the events).
     frame_abort, in_frame : In(1), Out(1)
         As :class:`hdl.framing.FramedUnit`'s, for both inputs' trackers.
+    floor_search, floor_slope, floor_offset, floor_margin : In (``search_start`` only)
+        The search start under the floor line (:mod:`hdl.matcher_start`): on, the line's
+        slope (1/256 px a row) and signed offset (1/256 px), the margin (1/16 px, reset
+        :data:`SEARCH_MARGIN`). On, a row ``y`` tries only ``d`` with ``16 d >= ((slope y +
+        offset) >> 4) - margin`` (golden ``match(lowest16=search_start16(line, H, margin))``).
+        Latched with ``d_min`` / ``d_max``: a change applies from the next frame that starts.
 
     Elaboration parameters: ``max_width``, ``max_height``, ``max_disparity``, ``window``,
-    ``queue_depth``, ``out_depth``, ``extra_rows`` (see the module docstring), and ``cost``:
+    ``queue_depth``, ``out_depth``, ``extra_rows`` (see the module docstring), ``search_start``
+    (the search start and its ports; without it every row searches the whole window), and
+    ``cost``:
     ``"census"`` (the inputs' ``y`` carries census words; costs are sums of Hamming distances,
     at most ``8 W^2``) or ``"sad"`` (luminance; sums of absolute differences).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, out_depth=8, extra_rows=0, cost="sad"):
+                 queue_depth=16, out_depth=8, extra_rows=0, cost="sad", search_start=False):
         try:
             self._check(max_width, max_height, max_disparity, window, queue_depth, out_depth,
                         extra_rows)
@@ -252,6 +266,7 @@ class Matcher(wiring.Component):
         self._queue_depth = queue_depth
         self._out_depth = out_depth
         self._cost = cost
+        self._search_start = bool(search_start)
         #: golden/matcher.py step 6 in the RTL (:func:`has_subpixel`).
         self.subpixel = has_subpixel(cost)
         self.max_disparity = max_disparity
@@ -272,6 +287,10 @@ class Matcher(wiring.Component):
         }
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
+        if search_start:
+            ports.update(floor_search=In(1), floor_slope=In(SLOPE_BITS),
+                         floor_offset=In(signed(OFFSET_BITS)),
+                         floor_margin=In(MARGIN_BITS, init=SEARCH_MARGIN))
         super().__init__(ports)
 
     @staticmethod
@@ -347,7 +366,8 @@ class Matcher(wiring.Component):
         size_errors = Signal(16)
 
         m.submodules.scanner = scan = Scanner(max_width=MW, max_height=self._max_height,
-                                              max_disparity=D, window=W, rows=ROWS)
+                                              max_disparity=D, window=W, rows=ROWS,
+                                              search_start=self._search_start)
         stores = {}
         for name in ("left", "right"):
             m.submodules[f"store_{name}"] = st = LineStore(max_width=MW,
@@ -375,6 +395,14 @@ class Matcher(wiring.Component):
         f_dmax = Signal(DB, init=min(D, DISPARITY_SPAN - 1))
         with m.If(~L.open & ~R.open):
             m.d.sync += [f_dmin.eq(self.d_min), f_dmax.eq(self.d_max)]
+        if self._search_start:
+            # the search start's line and margin: held for the frame as the window is
+            for name in ("floor_search", "floor_slope", "floor_offset", "floor_margin"):
+                port = getattr(self, name)
+                held = Signal.like(port, name=f"f_{name}")
+                with m.If(~L.open & ~R.open):
+                    m.d.sync += held.eq(port)
+                m.d.comb += getattr(scan, name).eq(held)
         m.d.comb += complete.eq(eng_done & (L.ended | ~L.open) & (R.ended | ~R.open))
         with m.If(complete):
             m.d.sync += [retired.eq(0), wlim.eq(ROWS - r), wlim_m1.eq(ROWS - r - 1),

@@ -7,8 +7,9 @@ the flag memories (the right one at column ``c - d_min``): the right row's edges
 shift registers (Gx positive / negative) so that the candidate set of the left pixel at ``x`` is
 a fixed window of bits (``k -> x - d_min - k``, widened by ``widen`` bits each side; with
 ``sign_any`` both masks ORed, else the one of the left edge's sign), masked with
-``k <= d_max - d_min`` (a registered mask) and ``d_min + k <= x - r`` (a thermometer shifted one
-bit per column). Three stages (flags, candidate mask, count and push) advance together while
+``k <= d_max - d_min`` (a registered mask), ``d_min + k <= x - r`` (a thermometer shifted one
+bit per column) and, with the search start (:mod:`hdl.matcher_start`), the row's bits on or
+above the start under the floor line (in the registered mask). Three stages (flags, candidate mask, count and push) advance together while
 the queue has room. It counts left edges (``edge_pixels``, ``border``, ``no_candidate``) and
 pushes one job ``(x, candidate mask)`` per left edge that has candidates, then a row-end marker;
 after the last row a frame-end marker. It scans every row, border rows included (they only
@@ -20,13 +21,15 @@ differ. In drop mode (camera inputs that cannot stall) it waits for room in the 
 row's flags are being overwritten, then runs and drops (``drops``) an edge whose job does not
 fit.
 """
-from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
+from golden.floor import OFFSET_BITS, SLOPE_BITS
 from golden.matcher import DISPARITY_SPAN
 
+from .matcher_start import MARGIN_BITS, SearchStart
 from .matcher_store import LineWidths
 
 __all__ = ["Scanner", "CandidateMask", "RowReady", "job_layout", "KIND_JOB", "KIND_ROW",
@@ -75,9 +78,17 @@ class Scanner(wiring.Component):
         The frame-end item has been pushed (until ``complete``).
     edge_pixels, border, no_candidate, drops : Out(1)
         One-cycle counting events, a cycle after the left edge's decision.
+    floor_search, floor_slope, floor_offset, floor_margin : In (``search_start`` only)
+        The frame's search start under the floor line (:class:`~hdl.matcher_start.SearchStart`:
+        on, the line's slope and signed offset, the margin), static within a frame.
+
+    ``search_start`` (elaboration): build the search start; without it every row searches
+    the whole window.
     """
 
-    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=255, window=7, rows=8):
+    def __init__(self, *, max_width=1024, max_height=1024, max_disparity=255, window=7, rows=8,
+                 search_start=False):
+        self._search_start = bool(search_start)
         self._max_width = max_width
         self._max_height = max_height
         self._max_disparity = max_disparity
@@ -95,6 +106,9 @@ class Scanner(wiring.Component):
             "complete": In(1), "done": Out(1),
             "edge_pixels": Out(1), "border": Out(1), "no_candidate": Out(1), "drops": Out(1),
         }
+        if search_start:
+            ports.update(floor_search=In(1), floor_slope=In(SLOPE_BITS),
+                         floor_offset=In(signed(OFFSET_BITS)), floor_margin=In(MARGIN_BITS))
         widths = {"open": 1, "ended": 1, "rows": YW, "wrow": YW + 1, "width": XW, "write": 1,
                   "fresh": 1}
         for side in ("left", "right"):
@@ -173,6 +187,12 @@ class Scanner(wiring.Component):
                      cm.c2.eq(c2), cm.d_min.eq(self.d_min), cm.d_max.eq(self.d_max),
                      cm.mode_full.eq(self.mode_full), cm.sign_any.eq(self.sign_any),
                      cm.widen.eq(self.widen)]
+        if self._search_start:
+            m.submodules.start = st = SearchStart(max_disparity=D)
+            m.d.comb += [st.enable.eq(self.floor_search), st.slope.eq(self.floor_slope),
+                         st.offset.eq(self.floor_offset), st.margin.eq(self.floor_margin),
+                         st.d_min.eq(self.d_min), st.restart.eq(self.complete),
+                         st.step.eq(rows.next_row), cm.allow.eq(st.allow)]
         # Stage 3: count and push.
         v3 = Signal(); edge3 = Signal(); border3 = Signal(); cand3 = Signal(ND)
         x3 = Signal(XW); last3 = Signal()
@@ -257,7 +277,8 @@ class CandidateMask(wiring.Component):
     The second condition is a thermometer of bits: ``clear`` empties it at a row's start,
     ``shift`` moves it by one column (for scanner column ``c2``, the left pixel being ``c2 -
     MATCHER_WIDEN``: a bit enters when ``c2 >= d_min + r + MATCHER_WIDEN - 1``, a column ahead
-    of the pixel it serves). The first is registered in two steps from ``d_min`` / ``d_max``.
+    of the pixel it serves). The first is registered in two steps from ``d_min`` / ``d_max``,
+    together with ``allow`` (the search start of :class:`~hdl.matcher_start.SearchStart`).
 
     Ports
     -----
@@ -273,6 +294,9 @@ class CandidateMask(wiring.Component):
         cycles after a change).
     mode_full, sign_any : In(1), widen : In(range(MATCHER_WIDEN + 1))
         As the scanner's.
+    allow : In(ND)
+        Bit ``k`` may be a candidate on this row (all ones by default); it enters the range
+        mask's register, so it takes effect the next cycle.
     cand : Out(ND)
         The candidate mask (combinational from the inputs and the registered masks).
 
@@ -289,7 +313,8 @@ class CandidateMask(wiring.Component):
             "neg": In(1), "c2": In(bits_for(max_width + MATCHER_WIDEN)),
             "clear": In(1), "shift": In(1),
             "d_min": In(DB), "d_max": In(DB), "mode_full": In(1), "sign_any": In(1),
-            "widen": In(range(MATCHER_WIDEN + 1)), "cand": Out(ND),
+            "widen": In(range(MATCHER_WIDEN + 1)), "allow": In(ND, init=(1 << ND) - 1),
+            "cand": Out(ND),
         })
 
     def elaborate(self, platform):
@@ -305,7 +330,7 @@ class CandidateMask(wiring.Component):
         xmin = Signal(DB + 2)             # d_min + r + WD - 1: column c2 - 1 of that x
         rng = Signal(ND)
         m.d.sync += [span.eq(self.d_max - self.d_min), xmin.eq(self.d_min + r + WD - 1),
-                     rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]))]
+                     rng.eq(Cat(*[~span[DB] & (span >= k) for k in range(ND)]) & self.allow)]
         with m.If(self.clear):
             m.d.sync += xmask.eq(0)
         with m.Elif(self.shift):

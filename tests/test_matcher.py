@@ -11,12 +11,18 @@ Covered: synthetic shifted-texture pairs (2 frames, odd and even heights, window
 one input cut short, frames of different heights and widths, reset mid-frame, drop mode with
 and without pressure, elaboration errors. Full frames run under Verilator elsewhere.
 """
+import inspect
+
 import numpy as np
 import pytest
+from amaranth.hdl import Array, Const, Module, Mux, Signal
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In
 
+from golden.floor import FloorLine, search_start16
 from golden.matcher import MatcherParams, match, matched_values, record_dtype, STAT_KEYS
 from golden.sobel import sobel_edges, SobelParams
-from hdl.matcher import Matcher
+from hdl.matcher import SEARCH_MARGIN, Matcher
 from hdl.types import EdgePixel
 from sim.streams import Configure, Packer, frames_words, Reset, run_streams
 
@@ -119,8 +125,8 @@ def run_matcher(dut, left_words, right_words, *, frames, params=MatcherParams(),
     return run
 
 
-def golden_records(left, right, params):
-    recs, stats = match(left, right, params)
+def golden_records(left, right, params, lowest16=None):
+    recs, stats = match(left, right, params, lowest16=lowest16)
     fields = [recs[k] for k in recs.dtype.names]         # with subpixel: d16 and conf too
     return np.stack(fields, axis=1).reshape(-1, len(fields)).astype(np.int64), stats
 
@@ -432,3 +438,93 @@ def test_drop_mode_frames_start_together():
 def test_elaboration_errors(kw, message):
     with pytest.raises(ValueError, match=message):
         Matcher(**kw)
+
+
+# ------------------------------------------------------------------ the search start
+
+#: The search start's ports, in the order of a :class:`LineTableMatcher` table entry.
+FLOOR_PORTS = ("floor_search", "floor_slope", "floor_offset", "floor_margin")
+
+
+class LineTableMatcher(wiring.Component):
+    """A :class:`Matcher` with the search start whose floor ports come from ``table``, one
+    ``(on, slope, offset, margin)`` per frame (the last one repeats), indexed by the frames the
+    matcher has finished: the matcher latches them between frames, as the SoC's registers
+    written while a frame runs. Its other ports are the matcher's."""
+
+    def __init__(self, table, **kw):
+        self.matcher = Matcher(search_start=True, **kw)
+        self.record = self.matcher.record
+        # plain construction parameters: a cached simulator build is found by these
+        self._table = tuple(tuple(int(v) for v in t) for t in table)
+        self._matcher_kw = tuple(sorted(kw.items()))
+        super().__init__({name: member for name, member in self.matcher.signature.members.items()
+                          if name not in FLOOR_PORTS})
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.matcher = mt = self.matcher
+        for name, member in self.signature.members.items():
+            ours, theirs = getattr(self, name), getattr(mt, name)
+            if member.is_signature:
+                if member.flow == In:
+                    wiring.connect(m, wiring.flipped(ours), theirs)
+                else:
+                    wiring.connect(m, theirs, wiring.flipped(ours))
+            elif member.flow == In:
+                m.d.comb += theirs.eq(ours)
+            else:
+                m.d.comb += ours.eq(theirs)
+        last = len(self._table) - 1
+        index = Signal(range(last + 1))
+        m.d.comb += index.eq(Mux(mt.frames >= last, last, mt.frames))
+        for j, name in enumerate(FLOOR_PORTS):
+            port = getattr(mt, name)
+            column = Array(Const(t[j], port.shape()) for t in self._table)
+            m.d.comb += port.eq(column[index])
+        return m
+
+
+def search_lowest16(entry, height):
+    """golden ``lowest16`` of a table entry ``(on, slope, offset, margin)``."""
+    on, slope, offset, margin = entry
+    return search_start16(FloorLine(slope, offset), height, margin) if on else None
+
+
+def test_search_start_lines_per_frame():
+    """The search start with a new line each frame (off; steep lines with fractional offsets,
+    margins 0, 37 and 255; every disparity cut; every disparity kept), census and SAD, d_min
+    0 and 3, with stalls: bit-exact records and statistics, and fewer evaluations than the
+    whole window."""
+    table = [(0, 300, -2000, 32), (1, 450, -1000, 0), (1, 389, -997, 37),
+             (1, 1023, 131071, 5), (1, 0, -131072, 255), (1, 512, -3123, 16)]
+    for kw, d_min in ((CENSUS, 0), ({"widen": True}, 3)):
+        params = MatcherParams(**{"d_min": d_min, "d_max": 15, "window": 3, **kw})
+        fl, fr = synthetic_frames(len(table), h=13, seed=120 + d_min,
+                                  rects=((2, 8, 11, 14, 9), (3, 20, 12, 30, 13)))
+        expected = [golden_records(a, b, params, search_lowest16(e, 13))
+                    for a, b, e in zip(fl, fr, table)]
+        whole = [golden_records(a, b, params)[1]["evaluations"] for a, b in zip(fl, fr)]
+        ev = [st["evaluations"] for _, st in expected]
+        assert ev[0] == whole[0] and ev[3] == 0 and ev[4] == whole[4], (ev, whole)
+        assert all(0 < e < w for e, w in zip(ev[1:3] + ev[5:], whole[1:3] + whole[5:])), (ev, whole)
+        lw, rw = stream_words(fl, params), stream_words(fr, params)
+        for seed in (1, 2):
+            run_checked(f"search_{params.cost}_{d_min}_s{seed}",
+                        lambda: LineTableMatcher(table, max_width=64, max_height=32,
+                                                 max_disparity=15, window=3, cost=params.cost),
+                        lw, rw, expected, params, seed=seed, idle=0.3, stall=0.3)
+
+
+def test_search_start_off_is_the_whole_window():
+    """Elaborated with the search start but off: the matcher's records on the tests' frames."""
+    fl, fr = synthetic_frames(2, seed=5)
+    params = MatcherParams(d_max=15, window=3, **CENSUS)
+    run_and_check("search_off", lambda: LineTableMatcher([(0, 300, -2000, 0)], max_width=64,
+                                                         max_height=32, max_disparity=15,
+                                                         window=3, cost="census"),
+                  fl, fr, params, seeds=(3,), idle=0.2, stall=0.2)
+
+
+def test_search_margin_default():
+    assert SEARCH_MARGIN == inspect.signature(search_start16).parameters["margin"].default

@@ -1,7 +1,8 @@
 """The matcher's scanner (hdl/matcher_scan.py) on its own: driven by a model of the two line
 stores (flag memories answering its read ports one cycle later, lines arriving at random), its
 jobs ``(x, candidate mask)``, row markers and counts against golden/matcher.py's candidate rule
-(:func:`golden.matcher.candidates`) on small random frames, under random queue backpressure.
+(:func:`golden.matcher.candidates`) on small random frames, under random queue backpressure;
+the search start under the floor line (hdl/matcher_start.py) against golden.floor's.
 The whole matcher: tests/test_matcher.py."""
 import random
 
@@ -11,9 +12,11 @@ from amaranth.sim import Simulator
 
 from amaranth.utils import bits_for
 
+from golden.floor import OFFSET_BITS, SLOPE_BITS, FloorLine, search_start16
 from golden.matcher import MatcherParams, candidates
 from hdl.matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, CandidateMask,
                               RowReady, Scanner)
+from hdl.matcher_start import SearchStart
 
 MW, MH = 32, 16
 XB = 5                                   # ceil(log2(MW)): the column bits of a flag address
@@ -294,6 +297,52 @@ def test_row_ready_rule():
                     int(bool(active and (lacks or size_bad))),
                     int(bool(ok[0] and ok[1] and row >= r)), int(bool(doom))]
             row = 0 if complete else (row + next_row) % (1 << len(dut.row))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+
+
+@pytest.mark.parametrize("max_disparity", [20, 255])
+def test_search_start_rule(max_disparity):
+    """SearchStart alone: after each row step (and at row 0) ``allow`` bit k is set exactly
+    when ``16 (d_min + k) >= lowest16(y)`` of golden ``search_start16`` (every bit when off),
+    on random lines, margins and d_min, the extremes of every field included, over rows up
+    to 1023."""
+    rng = random.Random(max_disparity)
+    dut = SearchStart(max_disparity=max_disparity)
+    ND = len(dut.allow)
+    lim = 1 << (OFFSET_BITS - 1)
+    extremes = [(1023, lim - 1), (0, -lim), (1023, -lim), (0, lim - 1), (1, -lim)]
+
+    async def bench(ctx):
+        for segment in range(40):
+            slope, offset = extremes[segment] if segment < len(extremes) else \
+                (rng.randrange(1 << SLOPE_BITS), rng.randrange(-lim, lim))
+            margin = rng.choice([0, 255, rng.randrange(256)])
+            d_min = rng.choice([0, max_disparity, rng.randrange(max_disparity + 1)])
+            on = int(segment % 7 != 6)
+            line = FloorLine(slope, offset)
+            rows = rng.choice([12, 40, 1024])
+            low = search_start16(line, rows, margin)
+            for name, v in dict(enable=on, slope=slope, offset=offset, margin=margin,
+                                d_min=d_min).items():
+                ctx.set(getattr(dut, name), v)
+            ctx.set(dut.restart, 1)
+            await ctx.tick()
+            ctx.set(dut.restart, 0)
+            await ctx.tick().repeat(5)
+            for y in range(rows):
+                want = sum(1 << k for k in range(ND)
+                           if not on or 16 * (d_min + k) >= low[y])
+                assert ctx.get(dut.allow) == want, (segment, line, margin, d_min, y)
+                if y == rows - 1:
+                    break
+                ctx.set(dut.step, 1)
+                await ctx.tick()
+                ctx.set(dut.step, 0)
+                await ctx.tick().repeat(2 + rng.randrange(2))
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
