@@ -202,8 +202,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     total_records = 0
     stream_ps = max(len(ldata), len(rdata)) * CAM_PS
     # start-up (the XBee, the decoders: two report periods more when one does not answer; the
-    # XBee's waits without a radio module, xbee.h: 3 responses and 4 guard times, 5.2 s) + the
-    # streams + two report periods
+    # XBee's waits without a radio module, xbee.h: 3 responses and 4 guard times, 5 s with the
+    # production values) + the streams + a report period more than the packets asked for
     guard_us = _macro(defines, "XBEE_GUARD_US", XBEE_GUARD_US)
     response_us = _macro(defines, "XBEE_RESPONSE_US", XBEE_RESPONSE_US)
     startup_ps = {"no-radio-module": (4 * guard_us + 5 * response_us) * 10**6 + 2 * REPORT_PS,
