@@ -12,7 +12,8 @@ from golden.matcher import RTL, MatcherParams
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.sobel import SobelParams
 from sim.scenes.data import crop, motorcycle
-from sim.system.run import FAULTS, camera_fields, camera_streams, inject, run_system
+from sim.system.run import (FAULTS, LOST_FIELDS, camera_fields, camera_streams, inject,
+                            run_system)
 
 W, H, FRAMES = 64, 16, 5
 PARAMS = PipelineParams(
@@ -72,7 +73,9 @@ def test_capture_skew_is_the_phase_of_the_cameras(lead):
 
 @pytest.mark.parametrize("fault", FAULTS)
 def test_fault_is_counted_and_pairs_resynchronise(fault):
-    res = run_system(*pair(), frames=FRAMES, fault=fault, timing="short", params=PARAMS)
+    # the lost camera's fields are not paired: one more field for a pair after them
+    frames = FRAMES + (fault == "camera-lost-left")
+    res = run_system(*pair(), frames=frames, fault=fault, timing="short", params=PARAMS)
     assert res["bit_exact"] and res["fault_counted"], res
     expect = {
         "missing-sof-left": dict(drops=1, pairs_ok=FRAMES - 1),
@@ -81,6 +84,9 @@ def test_fault_is_counted_and_pairs_resynchronise(fault):
         "long-line-left": dict(mispaired=1, drops=0, pairs_ok=FRAMES - 1),
         "noise-left": dict(mispaired=1, pairs_ok=FRAMES - 1),
         "reset-mid-frame": dict(mispaired=0, drops=0),
+        # the right camera's fields of that time dropped one by one, nothing overflows
+        "camera-lost-left": dict(drops=LOST_FIELDS, mispaired=0, fifo_overflow=0,
+                                 pairs_ok=frames - LOST_FIELDS, frames_out=frames - LOST_FIELDS),
     }[fault]
     for key, value in expect.items():
         assert res[key] == value, (key, res)

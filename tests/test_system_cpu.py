@@ -134,8 +134,9 @@ def test_missing_radio_module_is_bounded_retried_and_reported():
     This runs a variant of the image with shortened waits (SHORT_RADIO_WAITS: XBee guard time
     10 ms and response time 2 ms for 1.1 s and 200 ms, a retry every report period for every
     20): with the production values the configuration alone takes 5 s of simulated time and
-    the retries come 2 s apart, which is most of an hour under Verilator. The code is the
-    production code; only those constants differ (main.c and xbee.h take them with #ifndef)."""
+    the retries come 2 s apart, far too long a simulation for the suite (``python -m sim system
+    --fault no-radio-module`` runs the production image). The code is the production code;
+    only those constants differ (main.c and xbee.h take them with #ifndef)."""
     from sim.system.cpu_run import REPORT_PS, run_cpu_system
     from sim.system.run import CORE_PS, scene_pair
     ms = 10**9 // CORE_PS                                   # core cycles a millisecond

@@ -11,15 +11,18 @@ import json
 import sys
 
 from sim.flows.floor_table import scene_line
-from sim.system.cpu_run import CPU_FAULTS, LOST_FIELDS, run_cpu_system
-from sim.system.run import (FAULT_FIELD, FAULTS, SystemError_, _load, field_of, run_system,
-                            scene_pair)
+from sim.system.cpu_run import CPU_FAULTS, run_cpu_system
+from sim.system.run import (FAULT_FIELD, FAULTS, LOST_FIELDS, SystemError_, _load, field_of,
+                            run_system, scene_pair)
 from sim.system import run as _run
 
 __all__ = ["CPUS", "main"]
 
 #: ``--cpu`` values: the cores the SoC can hold, then the firmware's host build.
 CPUS = ("picorv32", "host")
+#: faults that run only with the firmware on the core, and only with its host build
+CORE_ONLY = tuple(f for f in CPU_FAULTS if f not in FAULTS)
+HOST_ONLY = tuple(f for f in FAULTS if f not in CPU_FAULTS)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -43,10 +46,10 @@ def main(argv=None):
                          "sim/scenes/rendered.py or 'motorcycle'")
     ap.add_argument("--frames", type=int, default=5,
                     help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
-    ap.add_argument("--fault", choices=FAULTS + CPU_FAULTS,
-                    help=f"fault injected in field {FAULT_FIELD} ({', '.join(CPU_FAULTS)}: "
-                         f"on the core, sim/system/cpu_run.py; the others: --cpu host, "
-                         f"sim/system/run.py)")
+    ap.add_argument("--fault", choices=FAULTS + tuple(f for f in CPU_FAULTS if f not in FAULTS),
+                    help=f"fault injected in field {FAULT_FIELD} ({', '.join(CORE_ONLY)}: "
+                         f"on the core, sim/system/cpu_run.py; {', '.join(HOST_ONLY)}: --cpu "
+                         f"host, sim/system/run.py; the others on both)")
     ap.add_argument("--cpu", choices=CPUS, default="picorv32",
                     help="picorv32: the cross-compiled firmware on that core inside the SoC "
                          "(sim/system/cpu_run.py; 720 x 240 fields, NTSC timing); host: the "
@@ -66,16 +69,15 @@ def main(argv=None):
         if args.width % 2 or not 16 <= args.width <= 720 or not 8 <= args.height <= 240:
             raise SystemError_("--width must be even, 16..720; --height 8..240")
         host = args.cpu == "host"
-        if host and args.fault in CPU_FAULTS:
+        if host and args.fault in CORE_ONLY:
             raise SystemError_(f"--fault {args.fault} runs on the core: drop --cpu host")
-        if not host and args.fault in FAULTS:
+        if not host and args.fault in HOST_ONLY:
             raise SystemError_(f"--fault {args.fault} runs with the host firmware: give --cpu host")
         if not host and (args.width, args.height, args.timing) != (720, 240, "ntsc"):
             raise SystemError_(f"--cpu {args.cpu} runs 720 x 240 fields with NTSC timing (the "
                                "firmware's geometry and the register defaults): give --cpu "
                                "host for others")
-        if not host and args.fault == "camera-lost-left" and \
-                args.frames < FAULT_FIELD + LOST_FIELDS + 1:
+        if args.fault == "camera-lost-left" and args.frames < FAULT_FIELD + LOST_FIELDS + 1:
             raise SystemError_(f"--fault camera-lost-left needs --frames at least "
                                f"{FAULT_FIELD + LOST_FIELDS + 1}")
         if not host and args.right_lead != _run.RIGHT_LEAD_BYTES:

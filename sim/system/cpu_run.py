@@ -66,11 +66,11 @@ import time
 from golden.floor import FloorParams, floor_flags
 from golden.pipeline import default_params, pipeline_frames
 from hdl import regmap
+from sim.system.run import LOST_FIELDS, camera_lost_span
 
 __all__ = ["CPU_FAULTS", "LOST_FIELDS", "build_cpu_system", "run_cpu_system"]
 
 CPU_FAULTS = ("camera-lost-left", "iic-nack", "no-radio-module")
-LOST_FIELDS = 4
 UART_DIVISOR = 434                  #: 115200 baud at 50 MHz (the firmware's BAUD)
 XBEE_ROBOT_ADDR = 0x0002            #: firmware/include/xbee.h
 REPORT_PS = 100_000_000_000         #: the firmware's report period, 100 ms
@@ -163,7 +163,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     ``min_packets + 1`` report periods)."""
     from sim.system import firmware
     from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
-                                _field_spans, camera_streams)
+                                camera_streams)
     from golden.bands import band_values, frame_top, merge_tops
     from station.radio import FrameDecoder
     from station.wire import DEFAULT_MIN_SUPPORT, HEALTH_FLAGS
@@ -197,10 +197,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         raise RuntimeError("the firmware image does not fit the CPU's RAM")
     lib.sys_start()
     if fault == "camera-lost-left":
-        # right after field 1's first timing code, the EAV that ends field 0's last active
-        # line, for LOST_FIELDS fields (1716 x 262.5 bytes each)
-        pos = _field_spans(ldata)[FAULT_FIELD]["codes"][0] + 1
-        lib.sys_camera_stop(0, pos, int(LOST_FIELDS * 1716 * 262.5) * CAM_PS)
+        pos, span = camera_lost_span(ldata)
+        lib.sys_camera_stop(0, pos, span * CAM_PS)
     decoder = FrameDecoder()
     ended = []                      # (marker cycle, x, d) of frames not yet in a packet
     packets, exact_packets = [], []
@@ -208,8 +206,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     total_records = 0
     stream_ps = max(len(ldata), len(rdata)) * CAM_PS
     # start-up (the XBee, the decoders: two report periods more when one does not answer; the
-    # XBee's waits without a radio module, xbee.h: 3 responses and 4 guard times, 5.2 s) + the
-    # streams + two report periods
+    # XBee's waits without a radio module, xbee.h: 3 responses and 4 guard times, 5 s with the
+    # production values) + the streams + a report period more than the packets asked for
     guard_us = _macro(defines, "XBEE_GUARD_US", XBEE_GUARD_US)
     response_us = _macro(defines, "XBEE_RESPONSE_US", XBEE_RESPONSE_US)
     startup_ps = {"no-radio-module": (4 * guard_us + 5 * response_us) * 10**6 + 2 * REPORT_PS,

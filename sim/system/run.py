@@ -60,6 +60,12 @@ Faults (applied to the byte streams; ``reset-mid-frame`` through the bus):
     the firmware restarts the video path (CTRL.restart_video) in the middle of field 1; the
     check is stricter: no record of the cut frame, and every other frame exact, the first after
     the restart against golden started afresh (the restart resets the learned ground band).
+``camera-lost-left``
+    the left decoder gets no byte for :data:`LOST_FIELDS` fields (:func:`camera_lost_span`:
+    from right after the EAV that ends field 0's last active line, so field 0 is whole), the
+    bytes of that time lost; the right camera's fields of that time have no partner. Stricter
+    check: the frames out are the pairs (L0, R0), (L5, R5), ... of identical fields, so they
+    equal golden's first ``frames - LOST_FIELDS`` (as on the core, :mod:`sim.system.cpu_run`).
 """
 from __future__ import annotations
 
@@ -77,14 +83,16 @@ from golden.bt656 import encode_bt656, ntsc_stream, rgb_to_ycbcr, timing_code, y
 from golden.pipeline import default_params, pipeline_frames
 from hdl import regmap
 
-__all__ = ["FAULTS", "build", "camera_streams", "inject", "record_fields", "run_system",
+__all__ = ["FAULTS", "LOST_FIELDS", "build", "camera_lost_span", "camera_streams", "inject",
+           "record_fields", "run_system",
            "field_of", "scene_pair", "SystemError_"]
 
 ROOT = Path(__file__).resolve().parents[2]
 HARNESS = Path(__file__).resolve().parent / "harness" / "system.cpp"
 FAULTS = ("missing-sof-left", "missing-sof-right", "extra-sof-right", "long-line-left",
-          "noise-left", "reset-mid-frame")
+          "noise-left", "reset-mid-frame", "camera-lost-left")
 FAULT_FIELD = 1
+LOST_FIELDS = 4                     #: fields the camera-lost-left fault takes from the left
 CORE_PS = 20_000                    #: 50 MHz
 CAM_PS = 37_037                     #: 27 MHz
 CAM1_PS = 37_035                    #: 27 MHz + 40 ppm
@@ -143,6 +151,15 @@ def _field_spans(data):
                 fields[-1]["sav"].append(i)
         prev_v = v
     return fields
+
+
+def camera_lost_span(data, field=FAULT_FIELD, lost=LOST_FIELDS):
+    """Where a camera is lost and for how long: (the byte right after the first timing code of
+    ``field``, the EAV that ends the previous field's last active line; the bytes from there to
+    the same point of field ``field + lost``), so the camera's stream resumes at that point."""
+    spans = _field_spans(data)
+    start = spans[field]["codes"][0] + 1
+    return start, spans[field + lost]["codes"][0] + 1 - start
 
 
 def inject(data, fault, field=FAULT_FIELD, seed=1):
@@ -314,7 +331,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     elif fault == "reset-mid-frame":
         sav = _field_spans(ldata)[FAULT_FIELD]["sav"]
         restart_at = sav[len(sav) // 2] * CAM_PS          # ps
-    elif fault is not None:
+    elif fault not in (None, "camera-lost-left"):
         raise SystemError_(f"unknown fault {fault!r}: choose from {', '.join(FAULTS)}")
     if right_lead >= 0:
         rdata = _lead(rdata, right_lead)
@@ -322,6 +339,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
         ldata = _lead(ldata, -right_lead)
         if restart_at is not None:
             restart_at += -right_lead * CAM_PS
+    lost = camera_lost_span(ldata) if fault == "camera-lost-left" else None
 
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
                       cost=params.matcher.cost)
@@ -332,6 +350,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     sysl.sys_time_ps.restype = C.c_int64
     sysl.sys_camera_pos.restype = C.c_uint64
     sysl.sys_camera_pos.argtypes = [C.c_int]
+    sysl.sys_camera_stop.argtypes = [C.c_int, C.c_int64, C.c_int64]
     fw = fwlib.load()
     fwlib.check_layout(fw)
     fw.pipeline_configure.restype = C.c_int32
@@ -354,6 +373,8 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
 
     t0 = time.monotonic()
     sysl.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345)
+    if lost:
+        sysl.sys_camera_stop(0, lost[0], lost[1] * CAM_PS)
     rd = fwlib.READ32(C.cast(sysl.sys_read32, C.c_void_p).value)
     wr = fwlib.WRITE32(C.cast(sysl.sys_write32, C.c_void_p).value)
     dl = fwlib.DELAY(C.cast(sysl.sys_delay_us, C.c_void_p).value)
@@ -432,7 +453,11 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
         status["restart_pending"] = restart_at is not None
         exact = (len(out_frames) >= FAULT_FIELD + tail and out_frames[:FAULT_FIELD] == want[:FAULT_FIELD]
                  and out_frames[len(out_frames) - tail:] == want[FAULT_FIELD + 2:])
-        if fault == "reset-mid-frame":
+        if fault == "camera-lost-left":
+            # the pairs the pipeline saw: (L0, R0), then from (L1+LOST, R1+LOST) on
+            exact = out_frames == want[:frames - LOST_FIELDS]
+            counted = health["mispaired"] + health["drops"] + sum(health["cam_errors"]) > 0
+        elif fault == "reset-mid-frame":
             # the cut frame never completes and none of its records shows up (no phantom
             # records): every other frame is exact, the first after the restart included,
             # against golden started afresh there (the restart resets the per-frame state,

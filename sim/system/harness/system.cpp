@@ -3,7 +3,8 @@
 // Three clocks run on one picosecond time line: the core clock `clk` and the two camera
 // clocks `cam0_clk`, `cam1_clk`, each with its own period and phase. On every rising edge of a
 // camera clock the camera presents its next BT.656 byte (valid high; after its stream ends it
-// sends blanking filler 0x80 0x10 for ever): a camera never waits.
+// sends blanking filler 0x80 0x10 for ever): a camera never waits. sys_camera_stop makes one
+// lose its decoder for a while: valid low, the bytes of that time lost.
 //
 // The CPU side is the MicroBlaze I/O bus: sys_read32 / sys_write32 perform one transfer the way
 // the MCS does (one-cycle strobe, then wait for IO_Ready, at most 64 core cycles) while the
@@ -31,6 +32,9 @@ struct Camera {
     std::vector<uint8_t> bytes;
     size_t pos = 0;
     uint64_t filler = 0;
+    int64_t stop_pos = -1;      // sys_camera_stop: the byte it stops at, for stop_ps
+    int64_t stop_ps = 0;
+    int64_t stop_until = -1;
 };
 
 std::unique_ptr<VerilatedContext> ctx;
@@ -44,6 +48,15 @@ int bus_timeouts = 0;
 void present(int k) {
     Camera& c = cams[k];
     uint8_t b;
+    if (c.stop_pos >= 0 && (int64_t)c.pos == c.stop_pos) {
+        c.stop_until = now_ps + c.stop_ps;
+        c.stop_pos = -1;
+    }
+    if (now_ps < c.stop_until) {
+        if (c.pos < c.bytes.size()) c.pos++;
+        if (k == 0) top->cam0___05Fvalid = 0; else top->cam1___05Fvalid = 0;
+        return;
+    }
     if (c.pos < c.bytes.size()) {
         b = c.bytes[c.pos++];
     } else {
@@ -163,6 +176,13 @@ void sys_run_cycles(uint64_t n) {
 uint64_t sys_core_cycles() { return core_cycles; }
 int64_t sys_time_ps() { return now_ps; }
 uint64_t sys_camera_pos(int k) { return cams[k].pos; }
+
+// Camera k stops when its stream reaches byte `pos`, for `ps` picoseconds (the decoder loses
+// its input: the bytes of that time are lost), then goes on.
+void sys_camera_stop(int k, int64_t pos, int64_t ps) {
+    cams[k].stop_pos = pos;
+    cams[k].stop_ps = ps;
+}
 int sys_bus_timeouts() { return bus_timeouts; }
 
 void sys_final() {
