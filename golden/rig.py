@@ -482,7 +482,8 @@ def check_left_rect(lr):
 def calibrated_points(cal, x, y, d):
     """Points (N x 3) in the left camera's frame as calibrated of matches at ``(x, y, d)`` of
     a calibration ``cal`` (a camera file's ``rig`` object): both cameras rectified when it has
-    ``left_rect`` (``{"R": R1, "scale": s, "g": [g0, g1, g2]}``, :func:`triangulate_rectified`), else the
+    ``left_rect`` (``{"R": R1, "scale": s, "g": [g0, g1, g2]}``,
+    :func:`triangulate_rectified`), else the
     right camera into the left's geometry (:func:`triangulate` with ``doffs`` and ``focus``)."""
     rig = Rig.from_dict(cal)
     lr = cal.get("left_rect")

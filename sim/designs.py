@@ -269,6 +269,11 @@ def _soc(**params):
     return SystemSoC(**params)
 
 
+def _pipeline(**params):
+    from hdl.pipeline import StereoPipeline
+    return StereoPipeline(**params)
+
+
 def firmware_image(firmware):
     """The words of the CPU's RAM image: with ``firmware`` true, the cross-compiled firmware
     (``make -C firmware rv32``, rebuilt when its sources changed:
@@ -347,6 +352,15 @@ SYSTEM_DESIGNS = {
                              "registers hdl/rectify_regs.py) and 8 more matcher line slots for "
                              "the rows it holds back: the ECP5-25F build option",
                              clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
+    # both cameras rectified (lenses that distort): the ECP5-25F build option's pipeline, its
+    # line buffers deep enough for the barrel test lens in a 240-line field
+    "pipeline_rect2": SystemDesign(_pipeline, dict(
+        max_width=720, max_height=240, free_space=False,
+        rectify=dict(span=16, horizontal="nearest"),
+        rectify_left=dict(span=16, horizontal="nearest")),
+        "the stereo pipeline with a rectifier on each camera (hdl/pipeline.py rectify, "
+        "rectify_left; 17-row line buffers) for rigs whose lenses distort: the ECP5-25F "
+        "build option's pipeline"),
 }
 
 

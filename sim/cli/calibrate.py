@@ -13,7 +13,11 @@ rectified vertical residual; and the module's own rectification
 (:func:`golden.rig.right_to_left_map`: the right image resampled into the left camera's
 geometry, principal points ``doffs_px`` apart, the calibrated ``cx_right - cx_left``), with its
 vertical residual at the corners (which includes the vertical parallax the lens distortion
-gives at the board's distance) and the vertical warp its line buffer must hold.
+gives at the board's distance) and the vertical warp its line buffer must hold. Lenses that
+distort (a pixel displaced by more than :data:`DISTORTION_PX`) instead have both cameras
+rectified into one geometry with epipolar rows (:func:`both_rect`, :mod:`golden.rig`), written
+as ``left_rect``; its residual is that of both cameras' rectified corners, and the camera's
+``fx fy cx cy doffs_px`` are the rectified geometry's.
 
 The file is a :class:`golden.camera.Camera` of the left camera as captured (its ``fx fy cx cy``,
 the baseline along its x axis, ``doffs_px``, the valid region of the rectified right image)
@@ -95,7 +99,8 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     """The calibration of the pairs in ``folder`` (see the module text): a dict with the
     ``camera`` (:class:`golden.camera.Camera`) and the figures ``views``, ``pairs``,
     ``rms_px``, ``residual_px`` (Bouguet, median |dy| at the corners), ``module_residual_px``
-    (the module's rectification, the same), ``vertical_span_rows`` and ``window``. CliError on
+    (the module's rectification, the same), ``rectified`` (``"right"`` or ``"both"``),
+    ``vertical_span_rows`` and ``window``. CliError on
     bad input (see :func:`cmd_calibrate`)."""
     import cv2
     from golden.rig import Lens, Rig, distortion_px, map_vertical_span, undistort, project
@@ -183,9 +188,9 @@ def calibrate(folder, board, square, near_m=None, grid=32):
 def both_rect(rig, doffs, al, ar, near_m, grid):
     """The rectification of both cameras (:mod:`golden.rig`: resampled into one geometry
     whose rows are epipolar lines, turned by :func:`golden.rig.align_rotation`, the column
-    scale and row curve of :func:`golden.rig.rect_geometry`) for a rig with distorting lenses, with its vertical
-    residual at the corners ``al``, ``ar`` (both cameras' corners, (N, 1, 2)): the figures
-    :func:`_calibrated` takes."""
+    scale and row curve of :func:`golden.rig.rect_geometry`) for a rig with distorting
+    lenses, with its vertical residual at the corners ``al``, ``ar`` (both cameras' corners,
+    (N, 1, 2)): the figures :func:`_calibrated` takes."""
     from golden.rectify import valid_region
     from golden.rig import (align_rotation, rect_geometry, rect_vertical_span, rectified_lens,
                             row_curve, undistort)

@@ -613,7 +613,7 @@ def _print_run(summary, last, failure, paths, args):
           f" to {cam['far_disparity_px']} px; camera: {cam['source']})")
     rc = summary.get("rectified")
     if rc and rc["on"] and rc["side"] == "both":
-        print(f"  both cameras rectified into one undistorted geometry (line buffers of "
+        print(f"  both cameras rectified into one geometry with epipolar rows (line buffers of "
               f"{rc['span'] + 1} rows, lo {rc['lo']} right and {rc['left']['span'] + 1} rows, "
               f"lo {rc['left']['lo']} left, {rc['horizontal']} columns; summary.json "
               f"'rectified')")
