@@ -15,6 +15,7 @@ from .ground import GroundConfig
 from .ground_search import GroundSearch
 from .rectify import Rectify
 from .matcher import MATCHER_WIDEN, Matcher, match_record_layout
+from .matcher_start import search_ports
 from .types import RGBPixel, FreeBand
 
 __all__ = ["StereoPipeline"]
@@ -90,10 +91,15 @@ class StereoPipeline(wiring.Component):
     The right camera's edges then reach the matcher ``lo + span`` rows after the left's: the
     left stalls for them (with ``drop_mode`` and cameras that cannot stall, ``extra_rows`` must
     cover them). The default build has no rectifier.
+
+    ``search_start`` (True by default): the matcher's search start under the floor line, with
+    its ports ``floor_search``, ``floor_slope``, ``floor_offset``, ``floor_margin``
+    (:class:`hdl.matcher.Matcher`).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, extra_rows=0, cost="census", rectify=None, free_space=True):
+                 queue_depth=16, extra_rows=0, cost="census", rectify=None, free_space=True,
+                 search_start=True):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._free_space = bool(free_space)
         self.rectify = None if rectify is None else dict(rectify)
@@ -107,7 +113,8 @@ class StereoPipeline(wiring.Component):
                 nodes.shape, tuple(int(v) for v in nodes["dx"].ravel()),
                 tuple(int(v) for v in nodes["dy"].ravel()))
         self._matcher = dict(max_disparity=max_disparity, window=window,
-                             queue_depth=queue_depth, extra_rows=extra_rows, cost=cost)
+                             queue_depth=queue_depth, extra_rows=extra_rows, cost=cost,
+                             search_start=bool(search_start))
         self.max_width, self.max_height = max_width, max_height
         self.max_disparity = max_disparity
         self.window = window
@@ -138,6 +145,8 @@ class StereoPipeline(wiring.Component):
             ports[f"{side}_free_lost"] = Out(16)
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
+        if search_start:
+            ports.update(search_ports())
         if rectify is not None:
             ports.update(rect_lo=In(signed(6)), rect_enable=In(1), rect_map_addr=In(12),
                          rect_map_data=In(2 * OFFSET_BITS), rect_map_we=In(1))
@@ -183,7 +192,7 @@ class StereoPipeline(wiring.Component):
         m.d.comb += self.in_frame.eq(Cat(in_frame).any())
         wiring.connect(m, matcher.o, wiring.flipped(self.o))
         for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "sign_any",
-                     "drop_mode"):
+                     "drop_mode", *(search_ports() if self._matcher["search_start"] else ())):
             m.d.comb += getattr(matcher, name).eq(getattr(self, name))
         m.d.comb += [
             self.frames.eq(matcher.frames),
