@@ -281,8 +281,9 @@ def candidates(left, right, params, lowest16=None):
 
     ``lowest16``: None, or per image row the lowest disparity tried, in 1/16 px: ``d`` is a
     candidate of an edge of row ``y`` only when ``16 d >= lowest16[y]`` (the search starting
-    under the floor line of ``golden/floor.py``, where nothing nearer than the floor can be;
-    not in the RTL, whose window is one per frame)."""
+    under the floor line of ``golden/floor.py``, :func:`golden.floor.search_start16`: nothing
+    the camera sees is farther than the floor; in the RTL the matcher's search start,
+    ``hdl/matcher_start.py``, an elaboration option)."""
     p = params
     el, nl = _field(left, "edge").astype(bool), _field(left, "neg").astype(bool)
     er, nr = _field(right, "edge").astype(bool), _field(right, "neg").astype(bool)
@@ -604,8 +605,8 @@ def match(left, right, params=MatcherParams(), form="auto", *, lowest16=None):
     """Match one frame. Returns ``(records, stats)``: a structured array of
     :func:`record_dtype` in raster order and a dict over :data:`STAT_KEYS`. ``form`` chooses how
     window costs are computed (:func:`window_costs`); every form gives the same result.
-    ``lowest16``: the per-row lowest disparity of :func:`candidates` (None: the whole window,
-    what the RTL does)."""
+    ``lowest16``: the per-row lowest disparity of :func:`candidates` (None: the whole window;
+    the RTL's search start gives :func:`golden.floor.search_start16` of a line and margin)."""
     p = params.validate()
     yl, yr = _field(left, "y"), _field(right, "y")
     if yl.shape != yr.shape:

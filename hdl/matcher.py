@@ -33,7 +33,10 @@ Scanner (:class:`~hdl.matcher_scan.Scanner`): once both cameras have received li
 memories and pushes one job ``(x, candidate mask)`` per left edge that has candidates, then a
 row-end marker; after the last row a frame-end marker. Its counts (``edge_pixels``, ``border``,
 ``no_candidate``, ``drops``) come out as one-cycle events that the matcher accumulates with
-the engine's. About ``width + 5`` cycles a row, in parallel with the engine.
+the engine's. About ``width + 5`` cycles a row, in parallel with the engine. With the search
+start (``search_start``, :mod:`hdl.matcher_start`) the candidates further under the floor line
+than a margin leave each row's mask: nothing the camera sees is farther than the floor, and
+every candidate the scanner leaves out is an evaluation (a cycle) the engine saves.
 
 Engine, a pipeline that never stalls (the output FIFO has a place reserved for every job
 in flight: ``credits``):
@@ -128,19 +131,18 @@ from functools import reduce
 from types import SimpleNamespace
 from operator import or_
 
-from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array, signed
+from amaranth.hdl import Module, Signal, Mux, Cat, Const, Array
 from amaranth.lib import wiring, stream, data, fifo
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
-from golden.floor import OFFSET_BITS, SLOPE_BITS
 from golden.matcher import DISPARITY_SPAN, MAX_DISPARITY, STAT_KEYS, SUBPIXEL_BITS
 
 from .types import EdgePixel
 from .counter import saturating_sum, wide_accumulator, wide_counter
 from .matcher_logic import lower_any, at_least_two, at_least_three, onehot_index
 from .matcher_post import SubpixelConfidence
-from .matcher_start import MARGIN_BITS
+from .matcher_start import SEARCH_MARGIN, search_ports
 from .matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, STORE_VIEW, Scanner,
                            job_layout)
 from .matcher_store import LineStore, LineWidths
@@ -149,10 +151,6 @@ from .matcher_winner import Winner
 from .fifos import DistributedSyncFIFOBuffered
 
 __all__ = ["Matcher", "match_record_layout", "has_subpixel", "MATCHER_WIDEN", "SEARCH_MARGIN"]
-
-#: The search start's margin under the floor line at reset, 1/16 px (2 px: the default of
-#: golden :func:`golden.floor.search_start16`).
-SEARCH_MARGIN = 32
 
 def match_record_layout(max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, *,
                         cost="sad", window=7):
@@ -243,14 +241,15 @@ class Matcher(wiring.Component):
 
     Elaboration parameters: ``max_width``, ``max_height``, ``max_disparity``, ``window``,
     ``queue_depth``, ``out_depth``, ``extra_rows`` (see the module docstring), ``search_start``
-    (the search start and its ports; without it every row searches the whole window), and
+    (True by default: the search start and its ports; without them every row searches the
+    whole window), and
     ``cost``:
     ``"census"`` (the inputs' ``y`` carries census words; costs are sums of Hamming distances,
     at most ``8 W^2``) or ``"sad"`` (luminance; sums of absolute differences).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
-                 queue_depth=16, out_depth=8, extra_rows=0, cost="sad", search_start=False):
+                 queue_depth=16, out_depth=8, extra_rows=0, cost="sad", search_start=True):
         try:
             self._check(max_width, max_height, max_disparity, window, queue_depth, out_depth,
                         extra_rows)
@@ -288,9 +287,7 @@ class Matcher(wiring.Component):
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
         if search_start:
-            ports.update(floor_search=In(1), floor_slope=In(SLOPE_BITS),
-                         floor_offset=In(signed(OFFSET_BITS)),
-                         floor_margin=In(MARGIN_BITS, init=SEARCH_MARGIN))
+            ports.update(search_ports())
         super().__init__(ports)
 
     @staticmethod

@@ -21,15 +21,14 @@ differ. In drop mode (camera inputs that cannot stall) it waits for room in the 
 row's flags are being overwritten, then runs and drops (``drops``) an edge whose job does not
 fit.
 """
-from amaranth.hdl import Cat, Module, Mux, Signal, signed
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
-from golden.floor import OFFSET_BITS, SLOPE_BITS
 from golden.matcher import DISPARITY_SPAN
 
-from .matcher_start import MARGIN_BITS, SearchStart
+from .matcher_start import SearchStart, search_ports
 from .matcher_store import LineWidths
 
 __all__ = ["Scanner", "CandidateMask", "RowReady", "job_layout", "KIND_JOB", "KIND_ROW",
@@ -107,8 +106,7 @@ class Scanner(wiring.Component):
             "edge_pixels": Out(1), "border": Out(1), "no_candidate": Out(1), "drops": Out(1),
         }
         if search_start:
-            ports.update(floor_search=In(1), floor_slope=In(SLOPE_BITS),
-                         floor_offset=In(signed(OFFSET_BITS)), floor_margin=In(MARGIN_BITS))
+            ports.update(search_ports())
         widths = {"open": 1, "ended": 1, "rows": YW, "wrow": YW + 1, "width": XW, "write": 1,
                   "fresh": 1}
         for side in ("left", "right"):

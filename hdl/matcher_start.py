@@ -24,14 +24,26 @@ from amaranth.utils import bits_for
 from golden.floor import OFFSET_BITS, SLOPE_BITS
 from golden.matcher import DISPARITY_SPAN
 
-__all__ = ["SearchStart", "MARGIN_BITS"]
+__all__ = ["SearchStart", "search_ports", "MARGIN_BITS", "SEARCH_MARGIN"]
 
 #: Bits of the search start's margin under the floor line (1/16 px, unsigned).
 MARGIN_BITS = 8
+#: The margin at reset, 1/16 px (2 px: the default of golden
+#: :func:`golden.floor.search_start16`).
+SEARCH_MARGIN = 32
 #: ``B >> 8`` indexes the candidate bits (DISPARITY_SPAN = 2 ** 6 of them).
 _KB = (DISPARITY_SPAN - 1).bit_length()
 _OVER = 8 + _KB                       # B >= 2 ** _OVER: no bit allowed
 _LO = SLOPE_BITS                      # the accumulator's low part, added to slope
+
+
+def search_ports():
+    """The search start's input ports of the matcher, its scanner and the pipeline: name ->
+    member (``floor_search``, ``floor_slope``, ``floor_offset`` signed, ``floor_margin``
+    resetting to :data:`SEARCH_MARGIN`)."""
+    return {"floor_search": In(1), "floor_slope": In(SLOPE_BITS),
+            "floor_offset": In(signed(OFFSET_BITS)),
+            "floor_margin": In(MARGIN_BITS, init=SEARCH_MARGIN)}
 
 
 class SearchStart(wiring.Component):

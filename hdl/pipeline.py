@@ -15,6 +15,7 @@ from .ground import GroundConfig
 from .ground_search import GroundSearch
 from .rectify import Rectify
 from .matcher import MATCHER_WIDEN, Matcher, match_record_layout
+from .matcher_start import search_ports
 from .types import RGBPixel, FreeBand
 
 __all__ = ["StereoPipeline"]
@@ -99,11 +100,15 @@ class StereoPipeline(wiring.Component):
     ``rect_left_map_addr``, ``rect_left_map_data``, ``rect_left_map_we`` (as ``rect_*``). The
     matcher then waits for whichever camera's edges come later. It costs a second line buffer
     and map memory.
+
+    ``search_start`` (True by default): the matcher's search start under the floor line, with
+    its ports ``floor_search``, ``floor_slope``, ``floor_offset``, ``floor_margin``
+    (:class:`hdl.matcher.Matcher`).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, max_disparity=MAX_DISPARITY, window=7,
                  queue_depth=16, extra_rows=0, cost="census", rectify=None, rectify_left=None,
-                 free_space=True):
+                 free_space=True, search_start=True):
         self._size = dict(max_width=max_width, max_height=max_height)
         self._free_space = bool(free_space)
         self.rectify = None if rectify is None else dict(rectify)
@@ -128,7 +133,8 @@ class StereoPipeline(wiring.Component):
                 nodes.shape, tuple(int(v) for v in nodes["dx"].ravel()),
                 tuple(int(v) for v in nodes["dy"].ravel()))
         self._matcher = dict(max_disparity=max_disparity, window=window,
-                             queue_depth=queue_depth, extra_rows=extra_rows, cost=cost)
+                             queue_depth=queue_depth, extra_rows=extra_rows, cost=cost,
+                             search_start=bool(search_start))
         self.max_width, self.max_height = max_width, max_height
         self.max_disparity = max_disparity
         self.window = window
@@ -159,6 +165,8 @@ class StereoPipeline(wiring.Component):
             ports[f"{side}_free_lost"] = Out(16)
         for name in STAT_KEYS:
             ports[f"frame_{name}"] = Out(32)
+        if search_start:
+            ports.update(search_ports())
         for prefix, r in (("rect", rectify), ("rect_left", rectify_left)):
             if r is not None:
                 ports.update({f"{prefix}_lo": In(signed(6)), f"{prefix}_enable": In(1),
@@ -206,7 +214,7 @@ class StereoPipeline(wiring.Component):
         m.d.comb += self.in_frame.eq(Cat(in_frame).any())
         wiring.connect(m, matcher.o, wiring.flipped(self.o))
         for name in ("d_min", "d_max", "uniqueness", "mode_full", "widen", "sign_any",
-                     "drop_mode"):
+                     "drop_mode", *(search_ports() if self._matcher["search_start"] else ())):
             m.d.comb += getattr(matcher, name).eq(getattr(self, name))
         m.d.comb += [
             self.frames.eq(matcher.frames),

@@ -35,6 +35,8 @@ from golden.floor import FloorLine, FloorParams, OFFSET_BITS, SLOPE_BITS, TOL_BI
 from golden.matcher import CONFIDENCE_MAX, DISPARITY_BITS, DISPARITY_SPAN, SUBPIXEL_BITS
 from golden.pipeline import default_params
 
+from .matcher_start import MARGIN_BITS, SEARCH_MARGIN
+
 __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "REGS_WINDOW",
            "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "MAX_WIDTH", "MAX_HEIGHT", "DISPARITY_SPAN",
            "register", "field", "parameter_fields", "config_fields", "param_value",
@@ -48,7 +50,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 11
+MAP_VERSION = 12
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -321,11 +323,17 @@ REGISTERS: tuple[Register, ...] = (
     Register("FLOOR", 0xD0, "rw", "Floor flag of the records (golden/floor.py floor_flags): "
              "a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> "
              "tol_shift). Loaded at each frame's end: a write applies from the frame after the "
-             "one in progress.", (
+             "one in progress. The matcher's search start (floor_search, floor_margin) takes "
+             "FLOOR_LINE with them when a frame starts (hdl/matcher_start.py).", (
         F("floor_enable", 0, 1, 0, "1: flag floor points by FLOOR_LINE; 0: no record is one"),
+        F("floor_search", 1, 1, 0, "1: the matcher tries at row y only d with 16 d >= "
+                                   "line16(y) - floor_margin (golden/floor.py search_start16); "
+                                   "0: the whole window"),
         F("floor_tol", 8, TOL_BITS, _FL.tol, "tolerance above the line, 1/16 px"),
         F("floor_tol_shift", 16, TOL_SHIFT_BITS, _FL.tol_shift,
           "the tolerance grows by max(line16, 0) >> floor_tol_shift"),
+        F("floor_margin", 24, MARGIN_BITS, SEARCH_MARGIN,
+          "how far under the line the search starts, 1/16 px"),
     )),
     Register("FLOOR_LINE", 0xD4, "rw", "The v-disparity floor line (golden/floor.py FloorLine): "
              "line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads "

@@ -86,14 +86,16 @@ class StereoSoC(wiring.Component):
 
     ``free_space`` (True by default): the pipeline's free-space units and their register
     tables (FREE_LEFT_k, FREE_RIGHT_k); without them those registers read 0 (see
-    :class:`SystemSoC`).
+    :class:`SystemSoC`). ``search_start`` (True by default): the matcher's search start under
+    the floor line (FLOOR.floor_search, FLOOR.floor_margin and FLOOR_LINE; without it those
+    two fields do nothing).
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=256, clk_div=125,
-                 cost="census", rectify=None, free_space=True):
+                 cost="census", rectify=None, free_space=True, search_start=True):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
-                              free_space=bool(free_space))
+                              free_space=bool(free_space), search_start=bool(search_start))
         self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
@@ -203,7 +205,8 @@ class SystemSoC(wiring.Component):
     RAM of :class:`hdl.camera_buffer.PairBuffer`, two a word), ``skew`` (pairing), ``fifo_depth``
     (results; None: 256, or :data:`CPU_FIFO_DEPTH` with the CPU inside),
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
-    :class:`hdl.pipeline.StereoPipeline`), ``free_space``.
+    :class:`hdl.pipeline.StereoPipeline`), ``free_space``, ``search_start`` (True by default,
+    as :class:`StereoSoC`'s).
 
     Free space: ``free_space`` (False by default) builds each front end's free-space unit
     (:class:`hdl.freespace.FreeSpace`) and the tables behind FREE_LEFT_k and FREE_RIGHT_k.
@@ -234,7 +237,7 @@ class SystemSoC(wiring.Component):
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
-                 monitor=False, rectify=None, free_space=False):
+                 monitor=False, rectify=None, free_space=False, search_start=True):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
@@ -243,7 +246,7 @@ class SystemSoC(wiring.Component):
         self._image = image
         self._monitor = bool(monitor) and cpu is not None
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
-                              free_space=bool(free_space))
+                              free_space=bool(free_space), search_start=bool(search_start))
         self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._lines = lines
         self._camera_fifo_depth = camera_fifo_depth
@@ -546,12 +549,17 @@ def _second_half(rec, payload):
 
 
 def _connect_parameters(m, regs, pipe):
-    """Every pipeline parameter from its register field (``hdl.regmap`` ``Field.port``)."""
+    """Every pipeline parameter from its register field (``hdl.regmap`` ``Field.port``), and
+    the matcher's search start, if built, from FLOOR and FLOOR_LINE (the fields of the floor
+    flag's line)."""
     for _reg, f in regmap.config_fields():
         port = pipe
         for name in f.port.split("."):
             port = getattr(port, name)
         m.d.comb += port.eq(getattr(regs, f.name))
+    if hasattr(pipe, "floor_search"):
+        m.d.comb += [getattr(pipe, n).eq(getattr(regs, n)) for n in
+                     ("floor_search", "floor_slope", "floor_offset", "floor_margin")]
 
 
 def _pipeline_status(m, regs, pipe, *, clear, reset=0, free_space=True):

@@ -154,3 +154,73 @@ def test_floor_unit_on_every_backend(backend):
     assert sum(f.sum() for f in unit.expected(job)) > 10
     r = run_unit(unit, job, backend=backend, stall_seed=4)
     assert r["mismatches"] == 0
+
+
+# ------------------------------------------------------------------ the matcher's search start
+
+def search_job(frames=3):
+    """Three frames of the tiles floor at 48 x 40 and the search start of each: frame 0
+    without a line (the whole window), frame k + 1 with the line golden.floor learns from
+    frame k's records (``FloorModel``, as the CPU does), the margin SEARCH_MARGIN. Returns the
+    job, the table of :class:`tests.test_matcher.LineTableMatcher` and the golden (records,
+    statistics) of each frame, and the whole window's statistics."""
+    from golden.floor import FloorModel, FloorParams
+    from golden.matcher import match
+    from golden.pipeline import default_params
+    from hdl.matcher import SEARCH_MARGIN
+    from sim.scenes.floors import floor_pair
+    from sim.units import Job
+    from tests.test_matcher import search_lowest16
+    w, h = 48, 40
+    pairs = [floor_pair("tiles", w, h, seed=k) for k in range(frames)]
+    job = Job([p.left for p in pairs], [p.right for p in pairs], default_params(w, h),
+              max_width=w, max_height=h)
+    mp = job.params.matcher
+    model = FloorModel(FloorParams())
+    table, golden, whole = [], [], []
+    for g in job.golden:
+        line = model.line
+        entry = (0, 0, 0, SEARCH_MARGIN) if line is None else \
+            (1, line.slope, line.offset, SEARCH_MARGIN)
+        left, right = g.left.output(), g.right.output()      # luminance: match takes its census
+        recs, stats = match(left, right, mp, lowest16=search_lowest16(entry, h))
+        model.step(recs)
+        table.append(entry)
+        golden.append((recs, stats))
+        whole.append(match(left, right, mp)[1])
+    return job, table, golden, whole
+
+
+@pytest.mark.parametrize("backend", ["amaranth", "verilator", "icarus", "ghdl"])
+def test_search_start_on_every_backend(backend):
+    """The matcher with the search start under the floor line learned frame to frame (frame 0
+    without a line), on the golden front ends' outputs of three frames, with stalls: records
+    bit-exact on each simulator, and the last frame's statistics, whose evaluations are fewer
+    than the whole window's."""
+    from dataclasses import dataclass
+    from golden.matcher import STAT_KEYS
+    from hdl import types
+    from sim.backends.run import run_unit
+    from sim.units import StereoUnit
+    from tests.test_matcher import LineTableMatcher
+    job, table, golden, whole = search_job()
+    assert len({t for t in table}) >= 2 and table[0][0] == 0 and table[-1][0] == 1
+    assert golden[0][1]["evaluations"] == whole[0]["evaluations"]
+    assert all(g[1]["evaluations"] < w["evaluations"] for g, w in zip(golden[1:], whole[1:]))
+
+    @dataclass
+    class SearchUnit(StereoUnit):
+        def expected(self, job):
+            return [recs for recs, _ in golden]
+
+    mp = job.params.matcher
+    unit = SearchUnit("matcher_search",
+                      lambda job: LineTableMatcher(table, max_width=job.max_width,
+                                                   max_height=job.max_height,
+                                                   max_disparity=job.max_disparity,
+                                                   window=mp.window, cost=mp.cost),
+                      types.EdgePixel,
+                      lambda job, side: [getattr(g, side).output(mp) for g in job.golden])
+    r = run_unit(unit, job, backend=backend, stall_seed=5)
+    assert r["mismatches"] == 0
+    assert {k: r["status"][f"frame_{k}"] for k in STAT_KEYS} == golden[-1][1]

@@ -10,15 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           11u          /**< ID.version value */
+#define STEREO_MAP_VERSION                           12u          /**< ID.version value */
 #define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x5354000Bu  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x5354000Cu  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      11u          /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      12u          /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -490,18 +490,24 @@
 #define STEREO_HEALTH_SKEW_PAIRS_MASK                0xFFFF0000u  /**< pairs mask (16 bits) */
 #define STEREO_HEALTH_SKEW_PAIRS_RESET               0u           /**< pairs reset value */
 
-/* FLOOR (read/write): Floor flag of the records (golden/floor.py floor_flags): a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift). Loaded at each frame's end: a write applies from the frame after the one in progress. */
-#define STEREO_FLOOR_OFFSET                          0xD0u        /**< Floor flag of the records (golden/floor.py floor_flags): a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift). Loaded at each frame's end: a write applies from the frame after the one in progress. */
-#define STEREO_FLOOR_RESET                           0x00060400u  /**< FLOOR value after reset */
+/* FLOOR (read/write): Floor flag of the records (golden/floor.py floor_flags): a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift). Loaded at each frame's end: a write applies from the frame after the one in progress. The matcher's search start (floor_search, floor_margin) takes FLOOR_LINE with them when a frame starts (hdl/matcher_start.py). */
+#define STEREO_FLOOR_OFFSET                          0xD0u        /**< Floor flag of the records (golden/floor.py floor_flags): a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift). Loaded at each frame's end: a write applies from the frame after the one in progress. The matcher's search start (floor_search, floor_margin) takes FLOOR_LINE with them when a frame starts (hdl/matcher_start.py). */
+#define STEREO_FLOOR_RESET                           0x20060400u  /**< FLOOR value after reset */
 #define STEREO_FLOOR_FLOOR_ENABLE_SHIFT              0u           /**< floor_enable: 1: flag floor points by FLOOR_LINE; 0: no record is one */
 #define STEREO_FLOOR_FLOOR_ENABLE_MASK               0x1u         /**< floor_enable mask (1 bits) */
 #define STEREO_FLOOR_FLOOR_ENABLE_RESET              0u           /**< floor_enable reset value */
+#define STEREO_FLOOR_FLOOR_SEARCH_SHIFT              1u           /**< floor_search: 1: the matcher tries at row y only d with 16 d >= line16(y) - floor_margin (golden/floor.py search_start16); 0: the whole window */
+#define STEREO_FLOOR_FLOOR_SEARCH_MASK               0x2u         /**< floor_search mask (1 bits) */
+#define STEREO_FLOOR_FLOOR_SEARCH_RESET              0u           /**< floor_search reset value */
 #define STEREO_FLOOR_FLOOR_TOL_SHIFT                 8u           /**< floor_tol: tolerance above the line, 1/16 px */
 #define STEREO_FLOOR_FLOOR_TOL_MASK                  0xFF00u      /**< floor_tol mask (8 bits) */
 #define STEREO_FLOOR_FLOOR_TOL_RESET                 4u           /**< floor_tol reset value */
 #define STEREO_FLOOR_FLOOR_TOL_SHIFT_SHIFT           16u          /**< floor_tol_shift: the tolerance grows by max(line16, 0) >> floor_tol_shift */
 #define STEREO_FLOOR_FLOOR_TOL_SHIFT_MASK            0x00070000u  /**< floor_tol_shift mask (3 bits) */
 #define STEREO_FLOOR_FLOOR_TOL_SHIFT_RESET           6u           /**< floor_tol_shift reset value */
+#define STEREO_FLOOR_FLOOR_MARGIN_SHIFT              24u          /**< floor_margin: how far under the line the search starts, 1/16 px */
+#define STEREO_FLOOR_FLOOR_MARGIN_MASK               0xFF000000u  /**< floor_margin mask (8 bits) */
+#define STEREO_FLOOR_FLOOR_MARGIN_RESET              32u          /**< floor_margin reset value */
 
 /* FLOOR_LINE (read/write): The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. Reset: the nominal rig's line in one field of a 720x480 camera (hdl/regmap.py RIG_FLOOR_LINE). */
 #define STEREO_FLOOR_LINE_OFFSET                     0xD4u        /**< The v-disparity floor line (golden/floor.py FloorLine): line16(y) = (slope y + offset) >> 4 in 1/16 px. One word, so a frame never loads half a line. Reset: the nominal rig's line in one field of a 720x480 camera (hdl/regmap.py RIG_FLOOR_LINE). */
