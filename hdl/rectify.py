@@ -36,7 +36,7 @@ reads only rows ``v + lo .. v + lo + span``, so the input waits at row ``v + lo 
 the output waits for rows as said. After the input's ``eof`` the input waits until the output
 has sent its own ``eof`` (the next frame's rows would overwrite the last ones). So the output is
 the input delayed by ``lo + span`` rows plus a few pixels, each output row starts after about
-twenty-five cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
+twenty cycles of preparation, and the last ``lo + span + 1`` rows leave after the input frame.
 
 Registers: ``lo`` (signed, ``-span .. 0``: the first buffered row relative to the output row;
 sampled at each frame's start) and ``enable`` (0: a zero map, the image passes unchanged),
