@@ -122,6 +122,7 @@ class StereoPipeline(wiring.Component):
                 nodes.shape, tuple(int(v) for v in nodes["dx"].ravel()),
                 tuple(int(v) for v in nodes["dy"].ravel()))
         if rectify_left is not None and rectify is None:
+            self._MustUse__silence = True
             raise ValueError("rectify_left needs rectify: the left camera is rectified only "
                              "together with the right one")
         self.rectify_left = None if rectify_left is None else dict(rectify_left)

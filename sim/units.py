@@ -223,7 +223,8 @@ def pipeline_for(job, *, extra_rows=0):
     """The pipeline RTL elaborated for ``job`` (``extra_rows``: the matcher's, see
     :class:`hdl.pipeline.StereoPipeline`); with ``job.rect`` the rectifier, its map the map
     memory's initial contents and its registers among the run-time parameters
-    (``fixed_config``, :func:`sim.config.config_values`)."""
+    (``fixed_config``, :func:`sim.config.config_values`), and with ``job.rect_left`` the left
+    camera's rectifier too (``rectify_left``, registers ``rect_left_*``)."""
     from hdl.pipeline import StereoPipeline
     mp = _rtl_matcher(job)
     r, rl = job.rect, job.rect_left

@@ -95,7 +95,6 @@ def test_both_cameras_rectified_amaranth_with_stalls(seed, horizontal):
     assert _check(job, "amaranth", seed) > 0
 
 
-@pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
 def test_rectify_left_needs_rectify():
     from hdl.pipeline import StereoPipeline
     with pytest.raises(ValueError, match="rectify_left needs rectify"):
