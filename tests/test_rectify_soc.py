@@ -1,6 +1,7 @@
 """The SoC with the right camera's rectifier (``StereoSoC(rectify=...)``): the rectifier's
 registers on the I/O bus (hdl/rectify_regs.py), the map written over the bus, and the records
 read from the result FIFO against the golden rectified pipeline."""
+import json
 import random
 
 import numpy as np
@@ -194,3 +195,9 @@ def test_firmware_table_matches_the_bitstream_map(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: the calibration's 96x48 images do not fit")
     assert main([]) == 2 and capsys.readouterr().err.startswith("error: give a camera file")
+    # a calibration of lenses that distort rectifies both cameras: not for this SoC's one
+    rig = json.loads((tmp_path / "rig.json").read_text())
+    rig["rig"]["left_rect"] = {"R": np.eye(3).tolist(), "scale": 1.0}
+    (tmp_path / "both.json").write_text(json.dumps(rig))
+    assert main([str(tmp_path / "both.json")]) == 2
+    assert capsys.readouterr().err.startswith("error: the calibration rectifies both cameras")

@@ -23,10 +23,20 @@ ROOT = Path(__file__).resolve().parents[2]
 HEADER = ROOT / "firmware" / "include" / "rect_table.h"
 
 
+def _one_rectifier(camera):
+    """ValueError for a calibration that rectifies both cameras (its ``left_rect``: lenses that
+    distort): the SoC has one rectifier, on the right camera, and would leave the left image
+    unrectified."""
+    if (camera.rig or {}).get("left_rect") is not None:
+        raise ValueError("the calibration rectifies both cameras (its lenses distort), the SoC "
+                         "has a rectifier on the right camera only")
+
+
 def bitstream_map(camera):
     """The map (:data:`golden.rectify.MAP_DTYPE` nodes) of a calibrated camera at its own image
-    size; ValueError when it cannot be rectified."""
+    size; ValueError when it cannot be rectified or needs both cameras rectified."""
     from golden.rectify import params_for_rig
+    _one_rectifier(camera)
     return params_for_rig(camera, camera.width, camera.height, span=2).nodes
 
 
@@ -42,11 +52,12 @@ def _word(reg, **values):
 def table(camera, max_width=720, max_height=240):
     """The firmware table of a calibrated camera for a build of ``max_width`` x
     ``max_height``: :c:type:`rect_table_t`'s register words (``need``, ``map_check``,
-    ``ctrl``, ``valid_pos``, ``valid_size``); ValueError when the camera cannot be rectified
-    or its images do not fit the build."""
+    ``ctrl``, ``valid_pos``, ``valid_size``); ValueError when the camera cannot be rectified,
+    needs both cameras rectified, or its images do not fit the build."""
     from golden.rectify import grid_shape, node_words, params_for_rig
     from hdl import regmap
     from hdl.rectify import Rectify
+    _one_rectifier(camera)
     w, h = camera.width, camera.height
     if w is None or w > max_width or h > max_height:
         raise ValueError(f"the calibration's {w}x{h} images do not fit the build's "
