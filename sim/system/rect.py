@@ -2,8 +2,9 @@
 (``python -m sim calibrate``'s ``rig.json``) gives the SoC, its firmware and the golden model.
 
 * The SoC: the rectifier of the ``soc_rect`` build (``sim.designs.SYSTEM_DESIGNS``: a line
-  buffer of ``span`` = 8 rows, nearest-pixel columns, 8 more matcher line slots) with the
-  rig's map in its map memory, as the bitstream has it (``sim.flows.rect_table.bitstream_map``).
+  buffer of ``span`` = 8, nearest-pixel columns) with the rig's map in its map memory, as the
+  bitstream has it (``sim.flows.rect_table.bitstream_map``), and ``span`` +
+  :data:`EXTRA_SLACK` more matcher line slots.
 * The firmware: the image built with the rig's ``rect_table.h``
   (``sim.flows.rect_table.table`` for the build's 720 x 240 fields), so ``rect_setup`` checks
   the map and the warp against the build and enables the rectifier, or reports RECT_FAULT.
@@ -16,7 +17,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["SystemRect", "system_rect"]
+__all__ = ["EXTRA_SLACK", "SystemRect", "system_rect"]
+
+#: Matcher line slots beyond the rectifier's ``span`` that the SoC needs at NTSC: the right
+#: camera's rows reach the matcher ``lo + span`` rows after the left's, plus the part of a
+#: line its stream starts later (``sim.system.run.RIGHT_LEAD_BYTES``), and the slots come in
+#: pairs. With ``span`` slots alone the matcher overruns (``matcher_errors``, mispaired pairs).
+EXTRA_SLACK = 2
 
 
 @dataclass(frozen=True)
@@ -51,6 +58,7 @@ def system_rect(camera, width, height, source="") -> SystemRect:
         raise ValueError(f"the calibration is of {camera.width}x{camera.height} images; the "
                          f"SoC runs {width}x{height} fields: calibrate with fields")
     build = dict(SYSTEM_DESIGNS["soc_rect"].params["rectify"])
+    build["extra_rows"] = max(build["extra_rows"], build["span"] + EXTRA_SLACK)
     nodes = bitstream_map(camera)
     t = table(camera, width, height)
     p = params_for_rig(camera, width, height, span=2)
