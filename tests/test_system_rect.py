@@ -110,3 +110,25 @@ def test_usage_errors(tmp_path, capsys, case, message):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and message in err and len(err.splitlines()) == 1
+
+
+def test_warp_beyond_the_build_is_reported(tmp_path):
+    """A table asking for more rows of warp than the build's line buffer holds (a rig rolled
+    1.5 degrees: 10 rows, the build 8): the firmware leaves the rectifier off and every packet
+    carries RECT_FAULT; the pair runs unrectified, bit-exact with the plain pipeline."""
+    import dataclasses
+    from PIL import Image
+    from sim.system.cpu_run import run_cpu_system
+    from sim.system.rect import system_rect
+    ideal, rig = _field_rig(tmp_path / "rig.json", row_offset=1.5, roll_deg=0.3, pitch_deg=0.1)
+    left, right = _fields(tmp_path, ideal, rig)
+    _field_rig(tmp_path / "steep.json", roll_deg=1.5)
+    fits = system_rect(Camera.from_json(tmp_path / "rig.json"), W, H)
+    steep = system_rect(Camera.from_json(tmp_path / "steep.json"), W, H)
+    assert not steep.expect_enabled and steep.need_span > steep.build_span
+    # the build of the test above (its map in the bitstream), the steep rig's table
+    rect = dataclasses.replace(fits, table=steep.table, golden=None)
+    res = run_cpu_system(np.asarray(Image.open(left)), np.asarray(Image.open(right)), frames=1,
+                         rect=rect)
+    assert res["rect"]["rect_fault"] and not res["rectified"]
+    assert res["bit_exact"] and res["radio_exact"] and res["records"] > 0
