@@ -2,8 +2,8 @@
 cross-compiled on the core inside the SoC (``--cpu picorv32``, the default,
 :mod:`sim.system.cpu_run`) or as the host build on the CPU bus (``--cpu host``,
 :mod:`sim.system.run`: far faster, any field size, the camera-stream faults). Prints one JSON
-line; exit 0 only when bit-exact (and on the core every radio packet exact), 1 otherwise, 2 on
-a usage error."""
+line; exit 0 only when bit-exact (and on the core every radio packet exact, and with ``--camera`` the right camera
+rectified: :mod:`sim.system.rect`), 1 otherwise, 2 on a usage error."""
 from __future__ import annotations
 
 import argparse
@@ -44,6 +44,11 @@ def main(argv=None):
     ap.add_argument("--scene", default="mixed",
                     help="embedded pair when no images are given: a synthetic scene of "
                          "sim/scenes/rendered.py or 'motorcycle'")
+    ap.add_argument("--camera", help="a calibrated camera file (python -m sim calibrate's "
+                         "rig.json, of 720 x 240 fields): the SoC rectifies the right camera "
+                         "with the rig's map in its map memory, the firmware built with the "
+                         "rig's table enables it; --left and --right are the rig's fields, "
+                         "taken as they are")
     ap.add_argument("--frames", type=int, default=5,
                     help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
     ap.add_argument("--fault", choices=FAULTS + tuple(f for f in CPU_FAULTS if f not in FAULTS),
@@ -86,7 +91,17 @@ def main(argv=None):
             raise SystemError_("--right-lead must be within -100000..100000 bytes")
         if args.frames < (FAULT_FIELD + 4 if args.fault else 1):
             raise SystemError_(f"--frames must be at least {FAULT_FIELD + 4 if args.fault else 1}")
-        if args.left:
+        rect = None
+        if args.camera is not None:
+            if host:
+                raise SystemError_("--camera runs on the core: drop --cpu host")
+            if args.left is None:
+                raise SystemError_("--camera needs --left and --right: the fields the "
+                                   "calibrated rig shot")
+            rect = _rect(args.camera, args.width, args.height)
+            left, right = (_field_as_is(_load(p), args.width, args.height)
+                           for p in (args.left, args.right))
+        elif args.left:
             left = field_of(_load(args.left), args.width, args.height)
             right = field_of(_load(args.right), args.width, args.height)
         else:
@@ -95,7 +110,8 @@ def main(argv=None):
         line = None if args.left else scene_line(args.scene, args.width, args.height)
         if not host:
             res = run_cpu_system(left, right, frames=args.frames, fault=args.fault,
-                                 timing=args.timing, seed=args.seed, floor_line=line)
+                                 timing=args.timing, seed=args.seed, floor_line=line,
+                                 rect=rect)
         else:
             res = run_system(left, right, frames=args.frames, fault=args.fault,
                              timing=args.timing, seed=args.seed, right_lead=args.right_lead,
@@ -104,8 +120,31 @@ def main(argv=None):
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(json.dumps(res))
-    ok = res["bit_exact"] and (host or res["radio_exact"])
+    ok = res["bit_exact"] and (host or res["radio_exact"]) and \
+        (args.camera is None or res["rectified"])
     return 0 if ok else 1
+
+
+def _rect(path, width, height):
+    """The :class:`sim.system.rect.SystemRect` of the camera file ``path``; a usage error
+    when it cannot be read, has no calibration, is not of the fields' size or cannot be
+    rectified by the SoC."""
+    from golden.camera import Camera
+    from sim.system.rect import system_rect
+    try:
+        camera = Camera.from_json(path)
+        return system_rect(camera, width, height, path)
+    except (OSError, ValueError) as e:
+        raise SystemError_(f"--camera {path}: {e}") from None
+
+
+def _field_as_is(image, width, height):
+    """A calibrated rig's field, unchanged: a usage error when it is not ``width`` x
+    ``height`` (resizing would change the geometry the calibration describes)."""
+    if image.shape[:2] != (height, width):
+        raise SystemError_(f"with --camera the images are the rig's {width}x{height} fields, "
+                           f"not {image.shape[1]}x{image.shape[0]}")
+    return image
 
 
 

@@ -31,6 +31,15 @@ Checks (the JSON line):
     frames each packet covers; ``radio_cycles``: the core cycle of each packet's first byte on
     the pin; ``radio_health``: each packet's health counters that are not 0
     (``station.wire`` field names, ``cam_errors`` as left and right).
+``rectified``, ``rect``
+    With a calibrated rig (``rect``, :mod:`sim.system.rect`): the SoC holds the right
+    camera's rectifier with the rig's map in its map memory, the image the rig's table; golden
+    is the rectified pipeline (``golden.rectify.rectified_pipeline_frames``) with the
+    registers the firmware sets, or the plain one when the rig's warp exceeds the build (the
+    firmware then cannot enable it). ``rectified``: packets came and none carries the
+    RECT_FAULT flag (the firmware checked the map and enabled the rectifier); ``rect``: that
+    flag (``rect_fault``), the rows less one the rig's warp needs (``need_span``) and the
+    build's line buffer holds (``build_span``).
 ``cpu``
     ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
     ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
@@ -83,7 +92,7 @@ _libs = {}
 
 def build_cpu_system(soc_params):
     """``build/system/cpu-<hash>/libcpusystem.so`` for SystemSoC(cpu="picorv32", monitor=True,
-    **soc_params) with an empty RAM (the harness loads the image: the model does not depend on
+    **soc_params) (with ``rectify``, its map in the map memory) with an empty RAM (the harness loads the image: the model does not depend on
     the firmware); returns (path, build seconds), built once per process."""
     from hdl.cpu import verilog_text
     from hdl.soc import SystemSoC
@@ -91,14 +100,15 @@ def build_cpu_system(soc_params):
     from sim.designs import silenced
     from sim.flows.verilog import SIMULATION_PASSES, verilog_source
     from sim.system.run import HARNESS, verilated_library
-    key = repr(sorted(soc_params.items()))
+    plain = _plain(soc_params)
+    key = repr(sorted(plain.items()))
     if key in _libs:
         return _libs[key], 0.0
     soc = silenced(SystemSoC(cpu="picorv32", monitor=True, **soc_params))
     vlt = ('`verilator_config\npublic_flat_rd -module "picorv32" -var "count_instr"\n'
            'public_flat_rw -module "soc.cpu" -var "ram"\n')
     files = {"cpu.vlt": vlt,
-             "soc.v": verilog_source("soc", soc, soc_params, passes=SIMULATION_PASSES),
+             "soc.v": verilog_source("soc", soc, plain, passes=SIMULATION_PASSES),
              "core0.v": verilog_text(),
              "cpu_system.cpp": (HARNESS.parent / "cpu_system.cpp").read_text()}
     lib, seconds = verilated_library(
@@ -106,6 +116,17 @@ def build_cpu_system(soc_params):
         f"-std=c++17 -fPIC -DINSTRET={_INSTRET} -DRAM={_RAM}", "the SoC with its CPU")
     _libs[key] = lib
     return lib, seconds
+
+
+def _plain(soc_params):
+    """``soc_params`` as plain values for the Verilog's header and the build's key: a
+    rectifier's map (``rectify["nodes"]``, an array) as its SHA-256."""
+    rect = soc_params.get("rectify")
+    if rect is None or rect.get("nodes") is None:
+        return dict(soc_params)
+    import hashlib
+    nodes = hashlib.sha256(rect["nodes"].tobytes()).hexdigest()
+    return {**soc_params, "rectify": {**rect, "nodes": f"sha256:{nodes}"}}
 
 
 def _load(path):
@@ -153,14 +174,16 @@ def _macro(defines, name, default):
 
 
 def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, floor_line=None,
-                   defines=None, min_packets=1):
+                   defines=None, min_packets=1, rect=None):
     """Simulate with the CPU inside; returns the result dict (the JSON line's fields).
     ``floor_line``: the installed camera's floor line (``golden.floor.FloorLine``) the image is
     built with (None: the nominal rig's). ``defines``: macros of a firmware variant
     (:func:`sim.system.firmware.build_image`), e.g. shorter XBee waits for a test; None: the
     production image. The run ends once a packet has covered the last frame and at least
     ``min_packets`` packets came (or at a bound of the start-up, the streams and
-    ``min_packets + 1`` report periods)."""
+    ``min_packets + 1`` report periods). ``rect`` (a :class:`sim.system.rect.SystemRect`):
+    a calibrated rig's rectifier in the SoC, its map in the map memory, and the image built
+    with its table; golden rectifies the right camera as the firmware can set it."""
     from sim.system import firmware
     from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
                                 camera_streams)
@@ -170,17 +193,23 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     from station.wire import API_AT_COMMAND, API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
-    binary = firmware.build_image(floor_line, defines)
+    binary = firmware.build_image(floor_line, defines, None if rect is None else rect.table)
     image = firmware.image_words(binary)
     sections = firmware.sections(binary.with_suffix(".elf"))
     ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
     rdata = bytes([0x80, 0x10] * (RIGHT_LEAD_BYTES // 2)) + b"\x80" * (RIGHT_LEAD_BYTES & 1) + rdata
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
                       cost=params.matcher.cost)
+    if rect is not None:
+        soc_params["rectify"] = rect.soc
     libpath, build_s = build_cpu_system(soc_params)
     lib = _load(libpath)
 
-    golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
+    if rect is not None and rect.golden is not None:
+        from golden.rectify import rectified_pipeline_frames
+        golden = rectified_pipeline_frames([lrgb] * frames, [rrgb] * frames, params, rect.golden)
+    else:
+        golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
     floor = FloorParams(mode="rig", initial=floor_line or regmap.RIG_FLOOR_LINE)
     want = [[(int(r["x"]), int(r["y"]), int(r["d"]), int(f)) for r, f in
              zip(g.records, floor_flags(g.records["y"], g.records["d16"], floor.initial, floor))]
@@ -306,6 +335,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         counted = len(packets) > 0 and all(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
     else:
         counted = True
+    rect_fault = any(f >> HEALTH_FLAGS["RECT_FAULT"] & 1 for f in flags)
     span = cycles - video_cycles if video_cycles else 0
     busy = span - (idle - video_idle)
     drained = total_records
@@ -329,6 +359,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "radio_flags": flags,
         "radio_health": per_packet,
         "radio_queries": queries,
+        "rectified": rect is not None and bool(flags) and not rect_fault,
+        "rect": None if rect is None else {"rect_fault": rect_fault, "need_span": rect.need_span,
+                                           "build_span": rect.build_span},
         "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
                 "instructions": int(instructions),
                 "busy_fraction": round(busy / span, 4) if span > 0 else None,

@@ -2,8 +2,9 @@
 sections and its memory words.
 
 ``build_image()`` runs the cross build (cheap when up to date), serialised with the host
-build's lock; ``build_image(floor_line, defines)`` a variant with the installed camera's floor
-line or macros of its own (a test's shorter timeouts) in a folder of its own; ``sections()``
+build's lock; ``build_image(floor_line, defines, rect_table)`` a variant with the installed
+camera's floor line, macros of its own (a test's shorter timeouts) or a calibrated rig's
+rectification table in a folder of its own; ``sections()``
 gives the ELF's loaded sections and their sizes (``size -A``);
 ``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
 :class:`hdl.cpu.RiscvCPU` starts from.
@@ -33,33 +34,44 @@ class FirmwareBuildError(RuntimeError):
     """The cross build failed (its output is the message)."""
 
 
-def variant_dir(floor_line=None, defines=None) -> Path:
+def variant_dir(floor_line=None, defines=None, rect_table=None) -> Path:
     """The folder of the image built with the installed camera's ``floor_line``
-    (``golden.floor.FloorLine``) and ``defines`` (``{macro: value}``); neither: the production
-    image, :data:`BUILD`. A floor line alone: ``build/firmware/line-<FLOOR_LINE word>/``; with
-    macros: ``build/firmware/variants/<hash of both>/``."""
-    if floor_line is None and not defines:
+    (``golden.floor.FloorLine``), ``defines`` (``{macro: value}``) and ``rect_table`` (the
+    text of a ``rect_table.h``); none: the production image, :data:`BUILD`. A floor line
+    alone: ``build/firmware/line-<FLOOR_LINE word>/``; otherwise
+    ``build/firmware/variants/<hash of all three>/``."""
+    if floor_line is None and not defines and rect_table is None:
         return BUILD
-    if not defines:
+    if not defines and rect_table is None:
         from sim.flows.floor_table import register_word
         return BUILD / f"line-{register_word(floor_line):08x}"
     import hashlib
-    key = repr((floor_line, sorted(defines.items())))
+    key = repr((floor_line, sorted((defines or {}).items())))
+    if rect_table is not None:
+        key += rect_table
     return BUILD / "variants" / hashlib.sha256(key.encode()).hexdigest()[:12]
 
 
-def build_image(floor_line=None, defines=None) -> Path:
+def _write(path: Path, text: str):
+    """``text`` into ``path`` unless it already holds it (an unchanged table rebuilds nothing)."""
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+
+
+def build_image(floor_line=None, defines=None, rect_table=None) -> Path:
     """``make -C firmware rv32``: build/firmware/firmware.{elf,bin,hex,size}; returns the .bin.
     With a ``floor_line`` (``golden.floor.FloorLine``, the installed camera's) the image takes
     it from a generated table (``sim/flows/floor_table.py``) instead of the committed one;
     ``defines`` (``{macro: value}``, e.g. ``{"RADIO_RETRY_PERIODS": "1u"}``) build a variant
     with those ``-D`` macros (``FIRMWARE_DEFS``, only macros the sources give a default with
-    ``#ifndef``). Either goes to :func:`variant_dir` (its ``.elf`` beside the returned
+    ``#ifndef``); ``rect_table`` (a ``rect_table.h``'s text, ``sim.flows.rect_table.render``)
+    replaces ``firmware/include/rect_table.h`` (``RECT_TABLE_DIR``), so the image checks and
+    enables the rectifier for that calibration. Any goes to :func:`variant_dir` (its ``.elf`` beside the returned
     ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
     cross compiler: ``make setup`` installs it)."""
     BUILD.mkdir(parents=True, exist_ok=True)
     cmd = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"]
-    folder = variant_dir(floor_line, defines)
+    folder = variant_dir(floor_line, defines, rect_table)
     with open(BUILD / ".build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if folder != BUILD:
@@ -67,10 +79,11 @@ def build_image(floor_line=None, defines=None) -> Path:
             cmd.append(f"RV_BUILD={folder}")
         if floor_line is not None:
             from sim.flows.floor_table import render
-            table, text = folder / "floor_table.h", render(floor_line)
-            if not table.exists() or table.read_text() != text:
-                table.write_text(text)
+            _write(folder / "floor_table.h", render(floor_line))
             cmd.append(f"FLOOR_TABLE_DIR={folder}")
+        if rect_table is not None:
+            _write(folder / "rect_table.h", rect_table)
+            cmd.append(f"RECT_TABLE_DIR={folder}")
         if defines:
             cmd.append("FIRMWARE_DEFS=" + " ".join(f"-D{k}={v}" for k, v in sorted(defines.items())))
         r = subprocess.run(cmd, capture_output=True, text=True)
