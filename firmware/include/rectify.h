@@ -33,7 +33,8 @@ typedef struct {
  *  FW_ERR_RECT_ABSENT   the build has no rectifier (RECT_INFO reads 0, or no answer);
  *  FW_ERR_RECT_WARP     the rig's warp needs more rows than the build's line buffer holds;
  *  FW_ERR_RECT_MAP      the map memory does not hold the calibration's map (another map in
- *                       the bitstream, or none), or the map's shape is not the build's. */
+ *                       the bitstream, or none: RECT_INFO's preloaded bit clear), or the
+ *                       map's shape is not the build's. */
 fw_status_t rect_setup(uint32_t base, const rect_table_t *t);
 
 #endif /* RECTIFY_H */

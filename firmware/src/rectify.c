@@ -19,7 +19,10 @@ fw_status_t rect_setup(uint32_t base, const rect_table_t *t)
     if ((t->need & STEREO_RECT_INFO_SPAN_MASK) > (info & STEREO_RECT_INFO_SPAN_MASK)) {
         return FW_ERR_RECT_WARP;
     }
-    if (((t->need ^ info) & STEREO_RECT_INFO_STRIDE_LOG2_MASK) != 0u ||
+    /* the map comes with the bitstream: without one the check word proves nothing (a map
+     * whose check is 0 would pass against an empty memory) */
+    if ((info & STEREO_RECT_INFO_PRELOADED_MASK) == 0u ||
+        ((t->need ^ info) & STEREO_RECT_INFO_STRIDE_LOG2_MASK) != 0u ||
         (t->need & STEREO_RECT_INFO_NODE_ROWS_MASK) > (info & STEREO_RECT_INFO_NODE_ROWS_MASK) ||
         Xil_In32(base + STEREO_RECT_MAP_CHECK_OFFSET) != t->map_check) {
         return FW_ERR_RECT_MAP;

@@ -1,5 +1,5 @@
 /* Rectifier start-up: a build without it, a warp beyond its line buffer, a map that is not
- * the calibration's, and the registers it sets when everything fits. */
+ * the calibration's or no map at all, and the registers it sets when everything fits. */
 #include "fwtest.h"
 #include "hal.h"
 #include "rectify.h"
@@ -92,6 +92,22 @@ static void test_map_not_the_calibrations(void)
     hal_set_bus_hook(NULL, NULL, NULL, NULL, NULL);
 }
 
+static void test_no_map_in_the_bitstream(void)
+{
+    /* a calibration's map whose check word is 0 against an empty map memory, which also
+     * checks 0: only RECT_INFO's preloaded bit tells them apart */
+    rect_table_t t = table;
+    setup();
+    t.map_check = 0u;
+    sim.regs[STEREO_RECT_MAP_CHECK_OFFSET / 4u] = 0u;
+    FWT_CHECK_EQ(rect_setup(BASE, &t), FW_OK);
+    sim.regs[STEREO_RECT_CTRL_OFFSET / 4u] = 0u;
+    sim.regs[STEREO_RECT_INFO_OFFSET / 4u] &= ~STEREO_RECT_INFO_PRELOADED_MASK;
+    FWT_CHECK_EQ(rect_setup(BASE, &t), FW_ERR_RECT_MAP);
+    FWT_CHECK_EQ(reg(STEREO_RECT_CTRL_OFFSET), 0u);
+    hal_set_bus_hook(NULL, NULL, NULL, NULL, NULL);
+}
+
 static void test_build_without_rectifier(void)
 {
     setup();
@@ -106,5 +122,6 @@ void suite_rectify(void)
     FWT_RUN(test_enabled_when_everything_fits);
     FWT_RUN(test_warp_beyond_the_build);
     FWT_RUN(test_map_not_the_calibrations);
+    FWT_RUN(test_no_map_in_the_bitstream);
     FWT_RUN(test_build_without_rectifier);
 }
