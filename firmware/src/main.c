@@ -4,10 +4,12 @@
  * start-up, then one radio report every 100 ms. Not part of the host library.
  *
  * Nothing here waits without a bound and no failure is silent: every period the firmware
- * retries what has not come up (the register block, the decoders' lock, the video path),
- * reads the health registers (app_read_health: decoder lock, enable, camera and matcher
- * errors, drops, overflow) and sends the radio report, so the base station sees a module that
- * is not running and why (flags: locked bits and the enabled bit stay 0).
+ * retries what has not come up (the register block, the decoders' lock, the video path; a
+ * decoder that did not take its configuration, flagged DECODER_FAULT, every
+ * DECODER_RETRY_PERIODS periods), reads the health registers (app_read_health: decoder lock,
+ * enable, camera and matcher errors, drops, overflow) and sends the radio report, so the base
+ * station sees a module that is not running and why (flags: locked bits and the enabled bit
+ * stay 0, the fault bits set).
  *
  * Two ways to the summary, chosen at build time: the records drained from the result FIFO
  * (app_collect), or, with FIRMWARE_BANDS_HW (the image for the SoC's own RISC-V core,
@@ -46,6 +48,15 @@
  *  the records of the frames that do come are drained. */
 #define LOCK_POLLS 0u
 #define DECODER_TRIES 2u
+/** A decoder whose configuration still failed after those tries (the health flag
+ *  DECODER_FAULT, app_read_health) is configured again every DECODER_RETRY_PERIODS periods,
+ *  at the start of a period: a decoder that does not answer costs one IIC address byte, one
+ *  that answers again its reset and table (app_retry_decoders), after which the flag clears.
+ *  A build may give another period (-DDECODER_RETRY_PERIODS=n, 1..250), as the
+ *  simulation's test of a missing decoder does to see retries in a short run. */
+#ifndef DECODER_RETRY_PERIODS
+#define DECODER_RETRY_PERIODS 20u
+#endif
 /** A radio module that did not answer its configuration is queried again (xbee_probe_query,
  *  between two reports) every RADIO_RETRY_PERIODS periods; its answer is looked for in every
  *  step, so the frame loop never waits for it. A build may give another period
@@ -133,6 +144,13 @@ int main(void)
 #endif
     start = hal_ticks();
     for (;;) {
+        /* once the start-up's tries are over: a decoder still not configured, again every
+         * DECODER_RETRY_PERIODS periods (decoder_tries counts them on) */
+        if (decoders_locked && st_dec != FW_OK &&
+            ++decoder_tries >= DECODER_TRIES + DECODER_RETRY_PERIODS) {
+            decoder_tries = DECODER_TRIES;
+            st_dec = app_retry_decoders(&app);
+        }
         if (st_pipe != FW_OK) {
             st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);      /* wrong bitstream? */
         } else if (st_video != FW_OK) {
