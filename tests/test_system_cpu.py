@@ -31,8 +31,10 @@ def test_records_and_packets_are_exact(mixed):
     assert sum(res["radio_frames"]) >= 2
     # both decoders locked and the video path enabled in the last packet's health
     assert res["radio_flags"][-1] & 0b111 == 0b111
-    # the XBee model answered the firmware's queries: no packet reports the radio fault
+    # the XBee model answered the firmware's queries and both decoders their configuration:
+    # no packet reports a radio or decoder fault
     assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in res["radio_flags"])
+    assert not any(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in res["radio_flags"])
 
 
 def test_cpu_figures(mixed):
@@ -86,8 +88,9 @@ def test_bad_combinations_are_usage_errors(argv, capsys):
 
 def test_decoder_not_answering_is_bounded_and_the_other_runs():
     """--fault iic-nack: the right decoder never answers its address. The firmware retries it
-    for two report periods (it was addressed), then starts the video path without it: the
-    packets go on, their sequence unbroken, and the frames are exact."""
+    for two report periods, then starts the video path without it: the packets go on, their
+    sequence unbroken, every one reports the decoder's fault (DECODER_FAULT, health bit 6),
+    and the frames are exact."""
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         code = main(["--cpu", "picorv32", "--scene", "mixed", "--frames", "5", "--fault",
@@ -96,7 +99,14 @@ def test_decoder_not_answering_is_bounded_and_the_other_runs():
     assert code == 0, res
     assert res["bit_exact"] and res["fault_counted"] and res["frames_out"] == 5
     assert res["radio_packets"] >= 2 and res["radio_exact"]
-    assert res["radio_flags"][0] & 0b100 == 0 and res["radio_flags"][-1] & 0b111 == 0b111
+    flags = res["radio_flags"]
+    assert flags[0] & 0b100 == 0 and flags[-1] & 0b111 == 0b111
+    assert all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
+    assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
+    # bounded: the start-up's attempt and the two tries, an address byte each (the next
+    # retry is 20 periods away); the left decoder took its whole configuration
+    left, right = res["decoders_addressed"]
+    assert right == 3 and left > 20
 
 
 def test_camera_lost_counts_the_loss_and_the_pipeline_resumes_exact():
