@@ -109,6 +109,30 @@ def test_decoder_not_answering_is_bounded_and_the_other_runs():
     assert right == 3 and left > 20
 
 
+def test_decoder_not_answering_is_configured_again_every_retry_period():
+    """--fault iic-nack on a variant of the image that configures a failed decoder again
+    every report period (DECODER_RETRY_PERIODS 1 for 20, main.c takes it with #ifndef): after
+    the start-up's tries, one attempt (an address byte the decoder does not acknowledge) at
+    the start of each period; the packets still come one a period, each with DECODER_FAULT."""
+    from sim.system.cpu_run import REPORT_PS, run_cpu_system
+    from sim.system.run import CORE_PS, scene_pair
+    ms = 10**9 // CORE_PS                                   # core cycles a millisecond
+    defines = {"DECODER_RETRY_PERIODS": "1u"}
+    res = run_cpu_system(*scene_pair("mixed", 720, 240), frames=2, fault="iic-nack",
+                         defines=defines, min_packets=4)
+    assert res["bit_exact"] and res["fault_counted"] and res["radio_exact"], res
+    assert res["cpu"]["defines"] == defines and not res["cpu"]["trapped"]
+    flags = res["radio_flags"]
+    assert len(flags) >= 4 and all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
+    assert all(f & 0b111 == 0b111 for f in flags[2:])      # the video path runs meanwhile
+    # the start-up's attempt and one in each period begun: the periods of the packets
+    # decoded, and the one in progress when the run ended
+    assert res["decoders_addressed"][1] == len(flags) + 2
+    period = REPORT_PS // CORE_PS
+    packets = res["radio_cycles"]
+    assert all(abs(b - a - period) < 18 * ms for a, b in zip(packets, packets[1:]))
+
+
 def test_camera_lost_counts_the_loss_and_the_pipeline_resumes_exact():
     """--fault camera-lost-left: the left decoder gets no byte for LOST_FIELDS fields from the
     end of field 0. The right camera's fields of that time have no partner and the pairing
