@@ -52,7 +52,7 @@
  *  DECODER_FAULT, app_read_health) is configured again every DECODER_RETRY_PERIODS periods,
  *  at the start of a period: a decoder that does not answer costs one IIC address byte, one
  *  that answers again its reset and table (app_retry_decoders), after which the flag clears.
- *  A build may give another period (-DDECODER_RETRY_PERIODS=n, 1..250), as the
+ *  A build may give another period (-DDECODER_RETRY_PERIODS=n, 1..255), as the
  *  simulation's test of a missing decoder does to see retries in a short run. */
 #ifndef DECODER_RETRY_PERIODS
 #define DECODER_RETRY_PERIODS 20u
@@ -119,6 +119,7 @@ int main(void)
     uint8_t rect_fault = 0u;        /* RADIO_HEALTH_RECT_FAULT when the rectifier is not on */
     uint8_t decoders_locked = 0u;
     uint8_t decoder_tries = 0u;
+    uint8_t decoder_wait = 0u;      /* periods since the last retry of a decoder */
     uint8_t radio_wait = 0u;
     uint32_t start;
     /* the radio module: API mode 2 at 115200 baud. A failure keeps the pipeline running and
@@ -144,20 +145,17 @@ int main(void)
 #endif
     start = hal_ticks();
     for (;;) {
-        /* once the start-up's tries are over: a decoder still not configured, again every
-         * DECODER_RETRY_PERIODS periods (decoder_tries counts them on) */
-        if (decoders_locked && st_dec != FW_OK &&
-            ++decoder_tries >= DECODER_TRIES + DECODER_RETRY_PERIODS) {
-            decoder_tries = DECODER_TRIES;
+        /* a decoder not configured, once the register block answers: again in each period
+         * of the start-up's tries below, then every DECODER_RETRY_PERIODS periods */
+        if (st_pipe == FW_OK && st_dec != FW_OK &&
+            (!decoders_locked || ++decoder_wait >= DECODER_RETRY_PERIODS)) {
+            decoder_wait = 0u;
             st_dec = app_retry_decoders(&app);
         }
         if (st_pipe != FW_OK) {
             st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);      /* wrong bitstream? */
         } else if (st_video != FW_OK) {
             if (!decoders_locked) {
-                if (st_dec != FW_OK) {
-                    st_dec = app_retry_decoders(&app);
-                }
                 /* ADV7180 STATUS1, over IIC: once, then the streams' lock (HEALTH_STATUS). A
                  * decoder that does not answer is retried DECODER_TRIES periods, then the
                  * video path starts without it (it runs on its power-up defaults, or its
