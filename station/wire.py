@@ -23,7 +23,10 @@ Payload (the XBee "RF data"), version 2, big-endian, ``PAYLOAD_HEADER_LEN`` + n_
                to luma, bit4 the calibration's rectification is not running: the build
                has no rectifier, the rig's warp exceeds it or its map is not the rig's,
                bit5 the XBee did not answer its configuration: the firmware queries it
-               again every few seconds, and the packet came out on the UART regardless)
+               again every few seconds, and the packet came out on the UART regardless,
+               bit6 a video decoder (ADV7180) did not take its IIC configuration: the
+               firmware configures it again every few seconds and clears the bit once it
+               has; the other decoder is configured and the pipeline runs)
     33   1     n_bands: 1..64
     34   n     bands[i]: u8, nearest obstacle disparity of column band i (0 = none)
     34+n 2     crc: CRC-16/CCITT-FALSE over bytes 0 .. 33+n
@@ -69,7 +72,7 @@ HEALTH_FIELDS = (
     ("fifo_overflow", "fifo_overflow", 2), ("flags", "flags", 1),
 )
 HEALTH_FLAGS = {"LEFT_LOCKED": 0, "RIGHT_LOCKED": 1, "PIPELINE_ENABLED": 2, "HUE_FALLBACK": 3,
-                "RECT_FAULT": 4, "RADIO_FAULT": 5}
+                "RECT_FAULT": 4, "RADIO_FAULT": 5, "DECODER_FAULT": 6}
 
 
 def flag_names(flags: int) -> list:

@@ -72,10 +72,10 @@ def test_health_flags_decode_to_names():
     """The station names every flag the firmware sets: radio_wire.h's bits are these."""
     rng = random.Random(5)
     pkt = make_packet(rng, 8)
-    pkt = dataclasses.replace(pkt, health=dataclasses.replace(pkt.health, flags=0b110101))
+    pkt = dataclasses.replace(pkt, health=dataclasses.replace(pkt.health, flags=0b1110101))
     got = decode_payload(encode_payload(pkt))
     assert wire.flag_names(got.health.flags) == ["LEFT_LOCKED", "PIPELINE_ENABLED", "RECT_FAULT",
-                                                 "RADIO_FAULT"]
+                                                 "RADIO_FAULT", "DECODER_FAULT"]
     assert wire.flag_names(0) == []
     assert sorted(wire.HEALTH_FLAGS.values()) == list(range(len(wire.HEALTH_FLAGS)))
 

@@ -174,6 +174,16 @@ def test_the_page_files_are_package_data():
     assert all(any(fnmatch.fnmatch(f, g) for g in globs) for f in files), (files, globs)
 
 
+def test_the_page_shows_every_health_flag():
+    """Each flag the firmware can set (station.wire.HEALTH_FLAGS) has a badge on the page."""
+    from pathlib import Path
+
+    from station.wire import HEALTH_FLAGS
+    script = (Path(ROOT) / "station" / "static" / "app.js").read_text()
+    badges = re.findall(r'\["([A-Z_]+)", "[^"]+", "[^"]+", "[^"]+", (?:true|false)\]', script)
+    assert badges == list(HEALTH_FLAGS)
+
+
 def test_a_client_that_stops_reading_is_disconnected_not_buffered_without_end():
     """A page that hangs (here: a websocket that never reads) must not make the station
     buffer without bound: past ``max_backlog`` waiting messages it is disconnected and

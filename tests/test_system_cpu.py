@@ -31,8 +31,10 @@ def test_records_and_packets_are_exact(mixed):
     assert sum(res["radio_frames"]) >= 2
     # both decoders locked and the video path enabled in the last packet's health
     assert res["radio_flags"][-1] & 0b111 == 0b111
-    # the XBee model answered the firmware's queries: no packet reports the radio fault
+    # the XBee model answered the firmware's queries and both decoders their configuration:
+    # no packet reports a radio or decoder fault
     assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in res["radio_flags"])
+    assert not any(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in res["radio_flags"])
 
 
 def test_cpu_figures(mixed):
@@ -86,8 +88,9 @@ def test_bad_combinations_are_usage_errors(argv, capsys):
 
 def test_decoder_not_answering_is_bounded_and_the_other_runs():
     """--fault iic-nack: the right decoder never answers its address. The firmware retries it
-    for two report periods (it was addressed), then starts the video path without it: the
-    packets go on, their sequence unbroken, and the frames are exact."""
+    for two report periods, then starts the video path without it: the packets go on, their
+    sequence unbroken, every one reports the decoder's fault (DECODER_FAULT, health bit 6),
+    and the frames are exact."""
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         code = main(["--cpu", "picorv32", "--scene", "mixed", "--frames", "5", "--fault",
@@ -96,7 +99,38 @@ def test_decoder_not_answering_is_bounded_and_the_other_runs():
     assert code == 0, res
     assert res["bit_exact"] and res["fault_counted"] and res["frames_out"] == 5
     assert res["radio_packets"] >= 2 and res["radio_exact"]
-    assert res["radio_flags"][0] & 0b100 == 0 and res["radio_flags"][-1] & 0b111 == 0b111
+    flags = res["radio_flags"]
+    assert flags[0] & 0b100 == 0 and flags[-1] & 0b111 == 0b111
+    assert all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
+    assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
+    # bounded: the start-up's attempt and the two tries, an address byte each (the next
+    # retry is 20 periods away); the left decoder took its whole configuration
+    left, right = res["decoders_addressed"]
+    assert right == 3 and left > 20
+
+
+def test_decoder_not_answering_is_configured_again_every_retry_period():
+    """--fault iic-nack on a variant of the image that configures a failed decoder again
+    every report period (DECODER_RETRY_PERIODS 1 for 20, main.c takes it with #ifndef): after
+    the start-up's tries, one attempt (an address byte the decoder does not acknowledge) at
+    the start of each period; the packets still come one a period, each with DECODER_FAULT."""
+    from sim.system.cpu_run import REPORT_PS, run_cpu_system
+    from sim.system.run import CORE_PS, scene_pair
+    ms = 10**9 // CORE_PS                                   # core cycles a millisecond
+    defines = {"DECODER_RETRY_PERIODS": "1u"}
+    res = run_cpu_system(*scene_pair("mixed", 720, 240), frames=2, fault="iic-nack",
+                         defines=defines, min_packets=4)
+    assert res["bit_exact"] and res["fault_counted"] and res["radio_exact"], res
+    assert res["cpu"]["defines"] == defines and not res["cpu"]["trapped"]
+    flags = res["radio_flags"]
+    assert len(flags) >= 4 and all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
+    assert all(f & 0b111 == 0b111 for f in flags[2:])      # the video path runs meanwhile
+    # the start-up's attempt and one in each period begun: the periods of the packets
+    # decoded, and the one in progress when the run ended
+    assert res["decoders_addressed"][1] == len(flags) + 2
+    period = REPORT_PS // CORE_PS
+    packets = res["radio_cycles"]
+    assert all(abs(b - a - period) < 18 * ms for a, b in zip(packets, packets[1:]))
 
 
 def test_camera_lost_counts_the_loss_and_the_pipeline_resumes_exact():

@@ -124,7 +124,8 @@ void app_restart_video(app_t *app);
 
 /** Read the HEALTH_* registers and fill h with the counts since the previous call (16-bit
  *  differences, so a wrapped counter still counts right; a saturated one stops counting) and
- *  the flags. Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block does not
+ *  the flags: the video path's (HEALTH_STATUS, GROUND_STATUS) and DECODER_FAULT while a
+ *  decoder's start-up has failed (dec_status; app_retry_decoders clears it). Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block does not
  *  answer (ID check), FW_OK otherwise. */
 fw_status_t app_read_health(app_t *app, radio_health_t *h);
 

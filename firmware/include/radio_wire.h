@@ -43,6 +43,7 @@
 #define RADIO_HEALTH_HUE_FALLBACK          (1u << 3) /**< radio_health_t.flags bit */
 #define RADIO_HEALTH_RECT_FAULT            (1u << 4) /**< radio_health_t.flags bit */
 #define RADIO_HEALTH_RADIO_FAULT           (1u << 5) /**< radio_health_t.flags bit */
+#define RADIO_HEALTH_DECODER_FAULT         (1u << 6) /**< radio_health_t.flags bit */
 
 #define XBEE_START                         0x7Eu    /**< start delimiter */
 #define XBEE_ESCAPE                        0x7Du    /**< escape byte (API mode 2) */

@@ -401,11 +401,13 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
     h->fifo_overflow = (uint16_t)(overflow > 0xFFFFu ? 0xFFFFu : overflow);
     h->camera_skew_us = (int16_t)field16(skew, STEREO_HEALTH_SKEW_US_SHIFT);
     h->camera_skew_pairs = since(field16(skew, STEREO_HEALTH_SKEW_PAIRS_SHIFT), &l->skew_pairs);
+    /* FW_OK is 0: the OR of the two decoders' start-up results is an error if either is */
     h->flags = (uint8_t)(((status & STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK) ? RADIO_HEALTH_LEFT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK) ? RADIO_HEALTH_RIGHT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_PIPELINE_ENABLED : 0u)
              | ((ground & (STEREO_GROUND_STATUS_LEFT_HUE_FALLBACK_MASK
-                           | STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK)) ? RADIO_HEALTH_HUE_FALLBACK : 0u));
+                           | STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK)) ? RADIO_HEALTH_HUE_FALLBACK : 0u)
+             | ((app->dec_status[0] | app->dec_status[1]) != FW_OK ? RADIO_HEALTH_DECODER_FAULT : 0u));
     return FW_OK;
 }
 

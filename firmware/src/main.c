@@ -4,10 +4,12 @@
  * start-up, then one radio report every 100 ms. Not part of the host library.
  *
  * Nothing here waits without a bound and no failure is silent: every period the firmware
- * retries what has not come up (the register block, the decoders' lock, the video path),
- * reads the health registers (app_read_health: decoder lock, enable, camera and matcher
- * errors, drops, overflow) and sends the radio report, so the base station sees a module that
- * is not running and why (flags: locked bits and the enabled bit stay 0).
+ * retries what has not come up (the register block, the decoders' lock, the video path; a
+ * decoder that did not take its configuration, flagged DECODER_FAULT, every
+ * DECODER_RETRY_PERIODS periods), reads the health registers (app_read_health: decoder lock,
+ * enable, camera and matcher errors, drops, overflow) and sends the radio report, so the base
+ * station sees a module that is not running and why (flags: locked bits and the enabled bit
+ * stay 0, the fault bits set).
  *
  * Two ways to the summary, chosen at build time: the records drained from the result FIFO
  * (app_collect), or, with FIRMWARE_BANDS_HW (the image for the SoC's own RISC-V core,
@@ -46,6 +48,15 @@
  *  the records of the frames that do come are drained. */
 #define LOCK_POLLS 0u
 #define DECODER_TRIES 2u
+/** A decoder whose configuration still failed after those tries (the health flag
+ *  DECODER_FAULT, app_read_health) is configured again every DECODER_RETRY_PERIODS periods,
+ *  at the start of a period: a decoder that does not answer costs one IIC address byte, one
+ *  that answers again its reset and table (app_retry_decoders), after which the flag clears.
+ *  A build may give another period (-DDECODER_RETRY_PERIODS=n, 1..255), as the
+ *  simulation's test of a missing decoder does to see retries in a short run. */
+#ifndef DECODER_RETRY_PERIODS
+#define DECODER_RETRY_PERIODS 20u
+#endif
 /** A radio module that did not answer its configuration is queried again (xbee_probe_query,
  *  between two reports) every RADIO_RETRY_PERIODS periods; its answer is looked for in every
  *  step, so the frame loop never waits for it. A build may give another period
@@ -108,6 +119,7 @@ int main(void)
     uint8_t rect_fault = 0u;        /* RADIO_HEALTH_RECT_FAULT when the rectifier is not on */
     uint8_t decoders_locked = 0u;
     uint8_t decoder_tries = 0u;
+    uint8_t decoder_wait = 0u;      /* periods since the last retry of a decoder */
     uint8_t radio_wait = 0u;
     uint32_t start;
     /* the radio module: API mode 2 at 115200 baud. A failure keeps the pipeline running and
@@ -133,13 +145,17 @@ int main(void)
 #endif
     start = hal_ticks();
     for (;;) {
+        /* a decoder not configured, once the register block answers: again in each period
+         * of the start-up's tries below, then every DECODER_RETRY_PERIODS periods */
+        if (st_pipe == FW_OK && st_dec != FW_OK &&
+            (!decoders_locked || ++decoder_wait >= DECODER_RETRY_PERIODS)) {
+            decoder_wait = 0u;
+            st_dec = app_retry_decoders(&app);
+        }
         if (st_pipe != FW_OK) {
             st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);      /* wrong bitstream? */
         } else if (st_video != FW_OK) {
             if (!decoders_locked) {
-                if (st_dec != FW_OK) {
-                    st_dec = app_retry_decoders(&app);
-                }
                 /* ADV7180 STATUS1, over IIC: once, then the streams' lock (HEALTH_STATUS). A
                  * decoder that does not answer is retried DECODER_TRIES periods, then the
                  * video path starts without it (it runs on its power-up defaults, or its

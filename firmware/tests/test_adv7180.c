@@ -147,6 +147,48 @@ static void test_two_decoders(void)
     FWT_CHECK(matches_table(b));
 }
 
+/* A decoder that does not answer at start-up: every health record carries DECODER_FAULT,
+ * however the video path looks, while its retries fail; the retry that configures it clears
+ * the flag and leaves the other decoder alone. */
+static void test_decoder_fault_flag_until_a_retry_succeeds(void)
+{
+    static app_t app;
+    radio_health_t h;
+    sim_dev_t *a, *b;
+    uint32_t a_writes;
+    setup();
+    a = sim_add_adv7180(&sim, 0x20);
+    b = sim_add_adv7180(&sim, 0x21);
+    b->nack = 1;
+    FWT_CHECK_EQ(app_init_decoders(&app, STEREO_IIC_BASEADDR, 500u), FW_ERR_NACK);
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    FWT_CHECK(matches_table(a));
+    a_writes = a->writes;
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x7u;    /* both streams locked, enabled */
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, 0x7u | RADIO_HEALTH_DECODER_FAULT);
+    FWT_CHECK_EQ(app_retry_decoders(&app), FW_ERR_NACK);     /* still not there */
+    sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4] = 0x0u;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, RADIO_HEALTH_DECODER_FAULT);
+    b->nack = 0;                                             /* it answers now */
+    FWT_CHECK_EQ(app_retry_decoders(&app), FW_OK);
+    FWT_CHECK(matches_table(b));
+    FWT_CHECK_EQ(a->writes, a_writes);                       /* the left one untouched */
+    FWT_CHECK_EQ(app.dec_status[0], FW_OK);
+    FWT_CHECK_EQ(app.dec_status[1], FW_OK);
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, 0x0u);
+    /* the left decoder missing is flagged the same */
+    setup();
+    b = sim_add_adv7180(&sim, 0x21);
+    FWT_CHECK_EQ(app_init_decoders(&app, STEREO_IIC_BASEADDR, 500u), FW_ERR_NACK);
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, RADIO_HEALTH_DECODER_FAULT);
+    sim_uninstall();
+}
+
 static void test_table_stops_at_first_error(void)
 {
     /* a device that stops answering after 5 table writes: the driver stops at entry 5 */
@@ -171,5 +213,6 @@ void suite_adv7180(void)
     FWT_RUN(test_reset_wait_counts_the_bus_time);
     FWT_RUN(test_nack_and_stuck);
     FWT_RUN(test_two_decoders);
+    FWT_RUN(test_decoder_fault_flag_until_a_retry_succeeds);
     FWT_RUN(test_table_stops_at_first_error);
 }

@@ -60,7 +60,9 @@ Faults:
     pipeline sees the pairs (L0, R0), (L5, R5), ... of identical fields, so the frames out equal
     golden's first ``frames - LOST_FIELDS``, and the loss is counted in the packets' health.
 ``iic-nack``
-    The right decoder never answers its IIC address: counted when the firmware addressed it.
+    The right decoder never answers its IIC address: counted when the firmware addressed it
+    and every packet's health carries the DECODER_FAULT flag. ``decoders_addressed``: how
+    often the firmware addressed each decoder (its start-up, its retries).
 ``no-radio-module``
     Nothing answers the XBee queries: counted when every packet's health carries the
     RADIO_FAULT flag (``station.wire.HEALTH_FLAGS``). ``radio_queries``: the core cycles of the
@@ -330,7 +332,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         counted = health["mispaired"] + health["drops"] + sum(cam_errors) > 0 or \
             any(not f & 1 for f in flags)
     elif fault == "iic-nack":
-        counted = addressed[1] > 0
+        counted = addressed[1] > 0 and len(packets) > 0 and \
+            all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
     elif fault == "no-radio-module":
         counted = len(packets) > 0 and all(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
     else:
@@ -362,6 +365,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "rectified": rect is not None and bool(flags) and not rect_fault,
         "rect": None if rect is None else {"rect_fault": rect_fault, "need_span": rect.need_span,
                                            "build_span": rect.build_span},
+        "decoders_addressed": [int(a) for a in addressed],
         "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
                 "instructions": int(instructions),
                 "busy_fraction": round(busy / span, 4) if span > 0 else None,

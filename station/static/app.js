@@ -108,7 +108,10 @@ function health(h) {
   const flags = [["LEFT_LOCKED", "left camera", "locked", "not locked", true],
                  ["RIGHT_LOCKED", "right camera", "locked", "not locked", true],
                  ["PIPELINE_ENABLED", "pipeline", "on", "off", true],
-                 ["HUE_FALLBACK", "hue fallback", "on", "off", false]];
+                 ["HUE_FALLBACK", "hue fallback", "on", "off", false],
+                 ["RECT_FAULT", "rectification", "not running", "on", false],
+                 ["RADIO_FAULT", "robot's XBee", "not answering", "ok", false],
+                 ["DECODER_FAULT", "decoder set-up", "failed", "ok", false]];
   let html = "";
   for (const [k, label, yes, no, good] of flags) {
     const on = h.flag_names.includes(k);
