@@ -348,3 +348,10 @@ def test_search_start_rule(max_disparity):
     sim.add_clock(1e-8)
     sim.add_testbench(bench)
     sim.run()
+
+
+def test_search_start_meets_the_timing_rule(tmp_path):
+    from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
+    c = synthesize_component("searchstart", SearchStart(max_disparity=255), tmp_path)
+    assert c["levels"] <= MAX_LEVELS and c["carry_bits"] <= MAX_CARRY, c
+    assert c["RAMB16"] == 0 and c["MULT18X18"] == 0 and c["LUT4"] < 200, c
