@@ -99,14 +99,15 @@ def test_camera_lost_mid_field_recovers_at_the_next_pair():
     """The left camera lost from the middle of a field for LOST_FIELDS fields: its decoder
     ends that field only when the camera is back (a line ends at the next EAV), so the pair
     (L1, R1) stays open through the loss and nothing stalls for good: the run ends with every
-    field paired or dropped. The loss shows in the counters the design has for it: the right
-    camera's fields of that time find its FIFO full (fifo_overflow: each one from its first
-    word, whole frame tails), and the first of them, cut short, has no partner (drops = 1).
-    The decoder sees well-formed lines throughout (camera errors 0; the camera returns at the
-    byte it left, so the field it finishes is whole) and the pairing a well-formed pair (the
-    open one, whose left field is two instants: counted in pairs_ok, the gap the decoders'
-    lock cannot show). From the first pair that starts after the return, every frame equals
-    golden."""
+    field paired or dropped. At this size the whole right field 1 fits the camera buffer and
+    the matcher's line slots while the pair waits, so the pair is well-formed (its left field
+    is two instants: counted in pairs_ok, a gap neither the decoders' lock nor the pairing
+    shows). The loss shows in the counters the design has for it: the right camera's fields
+    of that time find its queue full (fifo_overflow: each one from its first word, whole
+    frame tails), and the first of them, cut short, has no partner (drops = 1). The decoder
+    sees well-formed lines throughout (camera errors 0: the camera returns at the byte it
+    left, so the field it finishes is whole). From the first pair that starts after the
+    return, every frame equals golden."""
     frames = FRAMES + 2         # the cut pair is not compared: two pairs after it
     res = run_system(*pair(), frames=frames, fault="camera-lost-left-mid", timing="short",
                      params=PARAMS)
