@@ -12,8 +12,8 @@ from golden.matcher import RTL, MatcherParams
 from golden.pipeline import PipelineParams, pipeline_frames
 from golden.sobel import SobelParams
 from sim.scenes.data import crop, motorcycle
-from sim.system.run import (FAULTS, LOST_FIELDS, camera_fields, camera_streams, inject,
-                            run_system)
+from sim.system.run import (FAULT_FIELD, FAULTS, LOST_FIELDS, _field_spans, camera_fields,
+                            camera_lost_span, camera_streams, inject, run_system)
 
 W, H, FRAMES = 64, 16, 5
 PARAMS = PipelineParams(
@@ -71,7 +71,7 @@ def test_capture_skew_is_the_phase_of_the_cameras(lead):
     assert all((s > 0) == (lead > 0) for s in skew)
 
 
-@pytest.mark.parametrize("fault", FAULTS)
+@pytest.mark.parametrize("fault", [f for f in FAULTS if f != "camera-lost-left-mid"])
 def test_fault_is_counted_and_pairs_resynchronise(fault):
     # the lost camera's fields are not paired: one more field for a pair after them
     frames = FRAMES + (fault == "camera-lost-left")
@@ -93,6 +93,40 @@ def test_fault_is_counted_and_pairs_resynchronise(fault):
     if fault.startswith("missing-sof"):
         side = "camera_left" if fault.endswith("left") else "camera_right"
         assert res["errors"][side] == H + 4         # the lost field's lines beyond the count
+
+
+def test_camera_lost_mid_field_recovers_at_the_next_pair():
+    """The left camera lost from the middle of a field for LOST_FIELDS fields: its decoder
+    ends that field only when the camera is back (a line ends at the next EAV), so the pair
+    (L1, R1) stays open through the loss and nothing stalls for good: the run ends with every
+    field paired or dropped. At this size the whole right field 1 fits the camera buffer and
+    the matcher's line slots while the pair waits, so the pair is well-formed (its left field
+    is two instants: counted in pairs_ok, a gap neither the decoders' lock nor the pairing
+    shows). The loss shows in the counters the design has for it: the right camera's fields
+    of that time find its queue full (fifo_overflow: each one from its first word, whole
+    frame tails), and the first of them, cut short, has no partner (drops = 1). The decoder
+    sees well-formed lines throughout (camera errors 0: the camera returns at the byte it
+    left, so the field it finishes is whole). From the first pair that starts after the
+    return, every frame equals golden."""
+    frames = FRAMES + 2         # the cut pair is not compared: two pairs after it
+    res = run_system(*pair(), frames=frames, fault="camera-lost-left-mid", timing="short",
+                     params=PARAMS)
+    assert res["bit_exact"] and res["fault_counted"], res
+    assert res["frames_out"] == res["pairs_ok"] == frames - LOST_FIELDS
+    assert res["mispaired"] == 0 and res["drops"] == 1 and res["fifo_overflow"] > W * H
+    assert res["errors"] == {"camera_left": 0, "camera_right": 0, "matcher": 0}
+
+
+def test_camera_lost_span_ends_a_field_or_cuts_a_line():
+    ldata = camera_streams(*pair(), FRAMES + 2, "short")[0]
+    spans = _field_spans(ldata)
+    field_bytes = spans[FAULT_FIELD + 1]["codes"][0] - spans[FAULT_FIELD]["codes"][0]
+    at, n = camera_lost_span(ldata)
+    assert at == spans[FAULT_FIELD]["codes"][0] + 1 and n == LOST_FIELDS * field_bytes
+    at, n = camera_lost_span(ldata, mid=True)
+    sav = spans[FAULT_FIELD]["sav"][H // 2]
+    assert at == sav + 1 + W and n == LOST_FIELDS * field_bytes      # a group's Cb, mid-line
+    assert ldata[at:at + 8] == ldata[at + n:at + n + 8]
 
 
 def test_faults_change_only_their_stream():

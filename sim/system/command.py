@@ -50,7 +50,9 @@ def main(argv=None):
                          "rig's table enables it; --left and --right are the rig's fields, "
                          "taken as they are")
     ap.add_argument("--frames", type=int, default=5,
-                    help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault)")
+                    help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault, "
+                         f"{FAULT_FIELD + LOST_FIELDS + 1} with camera-lost-left, "
+                         f"{FAULT_FIELD + LOST_FIELDS + 2} with camera-lost-left-mid)")
     ap.add_argument("--fault", choices=FAULTS + tuple(f for f in CPU_FAULTS if f not in FAULTS),
                     help=f"fault injected in field {FAULT_FIELD} ({', '.join(CORE_ONLY)}: "
                          f"on the core, sim/system/cpu_run.py; {', '.join(HOST_ONLY)}: --cpu "
@@ -82,9 +84,11 @@ def main(argv=None):
             raise SystemError_(f"--cpu {args.cpu} runs 720 x 240 fields with NTSC timing (the "
                                "firmware's geometry and the register defaults): give --cpu "
                                "host for others")
-        if args.fault == "camera-lost-left" and args.frames < FAULT_FIELD + LOST_FIELDS + 1:
-            raise SystemError_(f"--fault camera-lost-left needs --frames at least "
-                               f"{FAULT_FIELD + LOST_FIELDS + 1}")
+        # the lost fields have no pair; after a loss in mid-field, the cut pair is not compared
+        least = {"camera-lost-left": FAULT_FIELD + LOST_FIELDS + 1,
+                 "camera-lost-left-mid": FAULT_FIELD + LOST_FIELDS + 2}.get(args.fault, 0)
+        if args.frames < least:
+            raise SystemError_(f"--fault {args.fault} needs --frames at least {least}")
         if not host and args.right_lead != _run.RIGHT_LEAD_BYTES:
             raise SystemError_("--right-lead runs with the host firmware: give --cpu host")
         if abs(args.right_lead) > 100_000:

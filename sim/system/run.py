@@ -66,6 +66,15 @@ Faults (applied to the byte streams; ``reset-mid-frame`` through the bus):
     bytes of that time lost; the right camera's fields of that time have no partner. Stricter
     check: the frames out are the pairs (L0, R0), (L5, R5), ... of identical fields, so they
     equal golden's first ``frames - LOST_FIELDS`` (as on the core, :mod:`sim.system.cpu_run`).
+``camera-lost-left-mid``
+    the same loss from the middle of the left field 1 (:func:`camera_lost_span` ``mid``: the
+    middle of its middle active line) to the same point of field ``1 + LOST_FIELDS``. The
+    decoder's field 1 ends only when the camera is back, so the pair (L1, R1) stays open
+    through the loss and the right camera's fields of that time overflow its FIFO
+    (``fifo_overflow``); the first of them, cut short, is dropped (``drops``). Check: the
+    frames out are (L0, R0), the cut pair (not compared: its left field is two instants), then
+    the pairs from the first one that starts after the camera returned, equal to golden's
+    (needs ``frames`` at least ``LOST_FIELDS + 3``).
 """
 from __future__ import annotations
 
@@ -90,12 +99,15 @@ __all__ = ["FAULTS", "LOST_FIELDS", "build", "camera_lost_span", "camera_streams
 ROOT = Path(__file__).resolve().parents[2]
 HARNESS = Path(__file__).resolve().parent / "harness" / "system.cpp"
 FAULTS = ("missing-sof-left", "missing-sof-right", "extra-sof-right", "long-line-left",
-          "noise-left", "reset-mid-frame", "camera-lost-left")
+          "noise-left", "reset-mid-frame", "camera-lost-left", "camera-lost-left-mid")
 FAULT_FIELD = 1
 LOST_FIELDS = 4                     #: fields the camera-lost-left fault takes from the left
 CORE_PS = 20_000                    #: 50 MHz
 CAM_PS = 37_037                     #: 27 MHz
 CAM1_PS = 37_035                    #: 27 MHz + 40 ppm
+#: The left camera's clock period as the harness makes it (two whole half periods): a camera
+#: stopped for n of these loses exactly n bytes.
+CAM_PERIOD_PS = CAM_PS // 2 * 2
 RIGHT_LEAD_BYTES = 301              #: the right camera starts later by this many bytes
 POLL_US = 200                       #: firmware poll period (simulated time)
 SHORT_BLANK_LINES = 4
@@ -153,13 +165,25 @@ def _field_spans(data):
     return fields
 
 
-def camera_lost_span(data, field=FAULT_FIELD, lost=LOST_FIELDS):
+def camera_lost_span(data, field=FAULT_FIELD, lost=LOST_FIELDS, mid=False):
     """Where a camera is lost and for how long: (the byte right after the first timing code of
     ``field``, the EAV that ends the previous field's last active line; the bytes from there to
-    the same point of field ``field + lost``), so the camera's stream resumes at that point."""
+    the same point of field ``field + lost``), so the camera's stream resumes at that point.
+
+    ``mid``: lost in the middle of ``field`` instead, from the first byte of the group in the
+    middle of its middle active line (a Cb byte) to the same point of field ``field + lost``:
+    the camera's frame is cut off in the middle of a line and, the fields being alike, what
+    the decoder gets is a whole field that took ``lost`` fields longer."""
     spans = _field_spans(data)
-    start = spans[field]["codes"][0] + 1
-    return start, spans[field + lost]["codes"][0] + 1 - start
+    if mid:
+        codes, sav = spans[field]["codes"], spans[field]["sav"]
+        line = sav[len(sav) // 2]
+        eav = codes[codes.index(line) + 1] - 3          # the EAV that ends that line
+        half = (eav - line - 1) // 8 * 4                # half its 4-byte groups, in bytes
+        at = lambda f: spans[f]["sav"][len(sav) // 2] + 1 + half
+    else:
+        at = lambda f: spans[f]["codes"][0] + 1
+    return int(at(field)), int(at(field + lost) - at(field))
 
 
 def inject(data, fault, field=FAULT_FIELD, seed=1):
@@ -331,7 +355,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     elif fault == "reset-mid-frame":
         sav = _field_spans(ldata)[FAULT_FIELD]["sav"]
         restart_at = sav[len(sav) // 2] * CAM_PS          # ps
-    elif fault not in (None, "camera-lost-left"):
+    elif fault not in (None, "camera-lost-left", "camera-lost-left-mid"):
         raise SystemError_(f"unknown fault {fault!r}: choose from {', '.join(FAULTS)}")
     if right_lead >= 0:
         rdata = _lead(rdata, right_lead)
@@ -339,7 +363,9 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
         ldata = _lead(ldata, -right_lead)
         if restart_at is not None:
             restart_at += -right_lead * CAM_PS
-    lost = camera_lost_span(ldata) if fault == "camera-lost-left" else None
+    lost = None
+    if fault in ("camera-lost-left", "camera-lost-left-mid"):
+        lost = camera_lost_span(ldata, mid=fault.endswith("-mid"))
 
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
                       cost=params.matcher.cost)
@@ -374,7 +400,7 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
     t0 = time.monotonic()
     sysl.sys_init(ldata, len(ldata), rdata, len(rdata), CORE_PS, CAM_PS, CAM1_PS, 0, 12_345)
     if lost:
-        sysl.sys_camera_stop(0, lost[0], lost[1] * CAM_PS)
+        sysl.sys_camera_stop(0, lost[0], lost[1] * CAM_PERIOD_PS)
     rd = fwlib.READ32(C.cast(sysl.sys_read32, C.c_void_p).value)
     wr = fwlib.WRITE32(C.cast(sysl.sys_write32, C.c_void_p).value)
     dl = fwlib.DELAY(C.cast(sysl.sys_delay_us, C.c_void_p).value)
@@ -457,6 +483,16 @@ def run_system(left, right, *, frames=5, fault=None, timing="ntsc", params=None,
             # the pairs the pipeline saw: (L0, R0), then from (L1+LOST, R1+LOST) on
             exact = out_frames == want[:frames - LOST_FIELDS]
             counted = health["mispaired"] + health["drops"] + sum(health["cam_errors"]) > 0
+        elif fault == "camera-lost-left-mid":
+            # (L0, R0), then the pair cut by the loss (mispaired: not compared), then from
+            # (L1+LOST+1, R1+LOST+1) on, the first pair that starts after the camera returned
+            n = frames - LOST_FIELDS
+            exact = (len(out_frames) == n > FAULT_FIELD + 1
+                     and out_frames[:FAULT_FIELD] == want[:FAULT_FIELD]
+                     and out_frames[FAULT_FIELD + 1:] == want[FAULT_FIELD + 1:n])
+            # the pair stays open through the loss: the right camera's fields of that time find
+            # no room (overflow) and the first of them, cut short, has no partner (drops)
+            counted = health["fifo_overflow"] > 0 and health["mispaired"] + health["drops"] > 0
         elif fault == "reset-mid-frame":
             # the cut frame never completes and none of its records shows up (no phantom
             # records): every other frame is exact, the first after the restart included,
