@@ -254,8 +254,8 @@ def search_start16(line, height, margin=32):
     """Per image row ``0 .. height - 1``, the lowest disparity worth searching (1/16 px,
     int64): ``line16(y) - margin``. Nothing the camera sees is farther than the floor at its
     row, so a disparity further under the line than ``margin`` can only be a mismatch (the
-    argument ``lowest16`` of :func:`golden.matcher.match`; not in the RTL). None without a
-    line."""
+    argument ``lowest16`` of :func:`golden.matcher.match`; in the RTL the matcher's search start,
+    ``hdl/matcher_start.py``, enabled by ``FLOOR.floor_search``). None without a line."""
     if line is None:
         return None
     return line16(line, np.arange(height, dtype=np.int64)) - np.int64(margin)

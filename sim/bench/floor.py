@@ -15,7 +15,8 @@ truth the robust plane of :func:`sim.bench.ground.motorcycle_truth`. The golden 
 * ``scan``: ``geometry`` with each frame's search starting :data:`SCAN_MARGIN` under the
   frame's floor line (``lowest16`` of :func:`golden.matcher.match`): nothing is farther than
   the floor at its row, so the disparities further under the line can only be mismatches.
-  Not built: the RTL matcher's window is one per frame.
+  The RTL matcher has it as an option off at reset (``FLOOR.floor_search``,
+  ``hdl/matcher_start.py``), as ``sim run`` and the chip's defaults search the whole window.
 
 Figures per scene and mode (records of the last frame; each record's truth is the nearer
 surface among its row neighbours, :func:`contour_truth`, as the project scores depth at edges):
