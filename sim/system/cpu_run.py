@@ -187,8 +187,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     a calibrated rig's rectifier in the SoC, its map in the map memory, and the image built
     with its table; golden rectifies the right camera as the firmware can set it."""
     from sim.system import firmware
-    from sim.system.run import (CAM1_PS, CAM_PS, CORE_PS, FAULT_FIELD, RIGHT_LEAD_BYTES,
-                                camera_streams)
+    from sim.system.run import (CAM1_PS, CAM_PERIOD_PS, CAM_PS, CORE_PS, FAULT_FIELD,
+                                RIGHT_LEAD_BYTES, camera_streams)
     from golden.bands import band_values, frame_top, merge_tops
     from station.radio import FrameDecoder
     from station.wire import DEFAULT_MIN_SUPPORT, HEALTH_FLAGS
@@ -229,7 +229,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     lib.sys_start()
     if fault == "camera-lost-left":
         pos, span = camera_lost_span(ldata)
-        lib.sys_camera_stop(0, pos, span * CAM_PS)
+        lib.sys_camera_stop(0, pos, span * CAM_PERIOD_PS)
     decoder = FrameDecoder()
     ended = []                      # (marker cycle, x, d) of frames not yet in a packet
     packets, exact_packets = [], []
