@@ -14,9 +14,12 @@ downstream recovers from at the next ``sof``). The FIFO therefore only ever hold
 of whole-frame prefixes, never a frame with pixels missing inside.
 
 Counters cross into the core domain as Gray codes through two-flop synchronisers (each counts
-by at most one per camera cycle, so a Gray code changes one bit at a time).
+by at most one per camera cycle, so a Gray code changes one bit at a time). The decoder's field
+starts, taken before the overflow guard (a start is seen even when its frame is cut), cross as a
+toggle (``field_start``, one core pulse a start); :class:`LossWatch` turns them into a loss
+indication per camera.
 """
-from amaranth.hdl import DomainRenamer, Module, Signal
+from amaranth.hdl import Cat, DomainRenamer, Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
@@ -25,7 +28,7 @@ from amaranth.lib.wiring import In, Out
 from .bt656 import Bt656Decoder, YCbCr422
 from .fifos import DistributedAsyncFIFO
 
-__all__ = ["CameraPort", "sync_counter"]
+__all__ = ["CameraPort", "LossWatch", "sync_counter"]
 
 
 def sync_counter(m, value, *, i_domain, o_domain, name):
@@ -75,6 +78,11 @@ class CameraPort(wiring.Component):
         each frame so cut (saturating).
     locked : Out(1), core domain
         The decoder has seen a field edge since reset.
+    field_start : Out(1), core domain
+        One cycle for each start of frame the decoder delivers, whether the overflow guard
+        keeps the frame or not (a toggle in the camera domain, two-flop synchronised and
+        edge-detected: 4-5 core cycles late; starts are a field apart, far more than the
+        crossing's settling time).
     """
 
     def __init__(self, *, domain="cam", lines=240, fifo_depth=512):
@@ -89,6 +97,7 @@ class CameraPort(wiring.Component):
             "i": In(stream.Signature(8)),
             "o": Out(stream.Signature(YCbCr422)),
             "errors": Out(16), "overflow": Out(16), "locked": Out(1),
+            "field_start": Out(1),
         })
 
     def elaborate(self, platform):
@@ -129,4 +138,78 @@ class CameraPort(wiring.Component):
             self.overflow.eq(sync_counter(m, overflow, name="overflow", **kw)),
         ]
         m.submodules.locked_cdc = FFSynchronizer(dec.locked, self.locked, o_domain="sync")
+
+        # field starts before the guard: a camera-domain toggle, synchronised, edge-detected
+        sof_toggle = Signal()
+        with m.If(dec.o_valid & px.sof):
+            cam += sof_toggle.eq(~sof_toggle)
+        sof_toggle_o = Signal()
+        m.submodules.sof_cdc = FFSynchronizer(sof_toggle, sof_toggle_o, o_domain="sync")
+        sof_toggle_q = Signal()
+        m.d.sync += [sof_toggle_q.eq(sof_toggle_o),
+                     self.field_start.eq(sof_toggle_o ^ sof_toggle_q)]
+        return m
+
+
+class LossWatch(wiring.Component):
+    """Camera loss indication in the core domain: a camera whose field starts stop is ``lost``.
+
+    A free-running ``prescale_bits``-bit prescaler, shared by the cameras, ticks once every
+    ``2**prescale_bits`` cycles; each camera has a saturating count of ticks since its last
+    field start. A camera is lost once its count reaches ``limit``: between ``limit - 1`` and
+    ``limit`` tick periods after its last start (the first tick comes anywhere in the first
+    period). A field start clears the count and ``lost`` in the next cycle; so does a reset
+    (the SoC's video reset), after which a camera that never starts is lost ``limit`` ticks
+    later.
+
+    At the SoC's 50 MHz, ``prescale_bits = 16`` ticks every 1.31 ms and ``limit = 27`` makes a
+    camera lost after 34.1 to 35.4 ms without a field start: more than two NTSC field times
+    (16.7 ms each), so one missed start is not a loss and a healthy camera never is.
+
+    Parameters (keyword-only)
+    -------------------------
+    n : int
+        Cameras watched.
+    prescale_bits : int
+        Prescaler width, 1..16 (the timing rule's carry chain).
+    limit : int
+        Ticks without a field start that make a camera lost, 2 or more.
+
+    Ports
+    -----
+    start : In(n)
+        Bit ``k``: a field start of camera ``k`` this cycle (:attr:`CameraPort.field_start`).
+    lost : Out(n)
+        Bit ``k``: camera ``k`` lost: a comparison of its registered count with ``limit``.
+
+    Cost: the prescaler, and per camera a ``ceil(log2(limit + 1))``-bit count and its flag.
+    """
+
+    def __init__(self, *, n=2, prescale_bits=16, limit=27):
+        if not isinstance(n, int) or n < 1:
+            self._MustUse__silence = True
+            raise ValueError(f"n must be a positive integer, not {n!r}")
+        if not isinstance(prescale_bits, int) or not 1 <= prescale_bits <= 16:
+            self._MustUse__silence = True
+            raise ValueError(f"prescale_bits must be 1..16, not {prescale_bits!r}")
+        if not isinstance(limit, int) or limit < 2:
+            self._MustUse__silence = True
+            raise ValueError(f"limit must be an integer >= 2, not {limit!r}")
+        self._n, self._prescale_bits, self._limit = n, prescale_bits, limit
+        super().__init__({"start": In(n), "lost": Out(n)})
+
+    def elaborate(self, platform):
+        m = Module()
+        pre = Signal(self._prescale_bits + 1)
+        tick = pre[-1]
+        m.d.sync += pre.eq(pre[:-1] + 1)        # the carry out is the tick, one cycle long
+        lost = []
+        for k in range(self._n):
+            count = Signal(range(self._limit + 1), name=f"count{k}")
+            with m.If(self.start[k]):
+                m.d.sync += count.eq(0)
+            with m.Elif(tick & (count != self._limit)):
+                m.d.sync += count.eq(count + 1)
+            lost.append(count == self._limit)
+        m.d.comb += self.lost.eq(Cat(*lost))
         return m

@@ -50,7 +50,7 @@ IIC_BASEADDR = 0xC001_0000
 IIC_WINDOW = 0x200            #: bytes decoded by the IIC controller (AXI IIC layout)
 
 ID_MAGIC = 0x5354             #: "ST"
-MAP_VERSION = 12
+MAP_VERSION = 13
 
 #: Elaboration limits the map is sized for (one definition): the RESULT register's x, y and d
 #: fields and the MATCH register's d_min / d_max hold every value up to them. A pipeline
@@ -299,6 +299,10 @@ REGISTERS: tuple[Register, ...] = (
         F("right_locked", 1, 1, 0, "right decoder stream: a field edge seen"),
         F("enabled", 2, 1, 0, "VIDEO.video_enable as applied"),
         F("pairing", 3, 1, 0, "a pair is being forwarded"),
+        F("left_lost", 4, 1, 0, "left camera: no field start for over two NTSC field times "
+                                "(hdl/camera_port.py LossWatch; cleared by its next field "
+                                "start and by the video reset)"),
+        F("right_lost", 5, 1, 0, "as left_lost, right camera"),
     )),
     Register("GROUND_STATUS", 0x78, "ro", "Ground model status of the current frame, per camera.", (
         F("left_learned", 0, 1, 0, "1: classified by learned sets (0: the default bands)"),

@@ -26,7 +26,7 @@ from . import regmap
 from .bands import BandSummary
 from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
-from .camera_port import CameraPort
+from .camera_port import CameraPort, LossWatch
 from .cpu import RiscvCPU
 from .floor import FloorFlag
 from .pixel_pairs import PixelPairer, PixelUnpairer, pair_layout
@@ -46,6 +46,10 @@ __all__ = ["StereoSoC", "SystemSoC", "UART_BASEADDR", "CPUS", "CPU_FIFO_DEPTH",
 #: The capture skew counter (hdl/skew.py, register HEALTH_SKEW): core cycles a microsecond at
 #: 50 MHz, and the microseconds a field start waits for its partner (under half an NTSC field).
 SKEW_UNIT_CYCLES = 50
+#: The camera loss watch (hdl/camera_port.py LossWatch, HEALTH_STATUS.left_lost /
+#: right_lost): a tick every 2**16 core cycles, lost after 27 ticks without a field start:
+#: over 34 ms at 50 MHz, two NTSC field times.
+LOSS_WATCH = dict(prescale_bits=16, limit=27)
 SKEW_WINDOW_US = 8000
 #: Bus address of the radio UART (hdl/uart.py).
 UART_BASEADDR = 0xC002_0000
@@ -232,12 +236,17 @@ class SystemSoC(wiring.Component):
     Capture skew: :class:`hdl.skew.SkewCounter` takes each camera port's ``sof`` handshake
     and measures, for every pair of field starts, the right start minus the left in whole
     microseconds (:data:`SKEW_UNIT_CYCLES` core cycles), into HEALTH_SKEW.
+
+    Camera loss: :class:`hdl.camera_port.LossWatch` takes each camera port's field starts
+    before its overflow guard; HEALTH_STATUS.left_lost / right_lost. ``loss`` holds its
+    ``prescale_bits`` and ``limit`` (default :data:`LOSS_WATCH`: over two NTSC field times at
+    50 MHz; short simulated fields take smaller values).
     """
 
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
-                 monitor=False, rectify=None, free_space=False, search_start=True):
+                 monitor=False, rectify=None, free_space=False, search_start=True, loss=None):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
@@ -256,6 +265,12 @@ class SystemSoC(wiring.Component):
                              f"{buffer_depth!r}")
         self._buffer_depth = buffer_depth
         self._skew = skew
+        self._loss = dict(LOSS_WATCH if loss is None else loss)
+        try:
+            LossWatch(n=2, **self._loss)._MustUse__silence = True   # bad values raise here
+        except (TypeError, ValueError):
+            self._MustUse__silence = True
+            raise
         if fifo_depth is None:
             fifo_depth = 256 if cpu is None else CPU_FIFO_DEPTH
         self._fifo_depth = fifo_depth
@@ -381,6 +396,10 @@ class SystemSoC(wiring.Component):
         m.submodules.camera_skew = ResetInserter(video_rst)(skew)
         m.d.comb += [s.eq(p.o.valid & p.o.ready & p.o.payload.sof)
                      for s, p in ((skew.a, ports[0]), (skew.b, ports[1]))]
+        # camera loss: each port's field starts, taken before its overflow guard
+        loss = LossWatch(n=2, **self._loss)
+        m.submodules.camera_loss = ResetInserter(video_rst)(loss)
+        m.d.comb += loss.start.eq(Cat(ports[0].field_start, ports[1].field_start))
         match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
         m.d.sync += match_errors.eq(pipe.match_errors)
         status.update({
@@ -396,6 +415,8 @@ class SystemSoC(wiring.Component):
             "health_status_right_locked": ports[1].locked,
             "health_status_enabled": regs.video_enable,
             "health_status_pairing": pairing.pairing,
+            "health_status_left_lost": loss.lost[0],
+            "health_status_right_lost": loss.lost[1],
             "health_skew_us": skew.skew.as_unsigned(),
             "health_skew_pairs": skew.count,
         })

@@ -10,15 +10,15 @@
 #define STEREO_BASEADDR                              0xC0000000u  /**< register block base address */
 #define STEREO_IIC_BASEADDR                          0xC0010000u  /**< IIC controller base address */
 #define STEREO_ID_MAGIC                              0x5354u      /**< ID.magic value */
-#define STEREO_MAP_VERSION                           12u          /**< ID.version value */
+#define STEREO_MAP_VERSION                           13u          /**< ID.version value */
 #define STEREO_MATCH_SPAN                            64u          /**< disparities one MATCH window may hold: d_max - d_min < STEREO_MATCH_SPAN */
 
 /* ID (read-only): Identification: constant, lets the firmware check the bitstream. */
 #define STEREO_ID_OFFSET                             0x00u        /**< Identification: constant, lets the firmware check the bitstream. */
-#define STEREO_ID_RESET                              0x5354000Cu  /**< ID value after reset */
+#define STEREO_ID_RESET                              0x5354000Du  /**< ID value after reset */
 #define STEREO_ID_VERSION_SHIFT                      0u           /**< version: register map version */
 #define STEREO_ID_VERSION_MASK                       0xFFFFu      /**< version mask (16 bits) */
-#define STEREO_ID_VERSION_RESET                      12u          /**< version reset value */
+#define STEREO_ID_VERSION_RESET                      13u          /**< version reset value */
 #define STEREO_ID_MAGIC_SHIFT                        16u          /**< magic: 0x5354 ("ST") */
 #define STEREO_ID_MAGIC_MASK                         0xFFFF0000u  /**< magic mask (16 bits) */
 #define STEREO_ID_MAGIC_RESET                        21332u       /**< magic reset value */
@@ -463,6 +463,12 @@
 #define STEREO_HEALTH_STATUS_PAIRING_SHIFT           3u           /**< pairing: a pair is being forwarded */
 #define STEREO_HEALTH_STATUS_PAIRING_MASK            0x8u         /**< pairing mask (1 bits) */
 #define STEREO_HEALTH_STATUS_PAIRING_RESET           0u           /**< pairing reset value */
+#define STEREO_HEALTH_STATUS_LEFT_LOST_SHIFT         4u           /**< left_lost: left camera: no field start for over two NTSC field times (hdl/camera_port.py LossWatch; cleared by its next field start and by the video reset) */
+#define STEREO_HEALTH_STATUS_LEFT_LOST_MASK          0x10u        /**< left_lost mask (1 bits) */
+#define STEREO_HEALTH_STATUS_LEFT_LOST_RESET         0u           /**< left_lost reset value */
+#define STEREO_HEALTH_STATUS_RIGHT_LOST_SHIFT        5u           /**< right_lost: as left_lost, right camera */
+#define STEREO_HEALTH_STATUS_RIGHT_LOST_MASK         0x20u        /**< right_lost mask (1 bits) */
+#define STEREO_HEALTH_STATUS_RIGHT_LOST_RESET        0u           /**< right_lost reset value */
 
 /* GROUND_STATUS (read-only): Ground model status of the current frame, per camera. */
 #define STEREO_GROUND_STATUS_OFFSET                  0x78u        /**< Ground model status of the current frame, per camera. */
