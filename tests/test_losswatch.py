@@ -145,3 +145,12 @@ def test_bad_parameters():
     for kw in ({"n": 0}, {"prescale_bits": 17}, {"prescale_bits": 0}, {"limit": 1}):
         with pytest.raises(ValueError):
             LossWatch(**kw)
+
+
+def test_soc_loss_parameters():
+    from hdl.soc import LOSS_WATCH, SystemSoC
+    from sim.designs import silenced
+    assert silenced(SystemSoC())._loss == LOSS_WATCH
+    assert silenced(SystemSoC(loss=dict(prescale_bits=4, limit=3)))._loss["limit"] == 3
+    with pytest.raises(ValueError, match="limit"):
+        SystemSoC(loss=dict(prescale_bits=4, limit=1))
