@@ -32,6 +32,17 @@ events* (the ``sof`` beats):
    pair it cuts. What an abandoned pair leaves in the pipeline: ``golden.pipeline`` (module
    documentation).
 
+5. A pair whose camera is *lost* (no field start for longer than a few field times,
+   ``hdl.camera_port.LossWatch``) while its frame is being forwarded is abandoned as by rule 3,
+   at the cycle the loss is flagged. A camera lost in the middle of a field never ends that
+   frame: without this rule the pair would stay open through the loss and the other side's
+   frames would wait behind it, so that the first pair after the camera's return would pair
+   its first frame with the other side's first frame of the loss. With it, the other side's
+   frames of the loss are frames without partner (rule 2) and the camera's first frame after
+   its return pairs with its partner. In this frame-level model the lost frame is simply
+   malformed (``ok`` False) and the frames the camera did not deliver are absent; the
+   ``t`` of the other side's frames is where the rule puts them, its side idle.
+
 So a camera that loses or gains a field start, or delivers an over-long line or noise, costs at
 most the pair it happens in and the partnerless frames it creates; the next pair is again
 (Ln, Rn). The counters are 16 bits wide and wrap (the firmware reports differences).
@@ -66,7 +77,8 @@ class Pairing:
 
 
 def pair_frames(left: list[Frame], right: list[Frame], *, skew: int) -> Pairing:
-    """Pair the frames of the two sides (each in time order) by rule 1-3 of the module."""
+    """Pair the frames of the two sides (each in time order) by rules 1-3 and 5 of the
+    module."""
     res = Pairing()
     i = j = 0
     while i < len(left) and j < len(right):

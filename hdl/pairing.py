@@ -39,6 +39,10 @@ class FramePairing(wiring.Component):
     busy : In(1)
         The pipeline is inside a frame (its units' ``in_frame``): a pair starts only when it is
         low (rule 4), so a ``frame_abort`` never reaches a unit still in the previous frame.
+    lost : In(2)
+        Rule 5: the left (bit 0) or the right (bit 1) camera is lost
+        (:class:`hdl.camera_port.LossWatch`); a pair being forwarded with that side is
+        abandoned as by a bad beat (rule 3). Tie to 0 where no camera can be lost.
     """
 
     def __init__(self, *, skew=1024, max_width=1024, max_height=1024):
@@ -53,7 +57,7 @@ class FramePairing(wiring.Component):
             "left_i": In(stream.Signature(RGBPixel)), "right_i": In(stream.Signature(RGBPixel)),
             "left_o": Out(stream.Signature(RGBPixel)), "right_o": Out(stream.Signature(RGBPixel)),
             "pairs_ok": Out(16), "mispaired": Out(16), "dropped": Out(16), "pairing": Out(1),
-            "frame_abort": Out(1), "busy": In(1),
+            "frame_abort": Out(1), "busy": In(1), "lost": In(2),
         })
 
     def elaborate(self, platform):
@@ -85,7 +89,8 @@ class FramePairing(wiring.Component):
         start = L["held"] & R["held"] & ~self.busy
         fault = self.frame_abort    # the pair being forwarded was abandoned (rule 4)
         abandon = Signal()
-        m.d.comb += abandon.eq(L["tracker"].abandon | R["tracker"].abandon)
+        m.d.comb += abandon.eq(L["tracker"].abandon | R["tracker"].abandon |    # rule 3
+                               (self.lost[0] & L["passing"]) | (self.lost[1] & R["passing"]))
         for me in (L, R):       # a sof that cuts a frame short is accepted as a start: not here
             t = me["tracker"]
             m.d.comb += me["o"].valid.eq(t.accept & ~t.abandon)

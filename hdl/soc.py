@@ -238,7 +238,9 @@ class SystemSoC(wiring.Component):
     microseconds (:data:`SKEW_UNIT_CYCLES` core cycles), into HEALTH_SKEW.
 
     Camera loss: :class:`hdl.camera_port.LossWatch` takes each camera port's field starts
-    before its overflow guard; HEALTH_STATUS.left_lost / right_lost. ``loss`` holds its
+    before its overflow guard; HEALTH_STATUS.left_lost / right_lost, and the pairing abandons
+    a pair whose camera is lost (``golden.pairing`` rule 5), so the pipeline resumes with the
+    first pair after the camera's return. ``loss`` holds its
     ``prescale_bits`` and ``limit`` (default :data:`LOSS_WATCH`: over two NTSC field times at
     50 MHz; short simulated fields take smaller values).
     """
@@ -399,7 +401,8 @@ class SystemSoC(wiring.Component):
         # camera loss: each port's field starts, taken before its overflow guard
         loss = LossWatch(n=2, **self._loss)
         m.submodules.camera_loss = ResetInserter(video_rst)(loss)
-        m.d.comb += loss.start.eq(Cat(ports[0].field_start, ports[1].field_start))
+        m.d.comb += [loss.start.eq(Cat(ports[0].field_start, ports[1].field_start)),
+                     pairing.lost.eq(loss.lost)]     # golden.pairing rule 5
         match_errors = Signal.like(pipe.match_errors)   # a sum in the matcher: registered here
         m.d.sync += match_errors.eq(pipe.match_errors)
         status.update({

@@ -39,7 +39,11 @@ def schedule(fault, frames=5, at=1):
         for n in range(frames):
             w = words(side, n)
             ok, has_sof = True, True
-            if n == at:
+            if fault == "lost-left" and side == "L" and n in LOST_FIELDS:
+                continue                    # the camera delivers nothing
+            if fault == "lost-left" and side == "L" and n == at:
+                w, ok = w[:len(w) // 2], False      # lost in the middle of the field
+            elif n == at:
                 if fault == f"missing-sof-{'left' if side == 'L' else 'right'}":
                     w = [flags(w[0], sof=0)] + w[1:]
                     has_sof = False
@@ -62,7 +66,11 @@ def schedule(fault, frames=5, at=1):
     return out
 
 
-def run(fault, *, seed=0, idle=0.0, stall=0.0, busy_until=0):
+LOST_FIELDS = (2, 3)
+LOST = range(50 + 2 * PERIOD - 100, 50 + 4 * PERIOD - 10)    # cycles the left camera is lost
+
+
+def run(fault, *, seed=0, idle=0.0, stall=0.0, busy_until=0, lost=()):
     dut = FramePairing(skew=SKEW, max_width=16, max_height=8)
     sched = schedule(fault)
     got = {"L": [], "R": []}
@@ -97,6 +105,7 @@ def run(fault, *, seed=0, idle=0.0, stall=0.0, busy_until=0):
             state["cycle"] = cycle
             if cycle == busy_until:
                 ctx.set(dut.busy, 0)
+            ctx.set(dut.lost, int(cycle in lost))
             _c, _r, abort, lv, lr, rv, rr = await ctx.tick().sample(
                 dut.frame_abort, dut.left_o.valid, dut.left_o.ready, dut.right_o.valid,
                 dut.right_o.ready)
@@ -161,6 +170,31 @@ def test_faults_resynchronise_and_are_counted(fault):
     # rule 4: abort rises once per abandoned pair, and nothing is forwarded while it is high
     assert state["aborts"] == gold.mispaired
     assert state["beats_in_abort"] == 0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_lost_camera_abandons_the_open_pair(seed):
+    """Rule 5: the left camera lost in the middle of field 1 for fields 2 and 3; the pair
+    (L1, R1) is abandoned when the loss is flagged, R2 and R3 are frames without partner and
+    the left camera's return pairs L4 with R4."""
+    got, counts, gold, sched, state = run("lost-left", seed=seed, idle=0.2, stall=0.2,
+                                          lost=LOST)
+    assert [(lt, rt) for lt, rt, _ in gold.pairs] == [(("L", 0), ("R", 0)), (("L", 1), ("R", 1)),
+                                                      (("L", 4), ("R", 4))]
+    assert gold.dropped_frames == [("R", 2), ("R", 3)]
+    assert counts == {"pairs_ok": gold.pairs_ok, "mispaired": gold.mispaired,
+                      "dropped": gold.dropped} == {"pairs_ok": 2, "mispaired": 1, "dropped": 2}
+    frames = {s: split(got[s]) for s in "LR"}
+    source = {f.tag: w for s in "LR" for _, w, f in sched[s] if f}
+    assert len(frames["L"]) == len(frames["R"]) == 3
+    for k, (lt, rt, ok) in enumerate(gold.pairs):
+        for side, tag in (("L", lt), ("R", rt)):
+            out, src = frames[side][k], source[tag]
+            assert out == src if ok else out == src[:len(out)], (k, side)
+    assert state["aborts"] == 1 and state["beats_in_abort"] == 0
+    # without the loss flag the pair stays open and the return pairs L4 with R2
+    got, counts, *_ = run("lost-left", seed=seed, idle=0.2, stall=0.2)
+    assert split(got["L"])[2] == source[("L", 4)] and split(got["R"])[2] == source[("R", 2)]
 
 
 def test_no_pair_starts_while_the_pipeline_is_in_a_frame():
