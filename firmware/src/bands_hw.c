@@ -50,7 +50,9 @@ static void add_to_band(radio_summary_t *s, uint32_t b, uint8_t d)
 
 uint32_t bands_hw_collect(bands_hw_t *hw, radio_summary_t *s)
 {
-    static uint32_t words[RADIO_MAX_BANDS];
+    /* on the stack, not in bss: live only here, where the stack is shallow (the deepest
+     * call chain is the XBee set-up's at start-up), so it costs the 8 KB nothing */
+    uint32_t words[RADIO_MAX_BANDS];
     uint32_t attempt;
     if (hw == NULL || s == NULL || s->width != hw->width || s->n_bands != hw->n_bands ||
         s->min_support > BANDS_HW_SLOTS) {

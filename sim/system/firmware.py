@@ -27,7 +27,7 @@ HEX = BUILD / "firmware.hex"
 #: the sections that occupy the core's memory (code, read-only data, data, bss)
 LOADED = (".text", ".rodata", ".data", ".bss")
 RAM_BYTES = 8192                    #: firmware/Makefile FIRMWARE_RAM
-STACK_BYTES = 512                   #: firmware/Makefile FIRMWARE_STACK
+STACK_BYTES = 720                   #: firmware/Makefile FIRMWARE_STACK
 
 
 class FirmwareBuildError(RuntimeError):
