@@ -66,8 +66,8 @@ def build_image(floor_line=None, defines=None, rect_table=None) -> Path:
     with those ``-D`` macros (``FIRMWARE_DEFS``, only macros the sources give a default with
     ``#ifndef``); ``rect_table`` (a ``rect_table.h``'s text, ``sim.flows.rect_table.render``)
     replaces ``firmware/include/rect_table.h`` (``RECT_TABLE_DIR``), so the image checks and
-    enables the rectifier for that calibration. Any goes to :func:`variant_dir` (its ``.elf`` beside the returned
-    ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
+    enables the rectifier for that calibration. Any goes to :func:`variant_dir` (its ``.elf``
+    beside the returned ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
     cross compiler: ``make setup`` installs it)."""
     BUILD.mkdir(parents=True, exist_ok=True)
     cmd = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"]
