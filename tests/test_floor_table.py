@@ -62,7 +62,8 @@ def test_cli(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv", [[], ["--none", "--line", "1", "2"], ["--line", "1024", "0"],
-                                  ["--scene", "nowhere"], [str("/nonexistent.json")]])
+                                  ["--scene", "nowhere"], [str("/nonexistent.json")],
+                                  ["--none", "--out", "/nonexistent/floor_table.h"]])
 def test_cli_errors(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()

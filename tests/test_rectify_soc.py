@@ -195,6 +195,8 @@ def test_firmware_table_matches_the_bitstream_map(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: the calibration's 96x48 images do not fit")
     assert main([]) == 2 and capsys.readouterr().err.startswith("error: give a camera file")
+    assert main(["--none", "--out", str(tmp_path / "nowhere" / "t.h")]) == 2
+    assert capsys.readouterr().err.startswith("error: [Errno 2]")
     # a calibration of lenses that distort rectifies both cameras: not for this SoC's one
     rig = json.loads((tmp_path / "rig.json").read_text())
     rig["rig"]["left_rect"] = {"R": np.eye(3).tolist(), "scale": 1.0}

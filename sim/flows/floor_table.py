@@ -131,13 +131,13 @@ def main(argv=None):
             if line is None:
                 raise ValueError(f"{a.camera} has no camera height")
             text = render(line, Path(a.camera).name)
+        if a.out:
+            Path(a.out).write_text(text)
+        else:
+            sys.stdout.write(text)
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    if a.out:
-        Path(a.out).write_text(text)
-    else:
-        sys.stdout.write(text)
     return 0
 
 

@@ -111,13 +111,13 @@ def main(argv=None):
             if camera.rig is None:
                 raise ValueError(f"{a.camera} has no calibration (run python -m sim calibrate)")
             text = render(table(camera, a.max_width, a.max_height), Path(a.camera).name)
+        if a.out:
+            Path(a.out).write_text(text)
+        else:
+            sys.stdout.write(text)
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    if a.out:
-        Path(a.out).write_text(text)
-    else:
-        sys.stdout.write(text)
     return 0
 
 

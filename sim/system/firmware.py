@@ -37,14 +37,11 @@ class FirmwareBuildError(RuntimeError):
 def variant_dir(floor_line=None, defines=None, rect_table=None) -> Path:
     """The folder of the image built with the installed camera's ``floor_line``
     (``golden.floor.FloorLine``), ``defines`` (``{macro: value}``) and ``rect_table`` (the
-    text of a ``rect_table.h``); none: the production image, :data:`BUILD`. A floor line
-    alone: ``build/firmware/line-<FLOOR_LINE word>/``; otherwise
-    ``build/firmware/variants/<hash of all three>/``."""
+    text of a ``rect_table.h``); none: the production image, :data:`BUILD`; otherwise
+    ``build/firmware/variants/<hash of all three>/``, which also holds the variant's
+    generated headers."""
     if floor_line is None and not defines and rect_table is None:
         return BUILD
-    if not defines and rect_table is None:
-        from sim.flows.floor_table import register_word
-        return BUILD / f"line-{register_word(floor_line):08x}"
     import hashlib
     key = repr((floor_line, sorted((defines or {}).items())))
     if rect_table is not None:
@@ -65,7 +62,7 @@ def build_image(floor_line=None, defines=None, rect_table=None) -> Path:
     ``defines`` (``{macro: value}``, e.g. ``{"RADIO_RETRY_PERIODS": "1u"}``) build a variant
     with those ``-D`` macros (``FIRMWARE_DEFS``, only macros the sources give a default with
     ``#ifndef``); ``rect_table`` (a ``rect_table.h``'s text, ``sim.flows.rect_table.render``)
-    replaces ``firmware/include/rect_table.h`` (``RECT_TABLE_DIR``), so the image checks and
+    replaces ``firmware/include/rect_table.h`` (both through ``GEN_DIR``), so the image checks and
     enables the rectifier for that calibration. Any goes to :func:`variant_dir` (its ``.elf``
     beside the returned ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
     cross compiler: ``make setup`` installs it)."""
@@ -80,10 +77,10 @@ def build_image(floor_line=None, defines=None, rect_table=None) -> Path:
         if floor_line is not None:
             from sim.flows.floor_table import render
             _write(folder / "floor_table.h", render(floor_line))
-            cmd.append(f"FLOOR_TABLE_DIR={folder}")
         if rect_table is not None:
             _write(folder / "rect_table.h", rect_table)
-            cmd.append(f"RECT_TABLE_DIR={folder}")
+        if floor_line is not None or rect_table is not None:
+            cmd.append(f"GEN_DIR={folder}")
         if defines:
             cmd.append("FIRMWARE_DEFS=" + " ".join(f"-D{k}={v}" for k, v in sorted(defines.items())))
         r = subprocess.run(cmd, capture_output=True, text=True)
