@@ -17,7 +17,23 @@ signed). Its disparity at row ``y`` in 1/16 px (the unit of the records' ``d16``
 **The flag** (:func:`floor_flags`): a record ``(y, d16)`` is a floor point when
 ``d16 <= line16(y) + tol16(y)``, ``tol16(y) = tol + (max(line16(y), 0) >> tol_shift)``: the
 tolerance grows with the floor's disparity, as the disparity error of a plane that bends (a
-ramp) or tilts does. Without a line no record is a floor point.
+ramp) or tilts does. Without a line no record is a floor point. Everything under the line is
+flagged, however far under: the records the geometry rules out (farther than the floor at
+their row: mismatches, reflections in the floor) never reach the map as obstacles.
+
+**Obstacle feet** (:func:`keep_feet`, ``feet``, on by default): where an obstacle stands on the
+floor its lowest rows have the floor's disparity, and within the tolerance above the line the
+flag alone cannot tell them from the floor. Their column can: above a foot stands the
+obstacle, a column of records at the foot's disparity rising clear of the line (the line falls
+away from a constant disparity row by row), while above a floor record stands more floor,
+whose disparity falls with the line. So a flagged record above the line (``line16(y) < d16``)
+is kept as an obstacle point when the record above it (row ``y - 1``, the same column) is an
+obstacle record whose disparity is within ``tol16(y)`` of its own. An obstacle record is an
+unflagged record at least two tolerances above the line (``d16 >= line16(y) + 2 tol16(y)``)
+or one continuing an obstacle record above it (within ``tol16(y)`` of it); its disparity is its
+own, and a kept foot carries down the disparity of the obstacle record above it, so the floor
+beside and under a foot, whose disparity rises row by row, soon leaves it. Nothing at or under
+the line is kept.
 
 **The line's sources** (:class:`FloorParams` ``mode``):
 
@@ -47,7 +63,8 @@ cameras about 1 m to 0.2 m above the floor with a 0.12 m baseline) keep a consta
 band (a wall, the far background) from being taken for the floor.
 
 The record stage (``hdl/floor.py``) or the CPU (``firmware/src/floor.c`` ``floor_flag``)
-computes the flag from the line; the CPU learns the line from each frame's records
+computes the flag from the line (the record stage without the feet: the SoC's flags are
+:func:`floor_flags`'; ``floor_feet`` in ``firmware/src/floor.c`` is :func:`keep_feet`); the CPU learns the line from each frame's records
 (``floor_learn``, bit-exact with :func:`learn_line`) and uses it for the next frame
 (:class:`FloorModel` is that loop).
 """
@@ -55,7 +72,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "learn_line", "line16",
+__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "keep_feet", "learn_line",
+           "line16",
            "search_start16",
            "SLOPE_BITS", "OFFSET_BITS", "LINE_FRAC", "BIN_SHIFT", "TOL_BITS", "TOL_SHIFT_BITS",
            "MODES"]
@@ -147,6 +165,8 @@ class FloorParams:
     support_weight: int = 4
     #: The line of the first frame (the rig's); None: no line until one is learned.
     initial: FloorLine | None = None
+    #: Keep obstacle feet (:func:`keep_feet`) in :class:`FloorModel`'s flags.
+    feet: bool = True
 
     def validate(self):
         if self.mode not in MODES:
@@ -158,6 +178,8 @@ class FloorParams:
                 raise ValueError(f"floor {name}={v!r} outside 0..{(1 << bits) - 1}")
         if not 0 <= self.slope_min <= self.slope_max < 1 << SLOPE_BITS or self.slope_step < 1:
             raise ValueError("floor slopes need 0 <= slope_min <= slope_max < 1024, step >= 1")
+        if not isinstance(self.feet, bool):
+            raise ValueError(f"floor feet must be True or False, not {self.feet!r}")
         if self.mode == "rig" and self.initial is None:
             raise ValueError("floor mode rig needs a rig (its line)")
         return self
@@ -172,6 +194,40 @@ def floor_flags(y, d16, line, params):
     l16 = line16(line, y)
     tol = np.int64(params.tol) + (np.maximum(l16, 0) >> np.int64(params.tol_shift))
     return (d16 <= l16 + tol).astype(np.uint8)
+
+
+def keep_feet(x, y, d16, flags, line, params):
+    """The floor flags ``flags`` (:func:`floor_flags` of the records ``(x, y, d16)``, in
+    raster order) with the obstacle feet kept (0): a flagged record above the line whose record
+    above (row ``y - 1``, column ``x``) is an obstacle record within ``tol16(y)`` of its
+    disparity (see the module docstring). uint8 0/1."""
+    x = np.asarray(x, dtype=np.int64)
+    y = np.asarray(y, dtype=np.int64)
+    d16 = np.asarray(d16, dtype=np.int64)
+    out = np.array(flags, dtype=np.uint8, copy=True)
+    if line is None or params.mode == "off" or y.size == 0:
+        return out
+    l16 = line16(line, y)
+    t16 = np.int64(params.tol) + (np.maximum(l16, 0) >> np.int64(params.tol_shift))
+    none = np.int64(-1)                     # no obstacle record (disparities are >= 0)
+    width = int(x.max()) + 1
+    above = np.full(width, none)            # the obstacle disparity of row y - 1, per column
+    row = None
+    starts = np.flatnonzero(np.r_[True, y[1:] != y[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], y.size]):
+        if row is None or int(y[a]) != row + 1:
+            above[:] = none
+        row = int(y[a])
+        xs, ds, ls, ts = x[a:b], d16[a:b], l16[a:b], t16[a:b]
+        up = above[xs]
+        near = (up != none) & (np.abs(up - ds) <= ts)
+        feet = (out[a:b] == 1) & near & (ds > ls)
+        obstacle = (out[a:b] == 0) & ((ds >= ls + 2 * ts) | near)
+        out[a:b][feet] = 0
+        above[:] = none
+        above[xs[obstacle]] = ds[obstacle]
+        above[xs[feet]] = up[feet]
+    return out
 
 
 def _scores(y, d16, slopes, kl, params):
@@ -263,7 +319,8 @@ def search_start16(line, height, margin=32):
 
 class FloorModel:
     """The floor decision from reset, one frame's records per ``step``: the flags by the line
-    of this frame, then (``learn``) the next line learned from this frame's records.
+    of this frame (with the obstacle feet kept when ``params.feet``), then (``learn``) the next
+    line learned from this frame's records.
 
     ``lag``: the line learned from frame n's records flags frame n + ``lag`` (frames before
     ``lag`` use ``params.initial``). 1: the line is ready for the next frame. 2: the SoC, whose
@@ -283,6 +340,9 @@ class FloorModel:
         ``self.used`` afterwards."""
         self.used = self._lines[0]
         flags = floor_flags(records["y"], records["d16"], self.used, self.params)
+        if self.params.feet:
+            flags = keep_feet(records["x"], records["y"], records["d16"], flags, self.used,
+                              self.params)
         if self.params.mode == "learn":
             self.line = learn_line(records["y"], records["d16"], self.params, self.line,
                                    prior=self.params.initial)

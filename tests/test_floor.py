@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from golden.floor import (FloorLine, FloorModel, FloorParams, floor_flags, learn_line,
-                          line16)
+from golden.floor import (FloorLine, FloorModel, FloorParams, floor_flags, keep_feet,
+                          learn_line, line16)
 from sim.scenes.rendered import Rig, ground_disparity
 
 
@@ -26,6 +26,52 @@ def test_flag_rule():
     assert floor_flags(y, d16, None, p).sum() == 0
     assert floor_flags(y, d16, line, FloorParams(mode="off")).sum() == 0
     assert line16(FloorLine(3, -17), np.array([0, 5])).tolist() == [-2, -1]   # floor shift
+
+
+def feet_records():
+    """Records in raster order over the line d = y / 4 - 10 px (tol16 7 at rows 90 .. 103):
+    an obstacle column (x 50) at 245/16 px from row 80 down to row 103, whose rows 100 and 101
+    lie within the tolerance above the line and from row 102 on under it; the same column with row
+    99 missing (x 70); a floor column (x 20) with one record just over the tolerance at row
+    90; an obstacle record at row 90 over a floor column (x 30)."""
+    line = FloorLine(64, -256 * 10)
+    rows = []
+    for y in range(80, 104):
+        l16 = int(line16(line, y))
+        rows.append((20, y, l16 + (9 if y == 90 else 2)))
+        if y <= 90:
+            rows.append((30, y, 300 if y == 90 else l16 + 2))
+        else:
+            rows.append((30, y, l16 + 2))
+        rows.append((50, y, 245))
+        if y != 99:
+            rows.append((70, y, 245))
+    x, y, d16 = (np.array(v) for v in zip(*rows))
+    return line, x, y, d16
+
+
+def test_obstacle_feet_kept():
+    """A record within the tolerance above the line under an obstacle record of its disparity
+    is kept (0), down the column; not under a gap, not on a floor column under a record just
+    over the tolerance or under an obstacle of another disparity, never under the line."""
+    line, x, y, d16 = feet_records()
+    p = FloorParams(mode="rig", initial=line)
+    base = floor_flags(y, d16, line, p)
+    kept = keep_feet(x, y, d16, base, line, p)
+    changed = {(int(a), int(b)) for a, b in zip(x[base != kept], y[base != kept])}
+    assert changed == {(50, 100), (50, 101)}
+    assert (kept <= base).all() and base[(x == 50) & (y >= 102)].all()
+    assert base[(x == 70) & (y >= 100)].all() and kept[(x == 70) & (y >= 100)].all()
+    assert kept[x == 20].sum() == 23 and kept[(x == 30) & (y > 90)].all()
+    # the model applies it by default; off: the flag of each record by itself
+    recs = {"x": x, "y": y, "d16": d16}
+    assert np.array_equal(FloorModel(p).step(recs), kept)
+    assert np.array_equal(FloorModel(FloorParams(mode="rig", initial=line, feet=False)).step(recs),
+                          base)
+    # a row without records between obstacle and foot: nothing above
+    assert keep_feet(np.array([50, 50]), np.array([98, 100]), np.array([245, 245]),
+                     np.array([0, 1]), line, p).tolist() == [0, 1]
+    assert keep_feet(x, y, d16, base, None, p).tolist() == base.tolist()
 
 
 def planted(rng, line, n_floor=300, n_obstacle=600, height=240):
@@ -71,7 +117,7 @@ def test_prior_limits_the_search():
 def test_model_uses_last_frames_line():
     rng = np.random.default_rng(4)
     truth = FloorLine(80, -4000)
-    model = FloorModel(FloorParams())
+    model = FloorModel(FloorParams(feet=False))
     frames = [planted(rng, truth) for _ in range(3)]
     recs = [dict(y=y, d16=d) for y, d in frames]
     assert model.step(recs[0]).sum() == 0 and model.used is None
@@ -84,7 +130,7 @@ def test_model_lag_two_flags_by_the_line_learned_two_frames_before():
     frames the initial line; the learning itself is lag 1's, frame to frame."""
     rng = np.random.default_rng(5)
     recs = [dict(zip(("y", "d16"), planted(rng, FloorLine(60 + 8 * k, -3000)))) for k in range(5)]
-    one, two = FloorModel(FloorParams()), FloorModel(FloorParams(), lag=2)
+    one, two = FloorModel(FloorParams(feet=False)), FloorModel(FloorParams(feet=False), lag=2)
     lines = []
     for n, r in enumerate(recs):
         one.step(r)
@@ -100,7 +146,7 @@ def test_model_lag_two_flags_by_the_line_learned_two_frames_before():
 
 def test_bad_parameters():
     for kw in (dict(mode="sky"), dict(tol=256), dict(tol_shift=8), dict(slope_min=900, slope_max=10),
-               dict(mode="rig")):
+               dict(mode="rig"), dict(feet=1)):
         with pytest.raises(ValueError):
             FloorParams(**kw).validate()
     for s, o in ((1024, 0), (-1, 0), (0, 1 << 17)):

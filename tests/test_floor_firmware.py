@@ -140,3 +140,70 @@ def test_free_space(lib):
         assert rc == 0 and list(out) == want.tolist(), trial
         blocked += int((want != 0xFFFF).sum())
     assert blocked > 20
+
+
+class Above(C.Structure):
+    _fields_ = [("row", C.c_uint16), ("d16", C.c_int32)]
+
+
+def c_feet(lib, x, y, d16, flags, line, tol, shift, width):
+    n = len(y)
+    arr = lambda t, v: (t * max(n, 1))(*map(int, v))
+    fl = arr(C.c_uint8, flags)
+    above = (Above * width)()
+    rc = lib.floor_feet(arr(C.c_uint16, x), arr(C.c_uint16, y), arr(C.c_uint16, d16), fl, n,
+                        C.byref(Line(line.slope, line.offset)), C.c_uint8(tol), C.c_uint8(shift),
+                        above, C.c_uint16(width))
+    return rc, np.array(fl[:n], np.uint8)
+
+
+def test_feet(lib):
+    """The firmware's obstacle feet (floor_feet), the same as golden's keep_feet: random
+    frames of obstacle columns crossing the line, floor columns and scattered records, with
+    the flags of floor_flags and random ones; and the grey room's records."""
+    from golden.floor import floor_flags, keep_feet
+    rng = np.random.default_rng(14)
+    lib.floor_feet.restype = C.c_int
+    kept = 0
+    for trial in range(30):
+        h, w = int(rng.integers(20, 240)), int(rng.integers(8, 400))
+        line = FloorLine(int(rng.integers(20, 200)), int(rng.integers(-9000, 0)))
+        tol, shift = int(rng.integers(0, 16)), int(rng.integers(0, 8))
+        pix = set()
+        for _ in range(int(rng.integers(1, 30))):            # columns crossing the line
+            c, y1 = int(rng.integers(0, w)), int(rng.integers(1, h))
+            y0 = int(rng.integers(0, y1))
+            d = max(int(line.at16(y1)) + int(rng.integers(-8, 12)), 0)
+            pix |= {(yy, c, d + int(rng.integers(-3, 4))) for yy in range(y0, y1 + 1)
+                    if rng.random() < 0.9}
+        for _ in range(int(rng.integers(0, 300))):           # floor and anywhere
+            yy, c = int(rng.integers(0, h)), int(rng.integers(0, w))
+            d = int(line.at16(yy)) + int(rng.integers(-10, 20)) if rng.random() < 0.6 \
+                else int(rng.integers(0, 4096))
+            pix.add((yy, c, d))
+        uniq = {}
+        for yy, c, d in pix:
+            uniq[(yy, c)] = min(max(d, 0), 4095)
+        keys = sorted(uniq)
+        y = np.array([k[0] for k in keys], np.int64)
+        x = np.array([k[1] for k in keys], np.int64)
+        d16 = np.array([uniq[k] for k in keys], np.int64)
+        p = FloorParams(tol=tol, tol_shift=shift)
+        flags = floor_flags(y, d16, line, p) if trial % 3 else \
+            (rng.random(len(y)) < 0.5).astype(np.uint8)
+        want = keep_feet(x, y, d16, flags, line, p)
+        rc, got = c_feet(lib, x, y, d16, flags, line, tol, shift, w)
+        assert got.tolist() == want.tolist() and rc == int((flags != want).sum()), trial
+        kept += rc
+    assert kept > 50
+    # the grey room's records, flagged by its rig's line
+    import sim.bench.floor as bf
+    from golden.pipeline import PipelineModel, default_params
+    lefts, rights, _gt, _floor, rig, _ = bf.scene_frames("grey_room", frames=1)
+    rec = PipelineModel(default_params(320, 240, ground="off")).step(lefts[0], rights[0]).records
+    p = FloorParams(initial=rig)
+    flags = floor_flags(rec["y"], rec["d16"], rig, p)
+    want = keep_feet(rec["x"], rec["y"], rec["d16"], flags, rig, p)
+    rc, got = c_feet(lib, rec["x"], rec["y"], rec["d16"], flags, rig, p.tol, p.tol_shift, 320)
+    assert rc > 0 and got.tolist() == want.tolist()
+    assert c_feet(lib, [5], [1], [0], [1], rig, 4, 6, 5)[0] == -1        # x outside the width

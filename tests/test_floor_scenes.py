@@ -78,6 +78,18 @@ def test_floor_bench_one_scene(tmp_path, capsys):
     assert capsys.readouterr().err.startswith("error: unknown scene")
 
 
+def test_grey_room_keeps_the_obstacle_feet():
+    """In the grey room (luminance mode) the default floor decision keeps the feet of the
+    obstacles, whose lowest rows have the floor's disparity: its obstacle points are as
+    accurate as ground off's, and it still flags the floor."""
+    import sim.bench.floor as bf
+    rep = bf.run(["grey_room"])
+    r = rep["scenes"]["grey_room"]
+    assert rep["failed"] == []
+    assert r["geometry"]["accuracy"] >= r["off"]["accuracy"]
+    assert r["geometry"]["level_done"] >= bf.LIMITS["floor_done"]
+
+
 def test_beside_obstacle_finds_the_obstacle_of_the_same_disparity():
     """A floor match carries the depth of an obstacle within 2 columns, or it does not."""
     import sim.bench.floor as bf

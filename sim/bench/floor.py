@@ -10,7 +10,8 @@ truth the robust plane of :func:`sim.bench.ground.motorcycle_truth`. The golden 
 * ``appearance``: the ground model in the scene's mode (hue, or luminance for grey scenes and
   ``grey_room``) removing pixels before matching, no floor decision;
 * ``geometry``: ground model off, the floor flag of ``golden/floor.py`` (the line learned
-  frame to frame, starting from the rig's line where the scene has a rig);
+  frame to frame, starting from the rig's line where the scene has a rig; the obstacle feet
+  kept, :func:`golden.floor.keep_feet`);
 * ``both``: the ground model and the floor flag;
 * ``scan``: ``geometry`` with each frame's search starting :data:`SCAN_MARGIN` under the
   frame's floor line (``lowest16`` of :func:`golden.matcher.match`): nothing is farther than
