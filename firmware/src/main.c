@@ -97,6 +97,8 @@ static uint32_t step(void)
     if (tx_pos < tx_len && hal_uart_put(frame_buf[tx_pos]) != 0) {
         tx_pos++;
     }
+    /* a camera lost only for a moment between two reports is still reported (CAMERA_LOST) */
+    app_watch_health(&app);
     n = app_collect(&app);
 #ifdef FIRMWARE_BANDS_HW
     /* app_collect opened the summary; the unit's frames go into it */
