@@ -295,13 +295,16 @@ REGISTERS: tuple[Register, ...] = (
         F("match_errors", 16, 16, 0, "matcher malformed-stream errors (saturating)"),
     )),
     Register("HEALTH_STATUS", 0x74, "ro", "Video path state.", (
-        F("left_locked", 0, 1, 0, "left decoder stream: a field edge seen"),
-        F("right_locked", 1, 1, 0, "right decoder stream: a field edge seen"),
+        F("left_locked", 0, 1, 0, "left decoder stream: a field edge seen since the video "
+                                  "reset (stays set while the camera is lost: left_lost)"),
+        F("right_locked", 1, 1, 0, "right decoder stream: as left_locked"),
         F("enabled", 2, 1, 0, "VIDEO.video_enable as applied"),
         F("pairing", 3, 1, 0, "a pair is being forwarded"),
         F("left_lost", 4, 1, 0, "left camera: no field start for over two NTSC field times "
                                 "(hdl/camera_port.py LossWatch; cleared by its next field "
-                                "start and by the video reset)"),
+                                "start and by the video reset). Live, not sticky: the "
+                                "firmware gathers it between reports (app_watch_health) "
+                                "into the radio health flag CAMERA_LOST"),
         F("right_lost", 5, 1, 0, "as left_lost, right camera"),
     )),
     Register("GROUND_STATUS", 0x78, "ro", "Ground model status of the current frame, per camera.", (

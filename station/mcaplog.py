@@ -90,7 +90,7 @@ SCHEMAS = {
         x_mm=_INT, y_mm=_INT, theta_u16=_INT, width=_INT,
         bands={"type": "array", "items": _INT},
         health={"type": "object", "description": "the module's health record (counts since "
-                "the last packet, flags with their names)"},
+                "the last packet, flags with their names, the cameras lost)"},
         used={"type": "boolean", "description": "false: dropped by the station as "
               "implausible"},
         link={"type": "object", "description": "the decoder's counters after this packet: "

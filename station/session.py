@@ -28,7 +28,7 @@ import numpy as np
 from station.base import BaseStation, pose_from_packet
 from station.camera import observe_bands
 from station.radio import RadioPacket
-from station.wire import START_DELIMITER, flag_names
+from station.wire import START_DELIMITER, flag_names, lost_cameras
 
 __all__ = ["StationRun", "PacketInfo", "write_outputs", "frames_of", "recording_packets"]
 
@@ -63,6 +63,7 @@ class PacketInfo:
     def health(self) -> dict:
         h = self.packet.health.as_dict()
         h["flag_names"] = flag_names(h["flags"])
+        h["cameras_lost"] = lost_cameras(h["flags"])
         return h
 
 

@@ -19,14 +19,19 @@ Payload (the XBee "RF data"), version 2, big-endian, ``PAYLOAD_HEADER_LEN`` + n_
     16   17    health (``radio_health_t``; counts saturate at 65535, since the last report):
                frames, pairs_ok, mispaired, drops, cam_errors[0], cam_errors[1],
                matcher_errors, fifo_overflow (u16 each), flags (u8: bit0 left decoder
-               locked, bit1 right decoder locked, bit2 pipeline enabled, bit3 hue fallback
-               to luma, bit4 the calibration's rectification is not running: the build
+               locked, bit1 right decoder locked (each: its stream has locked since the
+               video path started and its camera was not lost at any time since the last
+               report), bit2 pipeline enabled, bit3 hue fallback to luma, bit4 the calibration's rectification is not running: the build
                has no rectifier, the rig's warp exceeds it or its map is not the rig's,
                bit5 the XBee did not answer its configuration: the firmware queries it
                again every few seconds, and the packet came out on the UART regardless,
                bit6 a video decoder (ADV7180) did not take its IIC configuration: the
                firmware configures it again every few seconds and clears the bit once it
-               has; the other decoder is configured and the pipeline runs)
+               has; the other decoder is configured and the pipeline runs, bit7 a camera
+               was lost at some time since the last report (no field start for over two
+               NTSC field times, HEALTH_STATUS left_lost / right_lost): the lost camera's
+               locked bit (bit0 or bit1) is clear in the same report, so a loss that began
+               and ended between two reports is told once, with its side)
     33   1     n_bands: 1..64
     34   n     bands[i]: u8, nearest obstacle disparity of column band i (0 = none)
     34+n 2     crc: CRC-16/CCITT-FALSE over bytes 0 .. 33+n
@@ -72,12 +77,23 @@ HEALTH_FIELDS = (
     ("fifo_overflow", "fifo_overflow", 2), ("flags", "flags", 1),
 )
 HEALTH_FLAGS = {"LEFT_LOCKED": 0, "RIGHT_LOCKED": 1, "PIPELINE_ENABLED": 2, "HUE_FALLBACK": 3,
-                "RECT_FAULT": 4, "RADIO_FAULT": 5, "DECODER_FAULT": 6}
+                "RECT_FAULT": 4, "RADIO_FAULT": 5, "DECODER_FAULT": 6, "CAMERA_LOST": 7}
 
 
 def flag_names(flags: int) -> list:
     """The names of the :data:`HEALTH_FLAGS` set in a health record's ``flags``, by bit."""
     return [name for name, bit in HEALTH_FLAGS.items() if flags >> bit & 1]
+
+
+def lost_cameras(flags: int) -> list:
+    """The cameras (``"left"``, ``"right"``) a health record's ``flags`` report lost since
+    the previous report: with CAMERA_LOST set, each side whose LOCKED bit is clear (the
+    firmware clears the lost side's; a side that never locked is lost too, the loss watch
+    counting from the video path's start). Empty without CAMERA_LOST."""
+    if not flags >> HEALTH_FLAGS["CAMERA_LOST"] & 1:
+        return []
+    return [side for side in ("left", "right")
+            if not flags >> HEALTH_FLAGS[f"{side.upper()}_LOCKED"] & 1]
 
 #: payload fields before the bands: (name, size, signed)
 HEADER_FIELDS = (

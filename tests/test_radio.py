@@ -78,6 +78,26 @@ def test_health_flags_decode_to_names():
                                                  "RADIO_FAULT", "DECODER_FAULT"]
     assert wire.flag_names(0) == []
     assert sorted(wire.HEALTH_FLAGS.values()) == list(range(len(wire.HEALTH_FLAGS)))
+    assert wire.flag_names(0x80) == ["CAMERA_LOST"]
+    assert len(wire.HEALTH_FLAGS) == 8                  # the flags byte is full
+
+
+@pytest.mark.parametrize("flags, lost", [
+    (0b111, []),                          # both locked, no loss
+    (0b110, []),                          # left not locked, but not reported lost
+    (0x80 | 0b110, ["left"]),             # CAMERA_LOST: the side not locked is the lost one
+    (0x80 | 0b101, ["right"]),
+    (0x80 | 0b100, ["left", "right"]),
+])
+def test_lost_cameras_are_the_unlocked_sides_of_a_camera_lost_report(flags, lost):
+    """The firmware clears a lost camera's LOCKED bit with CAMERA_LOST: the station tells the
+    side from the two, after the packet's round trip."""
+    rng = random.Random(flags)
+    pkt = make_packet(rng, 4)
+    pkt = dataclasses.replace(pkt, health=dataclasses.replace(pkt.health, flags=flags))
+    got = decode_payload(encode_payload(pkt))
+    assert got.health.flags == flags
+    assert wire.lost_cameras(got.health.flags) == lost
 
 
 @pytest.mark.parametrize("n_bands", [1, 32, 64])

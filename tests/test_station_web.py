@@ -184,6 +184,29 @@ def test_the_page_shows_every_health_flag():
     assert badges == list(HEALTH_FLAGS)
 
 
+def test_the_page_gets_the_lost_cameras_by_side():
+    """A packet's health, as the page gets it, names its flags and the cameras it reports
+    lost: CAMERA_LOST with the side's LOCKED bit clear (app.js shows that camera's badge as
+    "lost" and names the side on CAMERA_LOST's)."""
+    from pathlib import Path
+
+    from station.radio import RadioHealth, RadioPacket
+    from station.session import PacketInfo
+
+    def health(flags):
+        pkt = RadioPacket(seq=0, frame=0, x_mm=0, y_mm=0, theta_u16=0, width=720, bands=(0,),
+                          pose_ms=0, health=RadioHealth(drops=3, flags=flags))
+        return PacketInfo(pkt, 0.0, (0.0, 0.0, 0.0), True, (0.0, 0.0), [], [], {}, {}, False,
+                          False).health()
+    h = health(0x80 | 0b110)
+    assert h["flag_names"] == ["RIGHT_LOCKED", "PIPELINE_ENABLED", "CAMERA_LOST"]
+    assert h["cameras_lost"] == ["left"] and h["drops"] == 3
+    assert health(0b111)["cameras_lost"] == []
+    assert json.loads(json.dumps(h)) == h
+    script = (Path(ROOT) / "station" / "static" / "app.js").read_text()
+    assert "h.cameras_lost" in script
+
+
 def test_a_client_that_stops_reading_is_disconnected_not_buffered_without_end():
     """A page that hangs (here: a websocket that never reads) must not make the station
     buffer without bound: past ``max_backlog`` waiting messages it is disconnected and

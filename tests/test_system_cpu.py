@@ -9,7 +9,50 @@ import pytest
 
 from sim.system.command import main
 from sim.system.cpu_run import LOST_FIELDS
-from station.wire import HEALTH_FLAGS
+from sim.system.run import CORE_PS
+from station.wire import HEALTH_FLAGS, lost_cameras
+
+#: a packet's health is read shortly before its first byte goes out: within this many core
+#: cycles (5 ms; the report is built, its CRC taken, then its bytes sent between drains)
+READ_BEFORE = 5 * 10**9 // CORE_PS
+ENABLED = 1 << HEALTH_FLAGS["PIPELINE_ENABLED"]
+CAMERA_LOST = 1 << HEALTH_FLAGS["CAMERA_LOST"]
+
+
+def loss_in(changes, a, b):
+    """The loss watch's bits (bit 0 left, bit 1 right) set at some time in core cycles
+    (a, b], from ``camera_lost_changes`` ([cycle, bits from then on] at each change)."""
+    now = 0
+    seen = 0
+    for cycle, bits in changes:
+        if cycle <= a:
+            now = bits
+        elif cycle <= b:
+            seen |= bits
+    return now | seen
+
+
+def reported_lost(flags):
+    """The cameras a packet's flags report lost, as loss watch bits."""
+    return sum(1 << k for k, side in enumerate(("left", "right")) if side in lost_cameras(flags))
+
+
+def check_loss_reports(res):
+    """Each packet reports lost (CAMERA_LOST, the side's LOCKED bit clear) every camera the
+    SoC's loss watch showed lost at some time since the previous packet's health read, and no
+    other: a side lost between the previous packet's first byte and READ_BEFORE before this
+    one's must be reported, a side not lost from READ_BEFORE before the previous packet's first
+    byte to this one's must not. Returns each packet's (reported, must, may) bits."""
+    changes, out, prev = res["camera_lost_changes"], [], 0
+    for cycle, flags in zip(res["radio_cycles"], res["radio_flags"]):
+        got = reported_lost(flags)
+        must = loss_in(changes, prev, cycle - READ_BEFORE)
+        may = loss_in(changes, prev - READ_BEFORE, cycle)
+        assert must & ~got == 0 and got & ~may == 0, (cycle, flags, must, may, changes)
+        assert bool(flags & CAMERA_LOST) == (got != 0), (cycle, flags)
+        out.append((got, must, may))
+        prev = cycle
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -29,8 +72,11 @@ def test_records_and_packets_are_exact(mixed):
     assert res["fifo_overflow"] == 0 and res["drops"] == 0
     # the packets' summaries cover every frame (merged from the band summary unit)
     assert sum(res["radio_frames"]) >= 2
-    # both decoders locked and the video path enabled in the last packet's health
-    assert res["radio_flags"][-1] & 0b111 == 0b111
+    # the video path enabled in the last packet's health; the decoders locked, or their
+    # cameras lost since the previous packet (the streams end with the run's last field: two
+    # field times later the loss watch fires) and so reported
+    assert res["radio_flags"][-1] & ENABLED
+    check_loss_reports(res)
     # the XBee model answered the firmware's queries and both decoders their configuration:
     # no packet reports a radio or decoder fault
     assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in res["radio_flags"])
@@ -100,7 +146,11 @@ def test_decoder_not_answering_is_bounded_and_the_other_runs():
     assert res["bit_exact"] and res["fault_counted"] and res["frames_out"] == 5
     assert res["radio_packets"] >= 2 and res["radio_exact"]
     flags = res["radio_flags"]
-    assert flags[0] & 0b100 == 0 and flags[-1] & 0b111 == 0b111
+    assert flags[0] & 0b100 == 0 and flags[-1] & ENABLED
+    # both streams locked once the video path runs, unless lost (the run's end) and so reported
+    reports = check_loss_reports(res)
+    assert all(f & 0b111 == 0b111 for f, (_g, _m, may) in zip(flags, reports)
+               if f & ENABLED and not may)
     assert all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
     assert not any(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
     # bounded: the start-up's attempt and the two tries, an address byte each (the next
@@ -124,7 +174,10 @@ def test_decoder_not_answering_is_configured_again_every_retry_period():
     assert res["cpu"]["defines"] == defines and not res["cpu"]["trapped"]
     flags = res["radio_flags"]
     assert len(flags) >= 4 and all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
-    assert all(f & 0b111 == 0b111 for f in flags[2:])      # the video path runs meanwhile
+    # the video path runs meanwhile: both streams locked unless lost (the run's end)
+    reports = check_loss_reports(res)
+    assert all(f & ENABLED for f in flags[2:])
+    assert all(f & 0b111 == 0b111 for f, (_g, _m, may) in zip(flags[2:], reports[2:]) if not may)
     # the start-up's attempt and one in each period begun: the periods of the packets
     # decoded, and the one in progress when the run ended
     assert res["decoders_addressed"][1] == len(flags) + 2
@@ -137,14 +190,25 @@ def test_camera_lost_counts_the_loss_and_the_pipeline_resumes_exact():
     """--fault camera-lost-left: the left decoder gets no byte for LOST_FIELDS fields from the
     end of field 0. The right camera's fields of that time have no partner and the pairing
     drops them, one by one: the packets' health counts them (drops), no FIFO overflows, the
-    packets go on, and the pipeline resumes with (L5, R5) bit-exact."""
+    packets go on, and the pipeline resumes with (L5, R5) bit-exact.
+
+    The loss is reported: every packet tells the cameras the SoC's loss watch showed lost
+    since the previous packet (check_loss_reports). The left camera is lost for about one
+    field time, from two field times after its last start to its return, well inside one
+    report period: a packet reports it although the camera is back when its health is read
+    (the firmware gathers the live bit between reports), the next packet inside the streams
+    reports both cameras locked again. 14 fields: the streams last past that packet, whose
+    period the end of the streams (both cameras lost two field times after their last
+    start) does not reach."""
+    frames = 14
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        code = main(["--scene", "mixed", "--frames", "10", "--fault", "camera-lost-left"])
+        code = main(["--scene", "mixed", "--frames", str(frames), "--fault", "camera-lost-left"])
     res = json.loads(buf.getvalue().strip().splitlines()[-1])
     assert code == 0, res
     assert res["bit_exact"] and res["fault_counted"] and res["radio_exact"]
-    assert res["frames_out"] == 10 - LOST_FIELDS and res["records"] == res["golden_records"] > 0
+    assert res["frames_out"] == frames - LOST_FIELDS
+    assert res["records"] == res["golden_records"] > 0
     assert res["drops"] == LOST_FIELDS and res["mispaired"] == 0
     assert res["fifo_overflow"] == 0 and res["errors"] == {"camera_left": 0, "camera_right": 0,
                                                            "matcher": 0}
@@ -152,6 +216,22 @@ def test_camera_lost_counts_the_loss_and_the_pipeline_resumes_exact():
     assert res["radio_packets"] >= 2
     assert sum(h.get("drops", 0) for h in res["radio_health"]) == LOST_FIELDS
     assert res["radio_health"][-1].get("drops", 0) == 0 and res["radio_health"][-1]["pairs_ok"] > 0
+    # the loss watch saw the left camera lost, then back (later both lost: the streams' end)
+    changes = res["camera_lost_changes"]
+    assert [bits for _c, bits in changes[:2]] == [0b01, 0b00]
+    reports = check_loss_reports(res)
+    flags, cycles = res["radio_flags"], res["radio_cycles"]
+    left = [i for i, f in enumerate(flags) if res["radio_cameras_lost"][i] == ["left"]]
+    assert left and left == list(range(left[0], left[-1] + 1)) and len(left) <= 2
+    assert all(lost_cameras(f) == ["left"] for f in (flags[i] for i in left))
+    assert all(f & 1 << HEALTH_FLAGS["RIGHT_LOCKED"] for f in (flags[i] for i in left))
+    # sticky: the last packet that tells it was read with the left camera back
+    back = changes[1][0]
+    assert back < cycles[left[-1]] - READ_BEFORE and reported_lost(flags[left[-1]]) == 0b01
+    # cleared after: the next packet, inside the streams, is clean (no camera lost)
+    after = left[-1] + 1
+    assert after < len(flags) and reports[after][2] == 0
+    assert flags[after] & 0b111 == 0b111 and not flags[after] & CAMERA_LOST
 
 
 #: The waits of the image the no-radio-module test runs (firmware/Makefile FIRMWARE_DEFS).
@@ -181,7 +261,11 @@ def test_missing_radio_module_is_bounded_retried_and_reported():
     assert res["cpu"]["defines"] == SHORT_RADIO_WAITS
     flags = res["radio_flags"]
     assert len(flags) >= 2 and all(f >> HEALTH_FLAGS["RADIO_FAULT"] & 1 for f in flags)
-    assert all(f & 0b111 == 0b111 for f in flags)           # both decoders locked, video on
+    # video on in every packet; both decoders locked unless their cameras were lost (after
+    # the streams end) and so reported
+    reports = check_loss_reports(res)
+    assert all(f & ENABLED for f in flags)
+    assert all(f & 0b111 == 0b111 for f, (_g, _m, may) in zip(flags, reports) if not may)
     # bounded: the configuration's waits (3 responses, 4 guard times), the rest of the start-up
     # (the decoders' configuration over IIC, "+++" at 9600 baud: under 40 ms), then one report
     # period and at most a frame's wait (17 ms) for the first report; then one a period

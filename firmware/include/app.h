@@ -35,6 +35,8 @@ typedef struct {
     uint8_t summary_open;   /**< summary holds results collected since the last report */
     radio_summary_t summary;
     health_snapshot_t health_last; /**< counters at the last app_read_health */
+    uint8_t lost_seen;      /**< HEALTH_STATUS left_lost / right_lost bits seen since the last
+                                 app_read_health (app_watch_health) */
 } app_t;
 
 /** Reset the IIC controller and start both decoders (0x20 then 0x21; the second is set up
@@ -125,8 +127,19 @@ void app_restart_video(app_t *app);
 /** Read the HEALTH_* registers and fill h with the counts since the previous call (16-bit
  *  differences, so a wrapped counter still counts right; a saturated one stops counting) and
  *  the flags: the video path's (HEALTH_STATUS, GROUND_STATUS) and DECODER_FAULT while a
- *  decoder's start-up has failed (dec_status; app_retry_decoders clears it). Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block does not
- *  answer (ID check), FW_OK otherwise. */
+ *  decoder's start-up has failed (dec_status; app_retry_decoders clears it). CAMERA_LOST when
+ *  a camera was lost at any time since the previous call (the loss bits app_watch_health
+ *  gathered, and HEALTH_STATUS's now); the lost camera's LOCKED flag is then clear, since the
+ *  stream's lock bit only tells that a field edge came since the video path started and stays
+ *  set through a loss. Returns FW_ERR_PARAM on NULL pointers, FW_ERR_ID if the register block
+ *  does not answer (ID check), FW_OK otherwise. */
 fw_status_t app_read_health(app_t *app, radio_health_t *h);
+
+/** Gather HEALTH_STATUS's camera loss bits for the next app_read_health. The bits are live: a
+ *  camera is lost from two field times after its last field start to its next one (a loss of
+ *  three fields shows for about one field time), so a loss that begins and ends between two
+ *  reports is seen only by a read meanwhile: call it often (main.c: every step of the
+ *  period, a fraction of a millisecond apart). One register read. */
+void app_watch_health(app_t *app);
 
 #endif /* APP_H */

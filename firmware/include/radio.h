@@ -32,10 +32,12 @@ typedef struct {
     uint16_t matcher_errors;
     uint16_t fifo_overflow;
     uint8_t flags;  /**< RADIO_HEALTH_LEFT_LOCKED, _RIGHT_LOCKED, _PIPELINE_ENABLED, _HUE_FALLBACK,
-                         _RECT_FAULT, _RADIO_FAULT, _DECODER_FAULT (bit0 left decoder locked,
-                         bit1 right, bit2 pipeline enabled, bit3 hue fallback to luma, bit4
+                         _RECT_FAULT, _RADIO_FAULT, _DECODER_FAULT, _CAMERA_LOST (bit0 left
+                         decoder locked and its camera not lost since the last report, bit1
+                         right, bit2 pipeline enabled, bit3 hue fallback to luma, bit4
                          rectification not running, bit5 the XBee does not answer, bit6 a
-                         decoder did not take its IIC configuration; station/wire.py) */
+                         decoder did not take its IIC configuration, bit7 a camera lost since
+                         the last report, its locked bit clear; station/wire.py) */
     int16_t camera_skew_us;      /**< HEALTH_SKEW.us: right field start minus left of the last
                                       pair of field starts, microseconds (docs/camera.md) */
     uint16_t camera_skew_pairs;  /**< pairs of field starts measured since the last report

@@ -44,6 +44,7 @@
 #define RADIO_HEALTH_RECT_FAULT            (1u << 4) /**< radio_health_t.flags bit */
 #define RADIO_HEALTH_RADIO_FAULT           (1u << 5) /**< radio_health_t.flags bit */
 #define RADIO_HEALTH_DECODER_FAULT         (1u << 6) /**< radio_health_t.flags bit */
+#define RADIO_HEALTH_CAMERA_LOST           (1u << 7) /**< radio_health_t.flags bit */
 
 #define XBEE_START                         0x7Eu    /**< start delimiter */
 #define XBEE_ESCAPE                        0x7Du    /**< escape byte (API mode 2) */

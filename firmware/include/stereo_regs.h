@@ -451,10 +451,10 @@
 /* HEALTH_STATUS (read-only): Video path state. */
 #define STEREO_HEALTH_STATUS_OFFSET                  0x74u        /**< Video path state. */
 #define STEREO_HEALTH_STATUS_RESET                   0x0u         /**< HEALTH_STATUS value after reset */
-#define STEREO_HEALTH_STATUS_LEFT_LOCKED_SHIFT       0u           /**< left_locked: left decoder stream: a field edge seen */
+#define STEREO_HEALTH_STATUS_LEFT_LOCKED_SHIFT       0u           /**< left_locked: left decoder stream: a field edge seen since the video reset (stays set while the camera is lost: left_lost) */
 #define STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK        0x1u         /**< left_locked mask (1 bits) */
 #define STEREO_HEALTH_STATUS_LEFT_LOCKED_RESET       0u           /**< left_locked reset value */
-#define STEREO_HEALTH_STATUS_RIGHT_LOCKED_SHIFT      1u           /**< right_locked: right decoder stream: a field edge seen */
+#define STEREO_HEALTH_STATUS_RIGHT_LOCKED_SHIFT      1u           /**< right_locked: right decoder stream: as left_locked */
 #define STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK       0x2u         /**< right_locked mask (1 bits) */
 #define STEREO_HEALTH_STATUS_RIGHT_LOCKED_RESET      0u           /**< right_locked reset value */
 #define STEREO_HEALTH_STATUS_ENABLED_SHIFT           2u           /**< enabled: VIDEO.video_enable as applied */
@@ -463,7 +463,7 @@
 #define STEREO_HEALTH_STATUS_PAIRING_SHIFT           3u           /**< pairing: a pair is being forwarded */
 #define STEREO_HEALTH_STATUS_PAIRING_MASK            0x8u         /**< pairing mask (1 bits) */
 #define STEREO_HEALTH_STATUS_PAIRING_RESET           0u           /**< pairing reset value */
-#define STEREO_HEALTH_STATUS_LEFT_LOST_SHIFT         4u           /**< left_lost: left camera: no field start for over two NTSC field times (hdl/camera_port.py LossWatch; cleared by its next field start and by the video reset) */
+#define STEREO_HEALTH_STATUS_LEFT_LOST_SHIFT         4u           /**< left_lost: left camera: no field start for over two NTSC field times (hdl/camera_port.py LossWatch; cleared by its next field start and by the video reset). Live, not sticky: the firmware gathers it between reports (app_watch_health) into the radio health flag CAMERA_LOST */
 #define STEREO_HEALTH_STATUS_LEFT_LOST_MASK          0x10u        /**< left_lost mask (1 bits) */
 #define STEREO_HEALTH_STATUS_LEFT_LOST_RESET         0u           /**< left_lost reset value */
 #define STEREO_HEALTH_STATUS_RIGHT_LOST_SHIFT        5u           /**< right_lost: as left_lost, right camera */

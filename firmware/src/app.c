@@ -69,6 +69,7 @@ fw_status_t app_init_pipeline(app_t *app, uint32_t regs_base)
         return FW_ERR_PARAM;
     }
     app->regs_base = regs_base;
+    app->lost_seen = 0u;
     st = pipeline_check_id(regs_base);
     if (st != FW_OK) {
         return st;
@@ -358,9 +359,23 @@ static uint16_t since(uint16_t now, uint16_t *last)
     return d;
 }
 
+/** HEALTH_STATUS's loss bits, and how far above its lock bits they lie (the same for both
+ *  cameras): a lost camera's lock bit is cleared with one shift. */
+#define APP_LOST_MASK (STEREO_HEALTH_STATUS_LEFT_LOST_MASK | STEREO_HEALTH_STATUS_RIGHT_LOST_MASK)
+#define APP_LOST_TO_LOCKED (STEREO_HEALTH_STATUS_LEFT_LOST_SHIFT - STEREO_HEALTH_STATUS_LEFT_LOCKED_SHIFT)
+typedef char app_lost_bits_pair_with_locked[
+    (STEREO_HEALTH_STATUS_RIGHT_LOST_SHIFT - STEREO_HEALTH_STATUS_RIGHT_LOCKED_SHIFT
+     == APP_LOST_TO_LOCKED) ? 1 : -1];
+
+void app_watch_health(app_t *app)
+{
+    app->lost_seen |= (uint8_t)(STEREO_ReadReg(app->regs_base, STEREO_HEALTH_STATUS_OFFSET)
+                                & APP_LOST_MASK);
+}
+
 fw_status_t app_read_health(app_t *app, radio_health_t *h)
 {
-    uint32_t cam, ovf, pairs, drops, status, level, errm, frames, ground, skew;
+    uint32_t cam, ovf, pairs, drops, status, level, errm, frames, ground, skew, lost;
     uint32_t overflow;
     health_snapshot_t *l;
     if (app == NULL || h == NULL) {
@@ -401,13 +416,19 @@ fw_status_t app_read_health(app_t *app, radio_health_t *h)
     h->fifo_overflow = (uint16_t)(overflow > 0xFFFFu ? 0xFFFFu : overflow);
     h->camera_skew_us = (int16_t)field16(skew, STEREO_HEALTH_SKEW_US_SHIFT);
     h->camera_skew_pairs = since(field16(skew, STEREO_HEALTH_SKEW_PAIRS_SHIFT), &l->skew_pairs);
+    /* a camera lost at any time since the last report (sticky: the loss bits gathered by
+     * app_watch_health, and the ones now) is reported lost and not locked */
+    lost = (app->lost_seen | status) & APP_LOST_MASK;
+    app->lost_seen = 0u;
+    status &= ~(lost >> APP_LOST_TO_LOCKED);
     /* FW_OK is 0: the OR of the two decoders' start-up results is an error if either is */
     h->flags = (uint8_t)(((status & STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK) ? RADIO_HEALTH_LEFT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK) ? RADIO_HEALTH_RIGHT_LOCKED : 0u)
              | ((status & STEREO_HEALTH_STATUS_ENABLED_MASK) ? RADIO_HEALTH_PIPELINE_ENABLED : 0u)
              | ((ground & (STEREO_GROUND_STATUS_LEFT_HUE_FALLBACK_MASK
                            | STEREO_GROUND_STATUS_RIGHT_HUE_FALLBACK_MASK)) ? RADIO_HEALTH_HUE_FALLBACK : 0u)
-             | ((app->dec_status[0] | app->dec_status[1]) != FW_OK ? RADIO_HEALTH_DECODER_FAULT : 0u));
+             | ((app->dec_status[0] | app->dec_status[1]) != FW_OK ? RADIO_HEALTH_DECODER_FAULT : 0u)
+             | (lost != 0u ? RADIO_HEALTH_CAMERA_LOST : 0u));
     return FW_OK;
 }
 
@@ -445,7 +466,7 @@ static const fw_field_t fw_fields[] = {
     FW_FIELD(app_t, dec_status), FW_FIELD(app_t, cfg), FW_FIELD(app_t, seq),
     FW_FIELD(app_t, n_bands), FW_FIELD(app_t, min_support), FW_FIELD(app_t, width),
     FW_FIELD(app_t, results_read), FW_FIELD(app_t, summary_open), FW_FIELD(app_t, summary),
-    FW_FIELD(app_t, health_last),
+    FW_FIELD(app_t, health_last), FW_FIELD(app_t, lost_seen),
 };
 
 /** The offset of "struct.field" and its size in *size; -1 for an unknown name. */

@@ -7,9 +7,10 @@
  * retries what has not come up (the register block, the decoders' lock, the video path; a
  * decoder that did not take its configuration, flagged DECODER_FAULT, every
  * DECODER_RETRY_PERIODS periods), reads the health registers (app_read_health: decoder lock,
- * enable, camera and matcher errors, drops, overflow) and sends the radio report, so the base
- * station sees a module that is not running and why (flags: locked bits and the enabled bit
- * stay 0, the fault bits set).
+ * enable, camera and matcher errors, drops, overflow, a camera lost at any time in the period:
+ * every step gathers the live loss bits, app_watch_health) and sends the radio report, so the
+ * base station sees a module that is not running and why (flags: locked bits and the enabled
+ * bit stay 0, the fault bits set).
  *
  * Two ways to the summary, chosen at build time: the records drained from the result FIFO
  * (app_collect), or, with FIRMWARE_BANDS_HW (the image for the SoC's own RISC-V core,
@@ -97,6 +98,8 @@ static uint32_t step(void)
     if (tx_pos < tx_len && hal_uart_put(frame_buf[tx_pos]) != 0) {
         tx_pos++;
     }
+    /* a camera lost only for a moment between two reports is still reported (CAMERA_LOST) */
+    app_watch_health(&app);
     n = app_collect(&app);
 #ifdef FIRMWARE_BANDS_HW
     /* app_collect opened the summary; the unit's frames go into it */

@@ -209,6 +209,58 @@ static void test_health_counts_since_last_read(void)
     FWT_CHECK_EQ(app_read_health(&app, &h), FW_ERR_ID);
 }
 
+static void test_camera_loss_is_reported_once_with_its_side(void)
+{
+    static app_t app;
+    radio_health_t h;
+    const uint32_t on = STEREO_HEALTH_STATUS_LEFT_LOCKED_MASK | STEREO_HEALTH_STATUS_RIGHT_LOCKED_MASK
+                      | STEREO_HEALTH_STATUS_ENABLED_MASK;
+    const uint8_t ok = RADIO_HEALTH_LEFT_LOCKED | RADIO_HEALTH_RIGHT_LOCKED
+                     | RADIO_HEALTH_PIPELINE_ENABLED;
+    uint32_t *status = &sim.regfile[STEREO_HEALTH_STATUS_OFFSET / 4];
+    setup();
+    memset(&app, 0xA5, sizeof app);         /* app_init_pipeline starts with no loss seen */
+    FWT_CHECK_EQ(app_init_pipeline(&app, STEREO_BASEADDR), FW_OK);
+    app.dec_status[0] = app.dec_status[1] = FW_OK;
+    *status = on;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, ok);
+    /* lost at the read: the stream's lock bit stays set through a loss, the report's does not */
+    *status = on | STEREO_HEALTH_STATUS_LEFT_LOST_MASK;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, (ok & ~RADIO_HEALTH_LEFT_LOCKED) | RADIO_HEALTH_CAMERA_LOST);
+    /* back before the next read: that report is clean */
+    *status = on;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, ok);
+    /* lost and back between two reports, seen by a watch meanwhile: reported once */
+    app_watch_health(&app);
+    *status = on | STEREO_HEALTH_STATUS_RIGHT_LOST_MASK;
+    app_watch_health(&app);
+    *status = on;
+    app_watch_health(&app);
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, (ok & ~RADIO_HEALTH_RIGHT_LOCKED) | RADIO_HEALTH_CAMERA_LOST);
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, ok);
+    /* both sides, one of them seen only by the watch */
+    *status = on | STEREO_HEALTH_STATUS_LEFT_LOST_MASK;
+    app_watch_health(&app);
+    *status = on | STEREO_HEALTH_STATUS_RIGHT_LOST_MASK;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, RADIO_HEALTH_PIPELINE_ENABLED | RADIO_HEALTH_CAMERA_LOST);
+    /* a video restart clears the loss watch and the lock bits alike; a loss seen before it
+     * in the period is still reported */
+    *status = on | STEREO_HEALTH_STATUS_LEFT_LOST_MASK;
+    app_watch_health(&app);
+    app_restart_video(&app);
+    *status = STEREO_HEALTH_STATUS_ENABLED_MASK;
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, RADIO_HEALTH_PIPELINE_ENABLED | RADIO_HEALTH_CAMERA_LOST);
+    FWT_CHECK_EQ(app_read_health(&app, &h), FW_OK);
+    FWT_CHECK_EQ(h.flags, RADIO_HEALTH_PIPELINE_ENABLED);
+}
+
 static void test_start_video_is_bounded(void)
 {
     static app_t app;
@@ -363,6 +415,7 @@ void suite_pipeline(void)
 {
     FWT_RUN(test_id);
     FWT_RUN(test_health_counts_since_last_read);
+    FWT_RUN(test_camera_loss_is_reported_once_with_its_side);
     FWT_RUN(test_start_video_is_bounded);
     FWT_RUN(test_defaults_match_reset_values);
     FWT_RUN(test_configure_roundtrip);

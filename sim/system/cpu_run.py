@@ -30,7 +30,14 @@ Checks (the JSON line):
     sending. A frame it missed, or merged twice, makes a packet differ. ``radio_frames``: the
     frames each packet covers; ``radio_cycles``: the core cycle of each packet's first byte on
     the pin; ``radio_health``: each packet's health counters that are not 0
-    (``station.wire`` field names, ``cam_errors`` as left and right).
+    (``station.wire`` field names, ``cam_errors`` as left and right);
+    ``radio_cameras_lost``: the cameras each packet reports lost
+    (``station.wire.lost_cameras``).
+``camera_lost_changes``
+    The loss watch's bits as the SoC computes them (HEALTH_STATUS left_lost bit 0,
+    right_lost bit 1), independent of the firmware's reads: [core cycle, bits from then on]
+    at each change. Cameras whose stream has ended are lost two field times after their last
+    field start, so the packets of a run's end report both lost.
 ``rectified``, ``rect``
     With a calibrated rig (``rect``, :mod:`sim.system.rect`): the SoC holds the right
     camera's rectifier with the rig's map in its map memory, the image the rig's table; golden
@@ -58,7 +65,8 @@ Faults:
     that time are lost, then the stream goes on. The right camera's fields of that time have no
     partner: the pairing drops them (``drops``, rule 2 of ``golden.pairing``). Bit-exact: the
     pipeline sees the pairs (L0, R0), (L5, R5), ... of identical fields, so the frames out equal
-    golden's first ``frames - LOST_FIELDS``, and the loss is counted in the packets' health.
+    golden's first ``frames - LOST_FIELDS``, and the loss is counted in the packets' health
+    (``drops``) and told by a packet (CAMERA_LOST with the left camera's LOCKED bit clear).
 ``iic-nack``
     The right decoder never answers its IIC address: counted when the firmware addressed it
     and every packet's health carries the DECODER_FAULT flag. ``decoders_addressed``: how
@@ -88,6 +96,7 @@ REPORT_PS = 100_000_000_000         #: the firmware's report period, 100 ms
 SLICE_PS = 2_000_000_000            #: host poll period of the simulation, 2 ms
 _INSTRET = "soc__DOT__cpu__DOT__core__DOT__count_instr"
 _RAM = "soc__DOT__cpu__DOT__ram"
+_LOST = ("soc__DOT__health_status_left_lost", "soc__DOT__health_status_right_lost")
 
 _libs = {}
 
@@ -108,14 +117,16 @@ def build_cpu_system(soc_params):
         return _libs[key], 0.0
     soc = silenced(SystemSoC(cpu="picorv32", monitor=True, **soc_params))
     vlt = ('`verilator_config\npublic_flat_rd -module "picorv32" -var "count_instr"\n'
-           'public_flat_rw -module "soc.cpu" -var "ram"\n')
+           'public_flat_rw -module "soc.cpu" -var "ram"\n'
+           'public_flat_rd -module "soc" -var "health_status_*_lost"\n')
     files = {"cpu.vlt": vlt,
              "soc.v": verilog_source("soc", soc, plain, passes=SIMULATION_PASSES),
              "core0.v": verilog_text(),
              "cpu_system.cpp": (HARNESS.parent / "cpu_system.cpp").read_text()}
     lib, seconds = verilated_library(
         "cpu-", "libcpusystem.so", files, [*VERILATOR_FLAGS, "-Wno-TIMESCALEMOD"],
-        f"-std=c++17 -fPIC -DINSTRET={_INSTRET} -DRAM={_RAM}", "the SoC with its CPU")
+        f"-std=c++17 -fPIC -DINSTRET={_INSTRET} -DRAM={_RAM} -DLOST_LEFT={_LOST[0]} "
+        f"-DLOST_RIGHT={_LOST[1]}", "the SoC with its CPU")
     _libs[key] = lib
     return lib, seconds
 
@@ -142,6 +153,8 @@ def _load(path):
     lib.sys_take_records.restype = C.c_uint64
     lib.sys_take_tx.argtypes = [C.POINTER(C.c_uint64), C.POINTER(C.c_uint8), C.c_uint64]
     lib.sys_take_tx.restype = C.c_uint64
+    lib.sys_take_lost.argtypes = [C.POINTER(C.c_uint64), C.POINTER(C.c_uint8), C.c_uint64]
+    lib.sys_take_lost.restype = C.c_uint64
     lib.sys_send_rx.argtypes = [C.c_char_p, C.c_uint64]
     for name in ("sys_core_cycles", "sys_idle_cycles", "sys_trap_cycles", "sys_instructions",
                  "sys_video_on_cycles", "sys_video_on_idle"):
@@ -191,7 +204,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                                 RIGHT_LEAD_BYTES, camera_streams)
     from golden.bands import band_values, frame_top, merge_tops
     from station.radio import FrameDecoder
-    from station.wire import DEFAULT_MIN_SUPPORT, HEALTH_FLAGS
+    from station.wire import DEFAULT_MIN_SUPPORT, HEALTH_FLAGS, lost_cameras
     from station.wire import API_AT_COMMAND, API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
@@ -247,6 +260,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     last_frame_cycle = None
     frames_expected = frames - LOST_FIELDS if fault == "camera-lost-left" else frames
     queries = []                    # core cycles of the AT query frames on the TX pin
+    lost_changes = []               # (core cycle, loss watch bits from then on)
+    lost_bits = (C.c_uint8 * 1024)()
     cyc = (C.c_uint64 * 65536)()
     words = (C.c_uint32 * 65536)()
     txb = (C.c_uint8 * 65536)()
@@ -256,6 +271,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         while now < end_ps:
             now += SLICE_PS
             lib.sys_run_until(now)
+            while n := lib.sys_take_lost(cyc, lost_bits, len(lost_bits)):
+                lost_changes += [(int(cyc[i]), int(lost_bits[i])) for i in range(n)]
             while n := lib.sys_take_records(cyc, words, len(words)):
                 for i in range(n):
                     word = words[i]
@@ -329,8 +346,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         # the pairs the pipeline saw: (L0, R0), then from (L1+LOST, R1+LOST) on
         exact = frames_expected > FAULT_FIELD and out_frames == want[:frames_expected]
     if fault == "camera-lost-left":
-        counted = health["mispaired"] + health["drops"] + sum(cam_errors) > 0 or \
-            any(not f & 1 for f in flags)
+        # the pairs the loss cost, and a packet that tells the left camera was lost
+        counted = health["mispaired"] + health["drops"] + sum(cam_errors) > 0 and \
+            any(lost_cameras(f) == ["left"] for f in flags)
     elif fault == "iic-nack":
         counted = addressed[1] > 0 and len(packets) > 0 and \
             all(f >> HEALTH_FLAGS["DECODER_FAULT"] & 1 for f in flags)
@@ -362,6 +380,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "radio_flags": flags,
         "radio_health": per_packet,
         "radio_queries": queries,
+        "radio_cameras_lost": [lost_cameras(f) for f in flags],
+        "camera_lost_changes": [list(c) for c in lost_changes],
         "rectified": rect is not None and bool(flags) and not rect_fault,
         "rect": None if rect is None else {"rect_fault": rect_fault, "need_span": rect.need_span,
                                            "build_span": rect.build_span},

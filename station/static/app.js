@@ -111,12 +111,21 @@ function health(h) {
                  ["HUE_FALLBACK", "hue fallback", "on", "off", false],
                  ["RECT_FAULT", "rectification", "not running", "on", false],
                  ["RADIO_FAULT", "robot's XBee", "not answering", "ok", false],
-                 ["DECODER_FAULT", "decoder set-up", "failed", "ok", false]];
+                 ["DECODER_FAULT", "decoder set-up", "failed", "ok", false],
+                 ["CAMERA_LOST", "camera feed", "lost", "ok", false]];
+  // a camera lost since the last packet: its badge says so, CAMERA_LOST's names it
+  const lost = h.cameras_lost || [];
   let html = "";
   for (const [k, label, yes, no, good] of flags) {
     const on = h.flag_names.includes(k);
     const cls = good ? (on ? "" : " off") : (on ? " warn" : " idle");
-    html += `<span class="badge${cls}">${label}: ${on ? yes : no}</span>`;
+    let text = on ? yes : no;
+    if (k.endsWith("_LOCKED") && !on && lost.includes(label.split(" ")[0])) {
+      text = "lost";
+    } else if (k === "CAMERA_LOST" && on && lost.length) {
+      text += ` (${lost.join(", ")})`;
+    }
+    html += `<span class="badge${cls}">${label}: ${text}</span>`;
   }
   $("flags").innerHTML = html;
   const rows = [["frames", h.frames], ["pairs ok", h.pairs_ok],

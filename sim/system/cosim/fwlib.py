@@ -83,7 +83,8 @@ class AppC(C.Structure):
                 ("dec_status", C.c_int32 * 2), ("cfg", PipelineConfigC), ("seq", C.c_uint8),
                 ("n_bands", C.c_uint8), ("min_support", C.c_uint8), ("width", C.c_uint16),
                 ("results_read", C.c_uint32), ("summary_open", C.c_uint8),
-                ("summary", RadioSummaryC), ("health_last", HealthSnapshotC)]
+                ("summary", RadioSummaryC), ("health_last", HealthSnapshotC),
+                ("lost_seen", C.c_uint8)]
 
 
 class PipelineMatchC(C.Structure):

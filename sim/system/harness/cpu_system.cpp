@@ -17,10 +17,12 @@
 //     write of VIDEO with video_enable = 1 seen on the bus), then their streams;
 //   - the records and end-of-frame markers the SoC hands its band summary unit (ports
 //     record_valid, record_word, as RESULT shows them) are logged with their cycle;
-//   - the CPU's idle cycles (cpu_idle: asleep in a timer wait) and traps are counted.
+//   - the CPU's idle cycles (cpu_idle: asleep in a timer wait) and traps are counted;
+//   - the loss watch's bits (HEALTH_STATUS left_lost, right_lost) are logged with the cycle of
+//     each change: what a report's health must tell, independent of the firmware's reads.
 // The model is built with an empty RAM; sys_load_ram writes the firmware image into it (the
-// memory and the core's instruction counter are public through a Verilator configuration
-// file, their names given as RAM and INSTRET).
+// memory, the core's instruction counter and the loss bits are public through a Verilator
+// configuration file, their names given as RAM, INSTRET, LOST_LEFT and LOST_RIGHT).
 #include <cstdint>
 #include <cstring>
 #include <deque>
@@ -154,6 +156,10 @@ std::vector<uint64_t> tx_cycle;
 std::deque<uint8_t> rx_queue;
 int rx_bit = -1, rx_count = 0, rx_byte = 0;
 bool cam_live[2] = {false, false};
+// loss watch: its bits (bit 0 left, bit 1 right) and each change with its core cycle
+int lost_now = 0;
+std::vector<uint64_t> lost_cycle;
+std::vector<uint8_t> lost_bits;
 int64_t cam_stop_pos[2] = {-1, -1}, cam_stop_ps[2] = {0, 0}, cam_stop_until[2] = {-1, -1};
 
 void present(int k) {
@@ -197,6 +203,14 @@ void core_cycle() {
         rec_cycle.push_back(core_cycles);
         rec_word.push_back(top->record_word);
     }
+#if defined(LOST_LEFT) && defined(LOST_RIGHT)
+    int lost = (top->rootp->LOST_LEFT & 1) | (top->rootp->LOST_RIGHT & 1) << 1;
+    if (lost != lost_now) {
+        lost_now = lost;
+        lost_cycle.push_back(core_cycles);
+        lost_bits.push_back((uint8_t)lost);
+    }
+#endif
     if (!video_on && top->monitor___05Faddr_strobe && top->monitor___05Fwrite_strobe &&
         top->monitor___05Faddress == video_addr && (top->monitor___05Fwrite_data & 1)) {
         video_on = true;
@@ -299,6 +313,7 @@ int sys_init(const uint8_t* left, uint64_t left_len, const uint8_t* right, uint6
     video_on = false;
     video_on_ps = -1;
     rec_cycle.clear(); rec_word.clear();
+    lost_now = 0; lost_cycle.clear(); lost_bits.clear();
     divisor = uart_divisor;
     tx_state = -1; tx_bytes.clear(); tx_cycle.clear();
     rx_queue.clear(); rx_bit = -1;
@@ -341,6 +356,16 @@ uint64_t sys_take_tx(uint64_t* cycles, uint8_t* bytes, uint64_t max) {
     for (uint64_t i = 0; i < n; i++) { cycles[i] = tx_cycle[i]; bytes[i] = tx_bytes[i]; }
     tx_cycle.erase(tx_cycle.begin(), tx_cycle.begin() + n);
     tx_bytes.erase(tx_bytes.begin(), tx_bytes.begin() + n);
+    return n;
+}
+
+// Move up to `max` changes of the loss watch's bits into the buffers (the core cycle of each
+// and the bits from then on: bit 0 left lost, bit 1 right lost); returns how many.
+uint64_t sys_take_lost(uint64_t* cycles, uint8_t* bits, uint64_t max) {
+    uint64_t n = lost_bits.size() < max ? lost_bits.size() : max;
+    for (uint64_t i = 0; i < n; i++) { cycles[i] = lost_cycle[i]; bits[i] = lost_bits[i]; }
+    lost_cycle.erase(lost_cycle.begin(), lost_cycle.begin() + n);
+    lost_bits.erase(lost_bits.begin(), lost_bits.begin() + n);
     return n;
 }
 
