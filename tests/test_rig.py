@@ -195,3 +195,5 @@ def test_scored_matches_are_those_whose_left_pixel_sees_the_scene():
     both = inside_scene(rec, cam, rig, ideal, sides=("left", "right"))
     assert both.tolist() == [False, True, False, False]
     assert inside_scene(rec, None, rig, ideal).tolist() == [False, True, False, True]
+    # the image's own edges are no black surround: an aligned rig's re-shoot is the pair
+    assert inside_scene(rec, None, ideal, ideal).all()

@@ -74,12 +74,14 @@ def score(records, gt, camera=None, calibrated=None):
 
 def inside_scene(records, camera, rig, ideal, margin=4, sides=("left",)):
     """Whether each match sees the scene the re-shoot had: for each of ``sides`` (``"left"``:
-    the match's pixel; ``"right"``: its chosen partner ``x - d``) the source, through the
-    calibration's rectification of ``camera`` (None: the pixels as captured) and then the
-    true ``rig`` back into the ideal rig ``ideal``'s original images, lies at least
-    ``margin`` pixels inside them. A pixel that does not shows (or its windows reach) the
+    the match's pixel; ``"right"``: its chosen partner ``x - d``) every pixel of the image
+    within ``margin`` pixels of it (the corners and edge middles of that square, cut to the
+    image) has its source, through the calibration's rectification of ``camera`` (None: the
+    pixels as captured) and then the true ``rig`` back into the ideal rig ``ideal``'s
+    original images, inside them. A pixel that does not shows (or its windows reach) the
     re-shoot's black surround (:func:`sim.scenes.rig.reshoot` is black where the original
-    pair has no pixel), where the test has no scene and so no truth."""
+    pair has no pixel), where the test has no scene and so no truth; the image's own edges
+    are no such surround."""
     from golden.matcher import record_disparity
     from golden.rectify import source_map
     from golden.rig import project, undistort
@@ -89,20 +91,23 @@ def inside_scene(records, camera, rig, ideal, margin=4, sides=("left",)):
     w, h = ideal.width, ideal.height
     ok = np.ones(len(x), bool)
     for side in sides:
-        u = x if side == "left" else x - d
-        if camera is None or (side == "left" and camera.rig.get("left_rect") is None):
-            su, sv = u, y
-        else:
-            cal = camera.rig
-            su, sv = source_map(camera.rectified, u, y, cal.get("doffs", 0.0), cal.get("focus"),
-                                side, cal.get("left_rect"))
-        lens, orig = (rig.left, ideal.left) if side == "left" else (rig.right, ideal.right)
-        xn, yn = undistort(lens, su, sv)
-        rays = np.stack([xn, yn, np.ones_like(xn)], axis=-1)
-        if side == "right":
-            rays = rays @ (rig.Rm @ ideal.Rm.T)       # the right camera's own turn undone
-        ou, ov = project(orig, rays)
-        ok &= (ou >= margin) & (ou <= w - 1 - margin) & (ov >= margin) & (ov <= h - 1 - margin)
+        for ox in (-margin, 0, margin):
+            for oy in (-margin, 0, margin):
+                u = np.clip((x if side == "left" else x - d) + ox, 0, w - 1)
+                v = np.clip(y + oy, 0, h - 1)
+                if camera is None or (side == "left" and camera.rig.get("left_rect") is None):
+                    su, sv = u, v
+                else:
+                    cal = camera.rig
+                    su, sv = source_map(camera.rectified, u, v, cal.get("doffs", 0.0),
+                                        cal.get("focus"), side, cal.get("left_rect"))
+                lens, orig = (rig.left, ideal.left) if side == "left" else (rig.right, ideal.right)
+                xn, yn = undistort(lens, su, sv)
+                rays = np.stack([xn, yn, np.ones_like(xn)], axis=-1)
+                if side == "right":
+                    rays = rays @ (rig.Rm @ ideal.Rm.T)       # the right camera's own turn undone
+                ou, ov = project(orig, rays)
+                ok &= (ou > -0.5) & (ou < w - 0.5) & (ov > -0.5) & (ov < h - 0.5)
     return ok
 
 
