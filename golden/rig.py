@@ -412,14 +412,21 @@ def rect_geometry(rig, doffs_px, R1, max_dx=31.5, step=8, grid=32):
     """``(scale, g)``: the rectified geometry that needs the fewest rows of line buffer.
 
     Rows: an undistorted pinhole image of a barrel lens pulls the image corners many rows
-    outwards; the rows instead follow the lenses (:func:`row_curve`: ``g`` fitted to the middle
-    of the source rows that each rectified row spans across the image, in both cameras), so
-    the vertical warp is only the distortion's difference between the middle and the edges of
-    a row. Columns stay linear in the ray (``scale fx``, so that the disparity is ``scale fx B
-    / z - doffs`` as before), ``scale`` the largest of 1, 0.995, ... whose horizontal warp
-    stays within ``max_dx`` pixels at the map's nodes (every ``grid`` pixels, to a node past
-    the last column: the node words' range). ``doffs_px`` is the principal
-    points' distance at scale 1 (it scales with ``scale``)."""
+    outwards; the rows instead follow the lenses (:func:`row_curve`), so the vertical warp is
+    only the distortion's difference between the middle and the edges of a row. ``g`` is
+    first fitted (least squares) to the middle of the source rows that each rectified row
+    spans across the image, in both cameras; then ``g0`` is set to 1, so the rows keep the
+    left camera's scale at its principal point, and ``g1, g2`` refined to the least vertical
+    warp of the larger camera (:func:`_fewest_rows`; each camera has its own buffer window),
+    kept when that warp is no more than the fit's. The fit weighs every row alike, while the
+    buffer must hold the worst one, the image's top and bottom rows, whose warp no curve
+    changes: the rows between have room to spare, which the refined curve spends on
+    squeezing the scene less (the fit's ``g0`` is below 1). Columns stay linear in the ray
+    (``scale fx``, so that the disparity is ``scale fx B / z - doffs`` as before), ``scale``
+    the largest of 1, 0.995, ... whose horizontal warp stays within ``max_dx`` pixels at the
+    map's nodes (every ``grid`` pixels, to a node past the last column: the node words'
+    range). ``doffs_px`` is the principal points' distance at scale 1 (it scales with
+    ``scale``)."""
     for scale in np.arange(1.0, 0.7, -0.005):
         gx, gy = _grid(rig, step)
         lens = rectified_lens(rig, scale)
@@ -440,11 +447,45 @@ def rect_geometry(rig, doffs_px, R1, max_dx=31.5, step=8, grid=32):
         # the map's nodes, every grid pixels up to a node past the last column and row
         nx, ny = np.meshgrid(np.arange((rig.width - 1) // grid + 2) * float(grid),
                              np.arange((rig.height - 1) // grid + 2) * float(grid))
-        sxl = left_rect_map(rig, nx, ny, R1, scale, g)[0]
-        sxr = right_rect_map(rig, nx, ny, doffs_px * scale, R1, scale, g)[0]
-        if max(np.abs(sxl - nx).max(), np.abs(sxr - nx).max()) <= max_dx:
+
+        def fits(g):
+            sxl, syl = left_rect_map(rig, nx, ny, R1, scale, g)
+            sxr, syr = right_rect_map(rig, nx, ny, doffs_px * scale, R1, scale, g)
+            return (max(np.abs(sxl - nx).max(), np.abs(sxr - nx).max()) <= max_dx
+                    and max(np.abs(syl - ny).max(), np.abs(syr - ny).max()) <= max_dx)
+
+        if fits(g):
+            fewest = _fewest_rows(rig, doffs_px * scale, R1, scale, g, 1.3 * y0, 2 * step)
+            g = fewest if fits(fewest) else g
             return round(float(scale), 4), tuple(round(v, 6) for v in g)
     raise ValueError(f"no rectified geometry keeps the horizontal warp within {max_dx} px")
+
+
+def _fewest_rows(rig, doffs, R1, scale, g, reach, step):
+    """The row curve (:func:`row_curve`) with ``g0`` = 1 (rows at the left camera's own
+    ``fy`` at its principal point) whose ``g1, g2`` give the least vertical warp of the
+    larger camera (:func:`rect_vertical_span`), among curves rising over ray heights up to
+    ``reach`` (Nelder-Mead from ``g``'s and from the left lens' ``k1, k2``); ``g`` itself
+    when that warp is not less than ``g``'s."""
+    from scipy.optimize import minimize
+    y2 = np.linspace(0.0, reach, 33) ** 2
+
+    def worst(v):
+        if (v[0] + y2 * (3 * v[1] + 5 * v[2] * y2)).min() <= 0:
+            return np.inf
+        return max(hi - lo for lo, hi in rect_vertical_span(rig, doffs, R1, scale, tuple(v),
+                                                            step))
+
+    best = tuple(float(v) for v in g)
+    for start in (g[1:], rig.left.dist[:2]):
+        found = minimize(lambda v: worst((1.0, *v)), np.asarray(start, np.float64),
+                         method="Nelder-Mead",
+                         options=dict(xatol=1e-5, fatol=1e-3, maxiter=300,
+                                      initial_simplex=np.asarray(start, np.float64)
+                                      + np.array([[0, 0], [0.05, 0], [0, 0.1]])))
+        if found.fun <= worst(best):
+            best = (1.0, *(float(v) for v in found.x))
+    return best
 
 
 def distortion_px(lens, width, height):

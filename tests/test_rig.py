@@ -178,3 +178,40 @@ def test_focus_cancels_the_distortion_parallax_at_its_disparity():
         assert np.abs(vr - vl).max() < np.abs(vr0 - vl0).max()
         got = triangulate(rig, ul, vl, ul - ur, doffs, focus)
         assert np.abs(got[:, 2] - pts[:, 2]).max() < 0.01 * pts[:, 2].max()
+
+
+def test_scored_matches_are_those_whose_left_pixel_sees_the_scene():
+    """The rig bench scores a match only where the re-shot left image shows the original scene
+    (the barrel lens sees past it: black there), rectified or not; its chosen right partner
+    is tested only when asked."""
+    from golden.matcher import RECORD_DTYPE
+    from sim.bench.rig import inside_scene
+    from tests.test_cam_points import _both_camera
+    rig, ideal = rig_named("barrel"), motorcycle_rig()
+    rec = np.zeros(4, RECORD_DTYPE)
+    rec["x"], rec["y"], rec["d"] = [1, 370, 370, 370], [250, 250, 1, 250], [0, 20, 20, 368]
+    cam = _both_camera(rig)
+    assert inside_scene(rec, cam, rig, ideal).tolist() == [False, True, False, True]
+    both = inside_scene(rec, cam, rig, ideal, sides=("left", "right"))
+    assert both.tolist() == [False, True, False, False]
+    assert inside_scene(rec, None, rig, ideal).tolist() == [False, True, False, True]
+    # the image's own edges are no black surround: an aligned rig's re-shoot is the pair
+    assert inside_scene(rec, None, ideal, ideal).all()
+
+
+def test_rect_geometry_rows_keep_the_centre_scale_and_need_no_more_buffer(monkeypatch):
+    """Both cameras rectified: the row curve keeps scale 1 at the principal point (g0 = 1)
+    and its larger camera's vertical warp is no more than that of the least-squares curve
+    fitted to each row's middle, which squeezes the rows (g0 < 1)."""
+    import golden.rig as G
+    rig = rig_named("all together")
+    R1 = G.align_rotation(rig)
+    doffs = rig.right.cx - rig.left.cx
+    scale, g = G.rect_geometry(rig, doffs, R1)
+    monkeypatch.setattr(G, "_fewest_rows", lambda rig, doffs, R1, scale, g, *a: tuple(g))
+    scale_fit, g_fit = G.rect_geometry(rig, doffs, R1)
+
+    def warp(g):
+        return max(hi - lo for lo, hi in G.rect_vertical_span(rig, doffs * scale, R1, scale, g))
+    assert g[0] == 1.0 and g_fit[0] < 0.99 and scale == scale_fit
+    assert warp(g) <= warp(g_fit) - 0.5
