@@ -75,7 +75,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "keep_feet", "learn_line",
+__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "keep_feet", "record_flags",
+           "learn_line",
            "line16",
            "search_start16",
            "SLOPE_BITS", "OFFSET_BITS", "LINE_FRAC", "BIN_SHIFT", "TOL_BITS", "TOL_SHIFT_BITS",
@@ -205,6 +206,16 @@ def floor_flags(y, d16, line, params):
     l16 = line16(line, y)
     tol = np.int64(params.tol) + (np.maximum(l16, 0) >> np.int64(params.tol_shift))
     return (d16 <= l16 + tol).astype(np.uint8)
+
+
+def record_flags(records, line, params):
+    """The floor flags (uint8 0/1) of one frame's records (``x``, ``y``, ``d16``) by ``line``:
+    :func:`floor_flags` with the obstacle feet kept (:func:`keep_feet`) when ``params.feet``;
+    the flag unit's (``hdl/floor.py``) with the default ``feet`` and ``feet_depth``."""
+    flags = floor_flags(records["y"], records["d16"], line, params)
+    if params.feet:
+        flags = keep_feet(records["x"], records["y"], records["d16"], flags, line, params)
+    return flags
 
 
 def keep_feet(x, y, d16, flags, line, params):
@@ -368,10 +379,7 @@ class FloorModel:
         """Floor flags of one frame's records (``y``, ``d16``); the line they used is
         ``self.used`` afterwards."""
         self.used = self._lines[0]
-        flags = floor_flags(records["y"], records["d16"], self.used, self.params)
-        if self.params.feet:
-            flags = keep_feet(records["x"], records["y"], records["d16"], flags, self.used,
-                              self.params)
+        flags = record_flags(records, self.used, self.params)
         if self.params.mode == "learn":
             self.line = learn_line(records["y"], records["d16"], self.params, self.line,
                                    prior=self.params.initial)

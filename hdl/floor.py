@@ -23,13 +23,14 @@ each ``eof`` record. Latency: 6 cycles; one record a cycle.
 """
 from amaranth.hdl import Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from golden.floor import OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
+from golden.floor import FEET_DEPTH, OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
 
-__all__ = ["FloorFlag", "floor_record_layout", "LATENCY"]
+__all__ = ["FloorFlag", "floor_record_layout", "LATENCY", "FEET_DEPTH"]
 
-LATENCY = 6
+LATENCY = 7
 #: Bits of the saturated line and of the threshold (signed).
 _LINE_BITS = 14
 _LO = 12
@@ -64,7 +65,10 @@ class FloorFlag(wiring.Component):
         ``offset`` is signed, the rest unsigned.
     """
 
-    def __init__(self, layout):
+    def __init__(self, layout, feet_depth=FEET_DEPTH):
+        if not isinstance(feet_depth, int) or isinstance(feet_depth, bool) or feet_depth < 1:
+            raise ValueError(f"feet_depth must be an integer >= 1, not {feet_depth!r}")
+        self._depth = feet_depth
         d16 = layout.members["d16"]
         if (d16 if isinstance(d16, int) else d16.width) > _LINE_BITS - 1:
             raise ValueError(f"d16 of {d16} bits: the floor flag takes at most "
@@ -80,7 +84,13 @@ class FloorFlag(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        en = ~self.o.valid | self.o.ready
+        # out: the output register is free or taken; go: every stage advances (the feet
+        # stage holds its record while it walks the row above's list or starts a row)
+        out = ~self.o.valid | self.o.ready
+        hold = Signal()
+        go = Signal()
+        m.d.comb += go.eq(out & ~hold)
+        en = go
         # the registers of a frame are loaded in the cycle after the previous frame's eof
         # record entered (or after reset), while the input waits
         load = Signal(init=1)
@@ -131,16 +141,76 @@ class FloorFlag(wiring.Component):
         m.d.comb += grow.eq(pos >> s3["tol_shift"])
         s4 = stage(4, v=s3["v"], rec=s3["rec"], line=s3["line"], enable=s3["enable"],
                    tol16=(s3["tol"] + grow)[:_LINE_BITS])
-        # (5) the threshold, biased: b + tol16
-        s5 = stage(5, v=s4["v"], rec=s4["rec"], thr=(s4["line"] + s4["tol16"])[:_LINE_BITS + 1],
-                   enable=s4["enable"])
-        # (6) d16 <= line16 + tol16, i.e. d16 + 2 ** 13 <= the biased threshold (d16 < 2 ** 13)
-        flag = s5["enable"] & ~s5["rec"].eof & \
-            (Cat(s5["rec"].d16, Const(0, bias - len(s5["rec"].d16)), Const(1, 1)) <= s5["thr"])
-        out = self.o.payload
-        with m.If(en):
-            m.d.sync += self.o.valid.eq(s5["v"])
-            for name in self._in.members:
-                m.d.sync += getattr(out, name).eq(getattr(s5["rec"], name))
-            m.d.sync += out.floor.eq(flag)
+        # (5) the thresholds, biased: b + tol16 (the flag) and b + 2 tol16 (an obstacle)
+        t = s4["tol16"]
+        s5 = stage(5, v=s4["v"], rec=s4["rec"], thr=(s4["line"] + t)[:_LINE_BITS + 1],
+                   thr2=(s4["line"] + Cat(Const(0, 1), t))[:_LINE_BITS + 2],
+                   line=s4["line"], tol16=t, enable=s4["enable"])
+        # (6) d16 <= line16 + tol16, i.e. d16 + 2 ** 13 <= the biased threshold (d16 < 2 **
+        # 13); above the line; two tolerances above it; the window d16 +- tol16 of the record
+        # above (d16 - tol16 + 2 ** 14 and d16 + tol16)
+        r5 = s5["rec"]
+        dpad = Cat(r5.d16, Const(0, bias - len(r5.d16)))
+        dbias = Cat(dpad, Const(1, 1))                  # d16 + 2 ** 13
+        s6 = stage(6, v=s5["v"], rec=r5,
+                   flag=s5["enable"] & ~r5.eof & (dbias <= s5["thr"]),
+                   above=dbias > s5["line"], start=dbias >= s5["thr2"],
+                   lo=(Cat(dpad, Const(2, 2)) - s5["tol16"])[:_LINE_BITS + 1],
+                   hi=(dpad + s5["tol16"])[:_LINE_BITS + 1])
+        # (7) the obstacle feet: the previous row's list walked, the current row's written
+        self._feet(m, s6, out, hold, go)
         return m
+
+    def _feet(self, m, s6, out, hold, go):
+        r = s6["rec"]
+        xw, dw = len(r.x), len(r.d16)
+        n = self._depth
+        entry = data.StructLayout({"x": xw, "d16": dw})
+        # one bank per list; a bank is either read (the previous row) or written (the
+        # current row), so each has one address: a single-port distributed RAM
+        banks = []
+        for k in range(2):
+            mem = Memory(shape=entry, depth=max(n, 2), init=[], attrs={"ram_style": "distributed"})
+            m.submodules[f"feet{k}"] = mem
+            banks.append((mem.write_port(), mem.read_port(domain="comb")))
+        wbank = Signal()                    # the bank of the current row (the other is read)
+        ptr = Signal(range(n + 1))          # the walk in the previous row's list
+        count = Signal(range(n + 1))        # its entries
+        fill = Signal(range(n + 1))         # the current row's entries
+        row = Signal.like(r.y)              # the current row
+        next_row = Signal(len(r.y) + 1)     # row + 1
+        have_row = Signal()                 # a row of this frame has started
+        for k, (wp, rp) in enumerate(banks):
+            writing = wbank == k
+            m.d.comb += [wp.addr.eq(Mux(writing, fill, ptr)), rp.addr.eq(wp.addr)]
+        above = Signal(entry)
+        m.d.comb += above.eq(Mux(wbank, banks[0][1].data, banks[1][1].data))
+        rec_v = s6["v"] & ~r.eof
+        new_row = rec_v & (~have_row | (r.y != row))
+        more = ptr != count
+        step = rec_v & ~new_row & more & (above.x < r.x)
+        m.d.comb += hold.eq(new_row | step)
+        hit = more & (above.x == r.x)
+        near = hit & (Cat(above.d16, Const(0, len(s6["lo"]) - dw - 1), Const(1, 1)) >= s6["lo"]) & \
+            (above.d16 <= s6["hi"])
+        foot = s6["flag"] & near & s6["above"]
+        obstacle = ~s6["flag"] & (s6["start"] | near)
+        for k, (wp, rp) in enumerate(banks):
+            m.d.comb += [wp.en.eq(go & rec_v & (foot | obstacle) & (fill != n) & (wbank == k)),
+                         wp.data.x.eq(r.x), wp.data.d16.eq(Mux(foot, above.d16, r.d16))]
+        with m.If(new_row):
+            m.d.sync += [wbank.eq(~wbank), ptr.eq(0), fill.eq(0), row.eq(r.y),
+                         next_row.eq(r.y + 1), have_row.eq(1),
+                         count.eq(Mux(have_row & (r.y == next_row), fill, 0))]
+        with m.Elif(step):
+            m.d.sync += ptr.eq(ptr + 1)
+        with m.Elif(go & rec_v & (foot | obstacle) & (fill != n)):
+            m.d.sync += fill.eq(fill + 1)
+        with m.If(go & s6["v"] & r.eof):
+            m.d.sync += have_row.eq(0)
+        o = self.o.payload
+        with m.If(out):
+            m.d.sync += self.o.valid.eq(s6["v"] & ~hold)
+            for name in self._in.members:
+                m.d.sync += getattr(o, name).eq(getattr(r, name))
+            m.d.sync += o.floor.eq(s6["flag"] & ~foot)

@@ -410,8 +410,8 @@ def _record_layout(job):
 @dataclass
 class FloorUnit:
     """The floor flag unit on the golden pipeline's records (``hdl/floor.py``, golden
-    ``golden.floor.floor_flags``), each frame's line learned from the frame before
-    (:func:`floor_lines_for`)."""
+    ``golden.floor.floor_flags`` with the obstacle feet kept, ``keep_feet``), each frame's line
+    learned from the frame before (:func:`floor_lines_for`)."""
     name: str = "floor"
     stereo: bool = True
     doc: str = "floor flag of each match record (v-disparity line)"
@@ -441,9 +441,10 @@ class FloorUnit:
         return {"o": len(job.left)}
 
     def expected(self, job):
-        from golden.floor import floor_flags
+        from golden.floor import floor_flags, keep_feet
         lines, params = floor_lines_for(job)
-        return [floor_flags(r["y"], r["d16"], line, params)
+        return [keep_feet(r["x"], r["y"], r["d16"], floor_flags(r["y"], r["d16"], line, params),
+                          line, params)
                 for r, line in zip(self._records(job), lines)]
 
     def mismatches(self, job, words, dut):
