@@ -65,9 +65,9 @@ candidates. Without one the slopes (``slope_min`` .. ``slope_max``, 0.125 .. 0.6
 cameras about 1 m to 0.2 m above the floor with a 0.12 m baseline) keep a constant-disparity
 band (a wall, the far background) from being taken for the floor.
 
-The record stage (``hdl/floor.py``) or the CPU (``firmware/src/floor.c`` ``floor_flag``)
-computes the flag from the line (the record stage without the feet: the SoC's flags are
-:func:`floor_flags`'; ``floor_feet`` in ``firmware/src/floor.c`` is :func:`keep_feet`); the CPU learns the line from each frame's records
+The record stage (``hdl/floor.py``, the SoC's flags: :func:`record_flags`, the feet kept) or
+the CPU (``firmware/src/floor.c`` ``floor_flag``, without the feet) computes the flag from the
+line; the CPU learns the line from each frame's records
 (``floor_learn``, bit-exact with :func:`learn_line`) and uses it for the next frame
 (:class:`FloorModel` is that loop).
 """

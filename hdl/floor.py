@@ -1,5 +1,6 @@
-"""The floor flag of each match record, from a v-disparity floor line held in registers
-(specification: ``golden/floor.py`` :func:`golden.floor.floor_flags`).
+"""The floor flag of each match record, from a v-disparity floor line held in registers, with
+the obstacle feet kept (specification: ``golden/floor.py`` :func:`golden.floor.floor_flags`
+and :func:`golden.floor.keep_feet`, together :func:`golden.floor.record_flags`).
 
 A record ``(y, d16)`` is a floor point when ``d16 <= line16(y) + tol16(y)``, with
 ``line16(y) = (slope * y + offset) >> 4`` and ``tol16 = tol + (max(line16, 0) >> tol_shift)``;
@@ -10,16 +11,45 @@ frame: the cycle after reset), when the input waits one cycle for them; so a wri
 frame applies from the next one, and one that must apply to frame n + 1 is made before frame
 n's ``eof`` record reaches the unit.
 
+Obstacle feet: a flagged record above the line (``d16 > line16``) is not a floor point when
+the record above it (row ``y - 1``, the same column) is an obstacle record within ``tol16`` of
+its disparity; an obstacle record is an unflagged one at least two tolerances above the line
+(``d16 >= line16 + 2 tol16``) or within ``tol16`` of an obstacle record above it, and a kept
+foot carries down the disparity of the record above it. The unit remembers the row above as a
+list of its first ``feet_depth`` (:data:`FEET_DEPTH`) obstacle records and kept feet, ``(x,
+d16)`` in stream order, and writes the current row's beside it: two banks of distributed RAM
+of ``feet_depth`` entries, one read and one written, swapped when a row starts (a row is a run
+of records with one ``y``; the list read is the last row's when the new row's ``y`` is one
+more, else empty; an ``eof`` record ends the frame's rows). The state of every column would
+take ``width`` disparities; the lists take ``2 feet_depth`` entries, and only the first
+``feet_depth`` obstacle records of a row can keep a foot under them. Each record walks
+the row above's list with a pointer from the row's start: past the entries of a smaller
+column, one a cycle, stopping at the first of an equal or greater one, which is the record
+above when the columns are equal. The matcher sends the records of a row in increasing column
+(one job per left edge, in scan order, through in-order queues), so the walk meets each entry
+once; records out of that order get the walk's answer, which golden models exactly.
+
 Pipeline (every path one carry chain of at most 16 bits): (1) ``slope * y`` (a multiplier
 block, registered); (2) the low 12 bits of ``+ offset`` and their carry; (3) the high bits
 with the carry; ``line16`` saturated to 14 bits signed (a disparity window never reaches
-beyond 2 ** 12 in 1/16 px, so the comparison is unchanged); (4) ``tol16``; (5) the threshold
-``line16 + tol16``; (6) the comparison, into the output register. All unsigned: the line is
-carried in offset binary (``line16 + 2 ** 13``). The stages advance together
-when the output register is free or taken, and ``i.ready`` is that condition (no skid
-buffer: its payload multiplexer would cost a LUT per record bit, and the unit sits between the
-matcher's output FIFO and the result FIFO, both registered), except in the one cycle after
-each ``eof`` record. Latency: 6 cycles; one record a cycle.
+beyond 2 ** 12 in 1/16 px, so no decision changes); (4) ``tol16``; (5) the thresholds
+``line16 + tol16`` and ``line16 + 2 tol16``; (6) the flag, above the line, two tolerances
+above it, and the window ``d16 - tol16 .. d16 + tol16`` a record above must lie in; (7) the
+feet: the walk, the comparisons with the entry under the pointer (read asynchronously), the
+flag into the output register and the entry into the current row's list. All unsigned: the
+line is carried in offset binary (``line16 + 2 ** 13``). The stages advance together when the
+output register is free or taken and stage (7) does not hold its record (no skid buffer: its
+payload multiplexer would cost a LUT per record bit, and the unit sits between the matcher's
+output FIFO and the result FIFO, both registered); ``i.ready`` is that condition, except in the
+one cycle after each ``eof`` record. Stage (7) holds a record one cycle when it starts a row
+(the banks swap) and one cycle per list entry its walk passes; it walks while the output
+waits. Latency: 7 cycles without those holds; one record a cycle otherwise, so a row of ``n``
+records whose row above has ``k`` entries takes at most ``n + k + 1`` cycles.
+
+Resources: the comparisons and the walk's counters are a few carry chains of up to 16 bits
+(about a LUT a bit), the lists ``2 feet_depth x (bits of x + bits of d16)`` bits of
+distributed RAM (single-port: each bank has one address, the write pointer's or the walk's),
+and the seventh stage a second copy of the record in registers.
 """
 from amaranth.hdl import Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
@@ -50,16 +80,21 @@ class FloorFlag(wiring.Component):
     Parameters
     ----------
     layout : StructLayout
-        The input records (``hdl.matcher.match_record_layout`` of a census matcher: ``y``,
-        ``d16`` and ``eof`` are used, the other fields pass through).
+        The input records (``hdl.matcher.match_record_layout`` of a census matcher: ``x``,
+        ``y``, ``d16`` and ``eof`` are used, the other fields pass through).
+    feet_depth : int
+        Entries of each row's list of obstacle records (``golden.floor.FloorParams``
+        ``feet_depth``, whose default is :data:`FEET_DEPTH`).
 
     Ports
     -----
     i : In(stream of ``layout``)
-        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``,
-        low in the cycle after an ``eof`` record (the registers are loaded).
+        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``
+        while the feet stage does not hold its record; low in the cycle after an ``eof``
+        record (the registers are loaded).
     o : Out(stream of :func:`floor_record_layout`)
-        The same records with ``floor``, in order, :data:`LATENCY` cycles later without stalls.
+        The same records with ``floor`` (the obstacle feet cleared), in order, :data:`LATENCY`
+        cycles later without stalls and holds.
     enable, slope, offset, tol, tol_shift : In
         The floor decision's registers (``golden.floor.FloorParams`` and ``FloorLine``):
         ``offset`` is signed, the rest unsigned.
