@@ -373,11 +373,12 @@ def _floor_unit(job):
         enters, and the unit loads the next frame's line in the following cycle."""
 
         def __init__(self):
-            self.flag = FloorFlag(layout)
+            self.flag = FloorFlag(layout, feet_depth=params.feet_depth)
             # what the Verilog depends on beside hdl/: a cached simulator build is found by
             # these (sim.backends.verilator.construction_params)
             self._lines = tuple((l.slope, l.offset) for l in lines)
             self._tol = (params.tol, params.tol_shift)
+            self._feet_depth = params.feet_depth
             self._layout = repr(layout)
             super().__init__({"i": In(stream.Signature(layout)),
                               "o": Out(stream.Signature(floor_record_layout(layout)))})

@@ -1,5 +1,6 @@
-"""The floor flag unit (hdl/floor.py) against golden.floor, with the line learned frame to
-frame as the CPU does it: bit-exact with random stalls on both sides, over several frames; and
+"""The floor flag unit (hdl/floor.py) against golden.floor (``record_flags``: the obstacle feet
+kept), with the line learned frame to frame as the CPU does it: bit-exact with random stalls on
+both sides, over several frames, and on streams out of raster order; and
 the matcher's search start under that line (hdl/matcher_start.py) against golden
 ``match(lowest16=search_start16(...))``, on every backend and through the SoC's registers."""
 import random
