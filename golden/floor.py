@@ -33,7 +33,10 @@ unflagged record at least two tolerances above the line (``d16 >= line16(y) + 2 
 or one continuing an obstacle record above it (within ``tol16(y)`` of it); its disparity is its
 own, and a kept foot carries down the disparity of the obstacle record above it, so the floor
 beside and under a foot, whose disparity rises row by row, soon leaves it. Nothing at or under
-the line is kept.
+the line is kept. The row above is remembered as a list of its first :data:`FEET_DEPTH`
+obstacle records and kept feet (``feet_depth``), in column order: the flag unit's two small
+lists (the previous row's, read, and the current row's, written) instead of a register per
+column; a record beyond them has nothing below it kept.
 
 **The line's sources** (:class:`FloorParams` ``mode``):
 
@@ -62,9 +65,9 @@ candidates. Without one the slopes (``slope_min`` .. ``slope_max``, 0.125 .. 0.6
 cameras about 1 m to 0.2 m above the floor with a 0.12 m baseline) keep a constant-disparity
 band (a wall, the far background) from being taken for the floor.
 
-The record stage (``hdl/floor.py``) or the CPU (``firmware/src/floor.c`` ``floor_flag``)
-computes the flag from the line (the record stage without the feet: the SoC's flags are
-:func:`floor_flags`'; ``floor_feet`` in ``firmware/src/floor.c`` is :func:`keep_feet`); the CPU learns the line from each frame's records
+The record stage (``hdl/floor.py``, the SoC's flags: :func:`record_flags`, the feet kept) or
+the CPU (``firmware/src/floor.c`` ``floor_flag``, without the feet) computes the flag from the
+line; the CPU learns the line from each frame's records
 (``floor_learn``, bit-exact with :func:`learn_line`) and uses it for the next frame
 (:class:`FloorModel` is that loop).
 """
@@ -72,11 +75,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "keep_feet", "learn_line",
+__all__ = ["FloorLine", "FloorParams", "FloorModel", "floor_flags", "keep_feet", "record_flags",
+           "learn_line",
            "line16",
            "search_start16",
            "SLOPE_BITS", "OFFSET_BITS", "LINE_FRAC", "BIN_SHIFT", "TOL_BITS", "TOL_SHIFT_BITS",
-           "MODES"]
+           "MODES", "FEET_DEPTH"]
 
 #: Bits of the line's slope (unsigned, 1/256 px per row) and offset (signed, 1/256 px).
 SLOPE_BITS = 10
@@ -89,6 +93,8 @@ BIN_SHIFT = 7
 TOL_BITS = 8
 TOL_SHIFT_BITS = 3
 MODES = ("learn", "rig", "off")
+#: The obstacle records of a row the feet rule remembers (:attr:`FloorParams.feet_depth`).
+FEET_DEPTH = 64
 
 
 @dataclass(frozen=True)
@@ -167,6 +173,9 @@ class FloorParams:
     initial: FloorLine | None = None
     #: Keep obstacle feet (:func:`keep_feet`) in :class:`FloorModel`'s flags.
     feet: bool = True
+    #: The obstacle records and kept feet of a row the feet rule remembers for the next row
+    #: (the first ones, in stream order): the flag unit's list (``hdl.floor.FEET_DEPTH``).
+    feet_depth: int = FEET_DEPTH
 
     def validate(self):
         if self.mode not in MODES:
@@ -178,6 +187,9 @@ class FloorParams:
                 raise ValueError(f"floor {name}={v!r} outside 0..{(1 << bits) - 1}")
         if not 0 <= self.slope_min <= self.slope_max < 1 << SLOPE_BITS or self.slope_step < 1:
             raise ValueError("floor slopes need 0 <= slope_min <= slope_max < 1024, step >= 1")
+        if isinstance(self.feet_depth, bool) or \
+                not isinstance(self.feet_depth, (int, np.integer)) or self.feet_depth < 0:
+            raise ValueError(f"floor feet_depth={self.feet_depth!r} must be an integer >= 0")
         if not isinstance(self.feet, bool):
             raise ValueError(f"floor feet must be True or False, not {self.feet!r}")
         if self.mode == "rig" and self.initial is None:
@@ -196,37 +208,65 @@ def floor_flags(y, d16, line, params):
     return (d16 <= l16 + tol).astype(np.uint8)
 
 
+def record_flags(records, line, params):
+    """The floor flags (uint8 0/1) of one frame's records (``x``, ``y``, ``d16``) by ``line``:
+    :func:`floor_flags` with the obstacle feet kept (:func:`keep_feet`) when ``params.feet``;
+    the flag unit's (``hdl/floor.py``) with the default ``feet`` and ``feet_depth``."""
+    flags = floor_flags(records["y"], records["d16"], line, params)
+    if params.feet:
+        flags = keep_feet(records["x"], records["y"], records["d16"], flags, line, params)
+    return flags
+
+
 def keep_feet(x, y, d16, flags, line, params):
     """The floor flags ``flags`` (:func:`floor_flags` of the records ``(x, y, d16)``, in
-    raster order) with the obstacle feet kept (0): a flagged record above the line whose record
+    stream order) with the obstacle feet kept (0): a flagged record above the line whose record
     above (row ``y - 1``, column ``x``) is an obstacle record within ``tol16(y)`` of its
-    disparity (see the module docstring). uint8 0/1."""
+    disparity (see the module docstring). The row above is the list of its first
+    ``params.feet_depth`` obstacle records and kept feet, in stream order, and a record finds
+    its column there by a walk: a pointer that starts at the list's head each row passes the
+    entries of smaller column than the record's and stops at the first of an equal or greater
+    one, which is the record above when its column is the record's (for records of a row in
+    increasing column, the matcher's raster order, simply the entry of the same column). A run
+    of records of one row is a row; a row follows the row above only when its ``y`` is one
+    more, else nothing is above it. uint8 0/1."""
     x = np.asarray(x, dtype=np.int64)
     y = np.asarray(y, dtype=np.int64)
     d16 = np.asarray(d16, dtype=np.int64)
     out = np.array(flags, dtype=np.uint8, copy=True)
     if line is None or params.mode == "off" or y.size == 0:
         return out
+    depth = int(params.feet_depth)
     l16 = line16(line, y)
     t16 = np.int64(params.tol) + (np.maximum(l16, 0) >> np.int64(params.tol_shift))
-    none = np.int64(-1)                     # no obstacle record (disparities are >= 0)
-    width = int(x.max()) + 1
-    above = np.full(width, none)            # the obstacle disparity of row y - 1, per column
+    empty = np.zeros(0, np.int64)
+    px, pd = empty, empty                   # the row above's list: columns, disparities
+    cx, cd = empty, empty                   # the list written by the last row
     row = None
     starts = np.flatnonzero(np.r_[True, y[1:] != y[:-1]])
     for a, b in zip(starts, np.r_[starts[1:], y.size]):
-        if row is None or int(y[a]) != row + 1:
-            above[:] = none
+        px, pd = (cx, cd) if row is not None and int(y[a]) == row + 1 else (empty, empty)
         row = int(y[a])
         xs, ds, ls, ts = x[a:b], d16[a:b], l16[a:b], t16[a:b]
-        up = above[xs]
-        near = (up != none) & (np.abs(up - ds) <= ts)
-        feet = (out[a:b] == 1) & near & (ds > ls)
-        obstacle = (out[a:b] == 0) & ((ds >= ls + 2 * ts) | near)
+        if np.all(np.diff(xs) >= 0) and np.all(np.diff(px) >= 0):
+            ptr = np.searchsorted(px, xs, side="left")       # the walk, in sorted order
+        else:
+            ptr = np.empty(xs.size, np.int64)
+            k = 0
+            for j, xj in enumerate(xs.tolist()):
+                while k < px.size and px[k] < xj:
+                    k += 1
+                ptr[j] = k
+        at = np.minimum(ptr, max(px.size - 1, 0))
+        hit = (ptr < px.size) & (px[at] == xs) if px.size else np.zeros(xs.size, bool)
+        up = np.where(hit, pd[at] if px.size else 0, 0)
+        near = hit & (np.abs(up - ds) <= ts)
+        flagged = out[a:b] == 1
+        feet = flagged & near & (ds > ls)
+        obstacle = ~flagged & ((ds >= ls + 2 * ts) | near)
         out[a:b][feet] = 0
-        above[:] = none
-        above[xs[obstacle]] = ds[obstacle]
-        above[xs[feet]] = up[feet]
+        keep = np.flatnonzero(feet | obstacle)[:depth]
+        cx, cd = xs[keep], np.where(feet, up, ds)[keep]
     return out
 
 
@@ -339,10 +379,7 @@ class FloorModel:
         """Floor flags of one frame's records (``y``, ``d16``); the line they used is
         ``self.used`` afterwards."""
         self.used = self._lines[0]
-        flags = floor_flags(records["y"], records["d16"], self.used, self.params)
-        if self.params.feet:
-            flags = keep_feet(records["x"], records["y"], records["d16"], flags, self.used,
-                              self.params)
+        flags = record_flags(records, self.used, self.params)
         if self.params.mode == "learn":
             self.line = learn_line(records["y"], records["d16"], self.params, self.line,
                                    prior=self.params.initial)

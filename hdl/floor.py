@@ -1,5 +1,6 @@
-"""The floor flag of each match record, from a v-disparity floor line held in registers
-(specification: ``golden/floor.py`` :func:`golden.floor.floor_flags`).
+"""The floor flag of each match record, from a v-disparity floor line held in registers, with
+the obstacle feet kept (specification: ``golden/floor.py`` :func:`golden.floor.floor_flags`
+and :func:`golden.floor.keep_feet`, together :func:`golden.floor.record_flags`).
 
 A record ``(y, d16)`` is a floor point when ``d16 <= line16(y) + tol16(y)``, with
 ``line16(y) = (slope * y + offset) >> 4`` and ``tol16 = tol + (max(line16, 0) >> tol_shift)``;
@@ -10,26 +11,56 @@ frame: the cycle after reset), when the input waits one cycle for them; so a wri
 frame applies from the next one, and one that must apply to frame n + 1 is made before frame
 n's ``eof`` record reaches the unit.
 
+Obstacle feet: a flagged record above the line (``d16 > line16``) is not a floor point when
+the record above it (row ``y - 1``, the same column) is an obstacle record within ``tol16`` of
+its disparity; an obstacle record is an unflagged one at least two tolerances above the line
+(``d16 >= line16 + 2 tol16``) or within ``tol16`` of an obstacle record above it, and a kept
+foot carries down the disparity of the record above it. The unit remembers the row above as a
+list of its first ``feet_depth`` (:data:`FEET_DEPTH`) obstacle records and kept feet, ``(x,
+d16)`` in stream order, and writes the current row's beside it: two banks of distributed RAM
+of ``feet_depth`` entries, one read and one written, swapped when a row starts (a row is a run
+of records with one ``y``; the list read is the last row's when the new row's ``y`` is one
+more, else empty; an ``eof`` record ends the frame's rows). The state of every column would
+take ``width`` disparities; the lists take ``2 feet_depth`` entries, and only the first
+``feet_depth`` obstacle records of a row can keep a foot under them. Each record walks
+the row above's list with a pointer from the row's start: past the entries of a smaller
+column, one a cycle, stopping at the first of an equal or greater one, which is the record
+above when the columns are equal. The matcher sends the records of a row in increasing column
+(one job per left edge, in scan order, through in-order queues), so the walk meets each entry
+once; records out of that order get the walk's answer, which golden models exactly.
+
 Pipeline (every path one carry chain of at most 16 bits): (1) ``slope * y`` (a multiplier
 block, registered); (2) the low 12 bits of ``+ offset`` and their carry; (3) the high bits
 with the carry; ``line16`` saturated to 14 bits signed (a disparity window never reaches
-beyond 2 ** 12 in 1/16 px, so the comparison is unchanged); (4) ``tol16``; (5) the threshold
-``line16 + tol16``; (6) the comparison, into the output register. All unsigned: the line is
-carried in offset binary (``line16 + 2 ** 13``). The stages advance together
-when the output register is free or taken, and ``i.ready`` is that condition (no skid
-buffer: its payload multiplexer would cost a LUT per record bit, and the unit sits between the
-matcher's output FIFO and the result FIFO, both registered), except in the one cycle after
-each ``eof`` record. Latency: 6 cycles; one record a cycle.
+beyond 2 ** 12 in 1/16 px, so no decision changes); (4) ``tol16``; (5) the thresholds
+``line16 + tol16`` and ``line16 + 2 tol16``; (6) the flag, above the line, two tolerances
+above it, and the window ``d16 - tol16 .. d16 + tol16`` a record above must lie in; (7) the
+feet: the walk, the comparisons with the entry under the pointer (read asynchronously), the
+flag into the output register and the entry into the current row's list. All unsigned: the
+line is carried in offset binary (``line16 + 2 ** 13``). The stages advance together when the
+output register is free or taken and stage (7) does not hold its record (no skid buffer: its
+payload multiplexer would cost a LUT per record bit, and the unit sits between the matcher's
+output FIFO and the result FIFO, both registered); ``i.ready`` is that condition, except in the
+one cycle after each ``eof`` record. Stage (7) holds a record one cycle when it starts a row
+(the banks swap) and one cycle per list entry its walk passes; it walks while the output
+waits. Latency: 7 cycles without those holds; one record a cycle otherwise, so a row of ``n``
+records whose row above has ``k`` entries takes at most ``n + k + 1`` cycles.
+
+Resources: the comparisons and the walk's counters are a few carry chains of up to 16 bits
+(about a LUT a bit), the lists ``2 feet_depth x (bits of x + bits of d16)`` bits of
+distributed RAM (single-port: each bank has one address, the write pointer's or the walk's),
+and the seventh stage a second copy of the record in registers.
 """
 from amaranth.hdl import Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from golden.floor import OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
+from golden.floor import FEET_DEPTH, OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
 
-__all__ = ["FloorFlag", "floor_record_layout", "LATENCY"]
+__all__ = ["FloorFlag", "floor_record_layout", "LATENCY", "FEET_DEPTH"]
 
-LATENCY = 6
+LATENCY = 7
 #: Bits of the saturated line and of the threshold (signed).
 _LINE_BITS = 14
 _LO = 12
@@ -49,22 +80,30 @@ class FloorFlag(wiring.Component):
     Parameters
     ----------
     layout : StructLayout
-        The input records (``hdl.matcher.match_record_layout`` of a census matcher: ``y``,
-        ``d16`` and ``eof`` are used, the other fields pass through).
+        The input records (``hdl.matcher.match_record_layout`` of a census matcher: ``x``,
+        ``y``, ``d16`` and ``eof`` are used, the other fields pass through).
+    feet_depth : int
+        Entries of each row's list of obstacle records (``golden.floor.FloorParams``
+        ``feet_depth``, whose default is :data:`FEET_DEPTH`).
 
     Ports
     -----
     i : In(stream of ``layout``)
-        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``,
-        low in the cycle after an ``eof`` record (the registers are loaded).
+        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``
+        while the feet stage does not hold its record; low in the cycle after an ``eof``
+        record (the registers are loaded).
     o : Out(stream of :func:`floor_record_layout`)
-        The same records with ``floor``, in order, :data:`LATENCY` cycles later without stalls.
+        The same records with ``floor`` (the obstacle feet cleared), in order, :data:`LATENCY`
+        cycles later without stalls and holds.
     enable, slope, offset, tol, tol_shift : In
         The floor decision's registers (``golden.floor.FloorParams`` and ``FloorLine``):
         ``offset`` is signed, the rest unsigned.
     """
 
-    def __init__(self, layout):
+    def __init__(self, layout, feet_depth=FEET_DEPTH):
+        if not isinstance(feet_depth, int) or isinstance(feet_depth, bool) or feet_depth < 1:
+            raise ValueError(f"feet_depth must be an integer >= 1, not {feet_depth!r}")
+        self._depth = feet_depth
         d16 = layout.members["d16"]
         if (d16 if isinstance(d16, int) else d16.width) > _LINE_BITS - 1:
             raise ValueError(f"d16 of {d16} bits: the floor flag takes at most "
@@ -80,7 +119,13 @@ class FloorFlag(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        en = ~self.o.valid | self.o.ready
+        # out: the output register is free or taken; go: every stage advances (the feet
+        # stage holds its record while it walks the row above's list or starts a row)
+        out = ~self.o.valid | self.o.ready
+        hold = Signal()
+        go = Signal()
+        m.d.comb += go.eq(out & ~hold)
+        en = go
         # the registers of a frame are loaded in the cycle after the previous frame's eof
         # record entered (or after reset), while the input waits
         load = Signal(init=1)
@@ -131,16 +176,76 @@ class FloorFlag(wiring.Component):
         m.d.comb += grow.eq(pos >> s3["tol_shift"])
         s4 = stage(4, v=s3["v"], rec=s3["rec"], line=s3["line"], enable=s3["enable"],
                    tol16=(s3["tol"] + grow)[:_LINE_BITS])
-        # (5) the threshold, biased: b + tol16
-        s5 = stage(5, v=s4["v"], rec=s4["rec"], thr=(s4["line"] + s4["tol16"])[:_LINE_BITS + 1],
-                   enable=s4["enable"])
-        # (6) d16 <= line16 + tol16, i.e. d16 + 2 ** 13 <= the biased threshold (d16 < 2 ** 13)
-        flag = s5["enable"] & ~s5["rec"].eof & \
-            (Cat(s5["rec"].d16, Const(0, bias - len(s5["rec"].d16)), Const(1, 1)) <= s5["thr"])
-        out = self.o.payload
-        with m.If(en):
-            m.d.sync += self.o.valid.eq(s5["v"])
-            for name in self._in.members:
-                m.d.sync += getattr(out, name).eq(getattr(s5["rec"], name))
-            m.d.sync += out.floor.eq(flag)
+        # (5) the thresholds, biased: b + tol16 (the flag) and b + 2 tol16 (an obstacle)
+        t = s4["tol16"]
+        s5 = stage(5, v=s4["v"], rec=s4["rec"], thr=(s4["line"] + t)[:_LINE_BITS + 1],
+                   thr2=(s4["line"] + Cat(Const(0, 1), t))[:_LINE_BITS + 2],
+                   line=s4["line"], tol16=t, enable=s4["enable"])
+        # (6) d16 <= line16 + tol16, i.e. d16 + 2 ** 13 <= the biased threshold (d16 < 2 **
+        # 13); above the line; two tolerances above it; the window d16 +- tol16 of the record
+        # above (d16 - tol16 + 2 ** 14 and d16 + tol16)
+        r5 = s5["rec"]
+        dpad = Cat(r5.d16, Const(0, bias - len(r5.d16)))
+        dbias = Cat(dpad, Const(1, 1))                  # d16 + 2 ** 13
+        s6 = stage(6, v=s5["v"], rec=r5,
+                   flag=s5["enable"] & ~r5.eof & (dbias <= s5["thr"]),
+                   above=dbias > s5["line"], start=dbias >= s5["thr2"],
+                   lo=(Cat(dpad, Const(2, 2)) - s5["tol16"])[:_LINE_BITS + 1],
+                   hi=(dpad + s5["tol16"])[:_LINE_BITS + 1])
+        # (7) the obstacle feet: the previous row's list walked, the current row's written
+        self._feet(m, s6, out, hold, go)
         return m
+
+    def _feet(self, m, s6, out, hold, go):
+        r = s6["rec"]
+        xw, dw = len(r.x), len(r.d16)
+        n = self._depth
+        entry = data.StructLayout({"x": xw, "d16": dw})
+        # one bank per list; a bank is either read (the previous row) or written (the
+        # current row), so each has one address: a single-port distributed RAM
+        banks = []
+        for k in range(2):
+            mem = Memory(shape=entry, depth=max(n, 2), init=[], attrs={"ram_style": "distributed"})
+            m.submodules[f"feet{k}"] = mem
+            banks.append((mem.write_port(), mem.read_port(domain="comb")))
+        wbank = Signal()                    # the bank of the current row (the other is read)
+        ptr = Signal(range(n + 1))          # the walk in the previous row's list
+        count = Signal(range(n + 1))        # its entries
+        fill = Signal(range(n + 1))         # the current row's entries
+        row = Signal.like(r.y)              # the current row
+        next_row = Signal(len(r.y) + 1)     # row + 1
+        have_row = Signal()                 # a row of this frame has started
+        for k, (wp, rp) in enumerate(banks):
+            writing = wbank == k
+            m.d.comb += [wp.addr.eq(Mux(writing, fill, ptr)), rp.addr.eq(wp.addr)]
+        above = Signal(entry)
+        m.d.comb += above.eq(Mux(wbank, banks[0][1].data, banks[1][1].data))
+        rec_v = s6["v"] & ~r.eof
+        new_row = rec_v & (~have_row | (r.y != row))
+        more = ptr != count
+        step = rec_v & ~new_row & more & (above.x < r.x)
+        m.d.comb += hold.eq(new_row | step)
+        hit = more & (above.x == r.x)
+        near = hit & (Cat(above.d16, Const(0, len(s6["lo"]) - dw - 1), Const(1, 1)) >= s6["lo"]) & \
+            (above.d16 <= s6["hi"])
+        foot = s6["flag"] & near & s6["above"]
+        obstacle = ~s6["flag"] & (s6["start"] | near)
+        for k, (wp, rp) in enumerate(banks):
+            m.d.comb += [wp.en.eq(go & rec_v & (foot | obstacle) & (fill != n) & (wbank == k)),
+                         wp.data.x.eq(r.x), wp.data.d16.eq(Mux(foot, above.d16, r.d16))]
+        with m.If(new_row):
+            m.d.sync += [wbank.eq(~wbank), ptr.eq(0), fill.eq(0), row.eq(r.y),
+                         next_row.eq(r.y + 1), have_row.eq(1),
+                         count.eq(Mux(have_row & (r.y == next_row), fill, 0))]
+        with m.Elif(step):
+            m.d.sync += ptr.eq(ptr + 1)
+        with m.Elif(go & rec_v & (foot | obstacle) & (fill != n)):
+            m.d.sync += fill.eq(fill + 1)
+        with m.If(go & s6["v"] & r.eof):
+            m.d.sync += have_row.eq(0)
+        o = self.o.payload
+        with m.If(out):
+            m.d.sync += self.o.valid.eq(s6["v"] & ~hold)
+            for name in self._in.members:
+                m.d.sync += getattr(o, name).eq(getattr(r, name))
+            m.d.sync += o.floor.eq(s6["flag"] & ~foot)

@@ -329,8 +329,9 @@ REGISTERS: tuple[Register, ...] = (
     # both registers in the cycle after each frame's end-of-frame record passes it.
     Register("FLOOR", 0xD0, "rw", "Floor flag of the records (golden/floor.py floor_flags): "
              "a record is a floor point when d16 <= line16(y) + tol + (max(line16(y), 0) >> "
-             "tol_shift). Loaded at each frame's end: a write applies from the frame after the "
-             "one in progress. The matcher's search start (floor_search, floor_margin) takes "
+             "tol_shift), except an obstacle's foot under an obstacle record of its disparity "
+             "in the row above (golden/floor.py keep_feet). Loaded at each frame's end: a "
+             "write applies from the frame after the one in progress. The matcher's search start (floor_search, floor_margin) takes "
              "FLOOR_LINE with them when a frame starts (hdl/matcher_start.py).", (
         F("floor_enable", 0, 1, 0, "1: flag floor points by FLOOR_LINE; 0: no record is one"),
         F("floor_search", 1, 1, 0, "1: the matcher tries at row y only d with 16 d >= "

@@ -373,11 +373,12 @@ def _floor_unit(job):
         enters, and the unit loads the next frame's line in the following cycle."""
 
         def __init__(self):
-            self.flag = FloorFlag(layout)
+            self.flag = FloorFlag(layout, feet_depth=params.feet_depth)
             # what the Verilog depends on beside hdl/: a cached simulator build is found by
             # these (sim.backends.verilator.construction_params)
             self._lines = tuple((l.slope, l.offset) for l in lines)
             self._tol = (params.tol, params.tol_shift)
+            self._feet_depth = params.feet_depth
             self._layout = repr(layout)
             super().__init__({"i": In(stream.Signature(layout)),
                               "o": Out(stream.Signature(floor_record_layout(layout)))})
@@ -410,8 +411,8 @@ def _record_layout(job):
 @dataclass
 class FloorUnit:
     """The floor flag unit on the golden pipeline's records (``hdl/floor.py``, golden
-    ``golden.floor.floor_flags``), each frame's line learned from the frame before
-    (:func:`floor_lines_for`)."""
+    ``golden.floor.floor_flags`` with the obstacle feet kept, ``keep_feet``), each frame's line
+    learned from the frame before (:func:`floor_lines_for`)."""
     name: str = "floor"
     stereo: bool = True
     doc: str = "floor flag of each match record (v-disparity line)"
@@ -441,9 +442,10 @@ class FloorUnit:
         return {"o": len(job.left)}
 
     def expected(self, job):
-        from golden.floor import floor_flags
+        from golden.floor import floor_flags, keep_feet
         lines, params = floor_lines_for(job)
-        return [floor_flags(r["y"], r["d16"], line, params)
+        return [keep_feet(r["x"], r["y"], r["d16"], floor_flags(r["y"], r["d16"], line, params),
+                          line, params)
                 for r, line in zip(self._records(job), lines)]
 
     def mismatches(self, job, words, dut):

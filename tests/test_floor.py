@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from golden.floor import (FloorLine, FloorModel, FloorParams, floor_flags, keep_feet,
+from golden.floor import (FEET_DEPTH, FloorLine, FloorModel, FloorParams, floor_flags, keep_feet,
                           learn_line, line16)
 from sim.scenes.rendered import Rig, ground_disparity
 
@@ -72,6 +72,67 @@ def test_obstacle_feet_kept():
     assert keep_feet(np.array([50, 50]), np.array([98, 100]), np.array([245, 245]),
                      np.array([0, 1]), line, p).tolist() == [0, 1]
     assert keep_feet(x, y, d16, base, None, p).tolist() == base.tolist()
+
+
+def walk_feet(x, y, d16, flags, line, p):
+    """keep_feet record by record: the row above's list of (column, disparity), its first
+    feet_depth entries, and a pointer walking it."""
+    out = [int(f) for f in flags]
+    prev, cur, row, k = [], [], None, 0
+    for j in range(len(x)):
+        xj, yj, dj = int(x[j]), int(y[j]), int(d16[j])
+        if yj != row:
+            prev, cur, k = (cur if row is not None and yj == row + 1 else []), [], 0
+            row = yj
+        l16 = int(line16(line, yj))
+        t16 = p.tol + (max(l16, 0) >> p.tol_shift)
+        while k < len(prev) and prev[k][0] < xj:
+            k += 1
+        up = prev[k][1] if k < len(prev) and prev[k][0] == xj else None
+        near = up is not None and abs(up - dj) <= t16
+        foot = out[j] == 1 and near and dj > l16
+        if foot:
+            out[j] = 0
+        if (foot or (flags[j] == 0 and (dj >= l16 + 2 * t16 or near))) and \
+                len(cur) < p.feet_depth:
+            cur.append((xj, up if foot else dj))
+    return out
+
+
+def test_feet_list_depth_and_walk():
+    """The row above is a list of its first feet_depth obstacle records: a column beyond them
+    keeps no foot; keep_feet equals a record-by-record walk of that list on random streams,
+    in raster order and not (columns out of order or repeated, rows skipped or repeated)."""
+    line = FloorLine(64, -256 * 10)                # line16(y) = 4 y - 160
+    cols = np.arange(0, 100, 2)
+    x = np.tile(cols, 5)
+    y = np.repeat(np.arange(96, 101), cols.size)   # an obstacle at 245 standing on row 100
+    d16 = np.full(x.size, 245)
+    for depth in (0, 7, 32, 64):
+        p = FloorParams(mode="rig", initial=line, feet_depth=depth)
+        base = floor_flags(y, d16, line, p)
+        assert base[y == 100].all() and not base[y < 100].any()
+        kept = keep_feet(x, y, d16, base, line, p)
+        assert kept[y == 100].tolist() == [0] * min(depth, cols.size) + \
+            [1] * max(0, cols.size - depth)
+    assert FloorParams().feet_depth == FEET_DEPTH
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        n = int(rng.integers(1, 300))
+        yy = np.sort(rng.integers(0, 12, n))
+        xx = rng.integers(0, 16, n)
+        if trial % 2:
+            order = np.lexsort((xx, yy))
+            yy, xx = yy[order], xx[order]
+        if trial % 5 == 0:
+            yy = rng.integers(0, 5, n)                 # rows out of order
+        dd = int(line16(line, 6)) + rng.integers(-30, 60, n)
+        dd = np.maximum(dd, 0)
+        p = FloorParams(mode="rig", initial=line, tol=int(rng.integers(0, 9)),
+                        tol_shift=int(rng.integers(0, 8)), feet_depth=int(rng.integers(0, 9)))
+        base = floor_flags(yy, dd, line, p)
+        assert keep_feet(xx, yy, dd, base, line, p).tolist() == \
+            walk_feet(xx, yy, dd, base, line, p), trial
 
 
 def planted(rng, line, n_floor=300, n_obstacle=600, height=240):
@@ -146,7 +207,8 @@ def test_model_lag_two_flags_by_the_line_learned_two_frames_before():
 
 def test_bad_parameters():
     for kw in (dict(mode="sky"), dict(tol=256), dict(tol_shift=8), dict(slope_min=900, slope_max=10),
-               dict(mode="rig"), dict(feet=1)):
+               dict(mode="rig"), dict(feet=1), dict(feet_depth=-1),
+               dict(feet_depth=True)):
         with pytest.raises(ValueError):
             FloorParams(**kw).validate()
     for s, o in ((1024, 0), (-1, 0), (0, 1 << 17)):

@@ -1,5 +1,6 @@
-"""The floor flag unit (hdl/floor.py) against golden.floor, with the line learned frame to
-frame as the CPU does it: bit-exact with random stalls on both sides, over several frames; and
+"""The floor flag unit (hdl/floor.py) against golden.floor (``record_flags``: the obstacle feet
+kept), with the line learned frame to frame as the CPU does it: bit-exact with random stalls on
+both sides, over several frames, and on streams out of raster order; and
 the matcher's search start under that line (hdl/matcher_start.py) against golden
 ``match(lowest16=search_start16(...))``, on every backend and through the SoC's registers."""
 import random
@@ -8,8 +9,8 @@ import numpy as np
 import pytest
 from amaranth.sim import Simulator
 
-from golden.floor import FloorLine, FloorParams, floor_flags, learn_line
-from hdl.floor import LATENCY, FloorFlag, floor_record_layout
+from golden.floor import FloorLine, FloorParams, floor_flags, keep_feet, learn_line
+from hdl.floor import FEET_DEPTH, LATENCY, FloorFlag, floor_record_layout
 from hdl.matcher import match_record_layout
 from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
 
@@ -28,11 +29,48 @@ def frame_records(rng, height, width, line, n, d_max=255):
                 cost=rng.integers(0, 392, n), conf=rng.integers(0, 256, n))
 
 
-def run(frames, configs, seed):
+def feet_frame(rng, height, width, line, n_cols=24):
+    """Raster-ordered records of obstacles standing on the floor: columns of constant
+    disparity whose lowest rows reach the floor's disparity (feet), floor columns following
+    the line, every row of a band of rows, with gaps, and random records."""
+    rows = np.arange(height // 3, height - 2)
+    recs = []
+    for c in range(n_cols):
+        x = int(rng.integers(0, width))
+        if c % 3:                               # an obstacle standing at row foot
+            foot = int(rng.integers(rows[0] + 4, rows[-1]))
+            d = int(line.at16(foot)) + int(rng.integers(1, 6))
+            top = foot - int(rng.integers(3, 30))
+            for y in range(max(top, 0), foot + 1):
+                if rng.random() < 0.93:
+                    recs.append((x, y, d + int(rng.integers(-2, 3))))
+        else:                                   # the floor
+            for y in rows:
+                if rng.random() < 0.8:
+                    recs.append((x, int(y), int(line.at16(y)) + int(rng.integers(-6, 12))))
+    for _ in range(60):
+        recs.append((int(rng.integers(0, width)), int(rng.integers(0, height)),
+                     int(rng.integers(0, 4096))))
+    x, y, d16 = (np.array(v, np.int64) for v in zip(*recs))
+    d16 = np.clip(d16, 0, 4095)
+    order = np.lexsort((x, y))
+    x, y, d16 = x[order], y[order], d16[order]
+    n = len(x)
+    return dict(x=x, y=y, d16=d16, d=(d16 + 8) >> 4, cost=rng.integers(0, 392, n),
+                conf=rng.integers(0, 256, n))
+
+
+def golden_flags(rec, line, params):
+    """The unit's flags: golden's, the obstacle feet kept."""
+    flags = floor_flags(rec["y"], rec["d16"], line, params)
+    return keep_feet(rec["x"], rec["y"], rec["d16"], flags, line, params)
+
+
+def run(frames, configs, seed, feet_depth=FEET_DEPTH):
     """Feed the frames (each followed by its eof record) back to back, the registers of
     frame k written in the cycle after frame k - 1's eof record entered; returns the (floor
     flags, payload fields) per frame."""
-    dut = FloorFlag(LAYOUT)
+    dut = FloorFlag(LAYOUT, feet_depth=feet_depth)
     rng = random.Random(seed)
     got = [[] for _ in frames]
 
@@ -82,56 +120,86 @@ def run(frames, configs, seed):
 
 @pytest.mark.parametrize("seed", [None, 1, 2])
 def test_learned_line_bit_exact_over_frames(seed):
-    """Four frames: the registers of frame k+1 are the line golden learns from frame k's
-    records (the CPU's loop), with tolerances and shifts varied; enable low on one frame."""
+    """Four frames, random records and obstacles standing on the floor in turn: the registers
+    of frame k+1 are the line golden learns from frame k's records (the CPU's loop), with
+    tolerances and shifts varied; enable low on one frame; the obstacle feet kept (seed 2: a
+    list of 2 records a row, often full)."""
     rng = np.random.default_rng(5 if seed is None else seed)
+    depth = 2 if seed == 2 else FEET_DEPTH
     params = FloorParams()
     truth = FloorLine(86, -5600)
     line = FloorLine(70, -3000)
     frames, configs, lines = [], [], []
     for k in range(4):
-        rec = frame_records(rng, 240, 320, truth, 150)
+        rec = frame_records(rng, 240, 320, truth, 150) if k % 2 else \
+            feet_frame(rng, 240, 320, truth)
         tol, shift = [(4, 6), (24, 3), (0, 0), (255, 7)][k]
         enable = int(k != 2)
         frames.append(rec)
-        lines.append((line, FloorParams(tol=tol, tol_shift=shift, mode="learn" if enable else "off")))
+        lines.append((line, FloorParams(tol=tol, tol_shift=shift, feet_depth=depth,
+                                        mode="learn" if enable else "off")))
         configs.append(dict(enable=enable, slope=line.slope, offset=line.offset, tol=tol,
                             tol_shift=shift))
         line = learn_line(rec["y"], rec["d16"], params, line)
     assert len({l for l, _ in lines}) >= 2           # the learning moved the line
-    got = run(frames, configs, seed)
+    got = run(frames, configs, seed, depth)
+    feet = 0
     for rec, (line, p), g in zip(frames, lines, got):
-        want = floor_flags(rec["y"], rec["d16"], line, p)
+        want = golden_flags(rec, line, p)
+        feet += int(np.sum(want != floor_flags(rec["y"], rec["d16"], line, p)))
         assert [t[0] for t in g] == want.tolist()
         assert [t[1:] for t in g] == list(zip(rec["y"].tolist(), rec["d16"].tolist(),
                                                rec["x"].tolist(), rec["conf"].tolist()))
     assert 0 < sum(t[0] for g in got for t in g) < sum(len(g) for g in got)
+    assert feet >= 5
 
 
-def test_extreme_lines_saturate_as_golden():
-    """Lines far above and below every disparity, negative offsets, the widest slope."""
+def test_extreme_lines_and_bad_streams():
+    """Lines far above and below every disparity, negative offsets, the widest slope; frames
+    out of raster order (rows repeated or skipped, columns repeated or falling), one of
+    obstacles on the floor whose rows are shuffled, and an empty frame."""
     rng = np.random.default_rng(9)
     lines = [FloorLine(1023, 131071), FloorLine(0, -131072), FloorLine(1023, -131072),
-             FloorLine(0, 131071), FloorLine(512, -200000 // 2)]
+             FloorLine(0, 131071), FloorLine(512, -200000 // 2), FloorLine(86, -5600),
+             FloorLine(86, -5600), FloorLine(86, -5600)]
     frames, configs = [], []
-    for line in lines:
-        frames.append(frame_records(rng, 1024, 1024, FloorLine(100, 0), 60))
-        configs.append(dict(enable=1, slope=line.slope, offset=line.offset, tol=17, tol_shift=2))
+    for k, line in enumerate(lines):
+        if k < 5:
+            rec = frame_records(rng, 1024, 1024, FloorLine(100, 0), 60)
+        elif k == 5:                         # columns out of order within rows
+            rec = feet_frame(rng, 240, 320, line)
+            x = rec["x"]
+            for a in range(0, len(x) - 1, 29):
+                x[a], x[a + 1] = x[a + 1], x[a]
+        elif k == 6:                         # rows out of order
+            rec = feet_frame(rng, 240, 320, line)
+            cut = len(rec["y"]) // 2
+            rec = {f: np.concatenate([v[cut:], v[:cut]]) for f, v in rec.items()}
+        else:                                # no records
+            rec = {f: np.zeros(0, np.int64) for f in ("x", "y", "d16", "d", "cost", "conf")}
+        frames.append(rec)
+        tol, shift = (17, 2) if k < 5 else (4, 6)
+        configs.append(dict(enable=1, slope=line.slope, offset=line.offset, tol=tol,
+                            tol_shift=shift))
     got = run(frames, configs, 3)
-    for rec, line, g in zip(frames, lines, got):
-        want = floor_flags(rec["y"], rec["d16"], line, FloorParams(tol=17, tol_shift=2))
+    feet = 0
+    for rec, line, cfg, g in zip(frames, lines, configs, got):
+        p = FloorParams(tol=cfg["tol"], tol_shift=cfg["tol_shift"])
+        want = golden_flags(rec, line, p)
+        feet += int(np.sum(want != floor_flags(rec["y"], rec["d16"], line, p)))
         assert [t[0] for t in g] == want.tolist()
+    assert feet >= 10
 
 
 def test_layout_and_latency():
     assert list(floor_record_layout(LAYOUT).members)[-2:] == ["floor", "eof"]
-    assert LATENCY == 6
+    assert LATENCY == 7
 
 
 def test_meets_the_timing_rule(tmp_path):
     c = synthesize_component("floorflag", FloorFlag(LAYOUT), tmp_path)
     assert c["levels"] <= MAX_LEVELS and c["carry_bits"] <= MAX_CARRY, c
-    assert c["RAMB16"] == 0 and c["LUT4"] < 200, c
+    assert c["RAMB16"] == 0 and c["LUT4"] < 340 and c["LUT_sites"] < 520, c
 
 
 def floor_job(frames=3):
@@ -147,13 +215,16 @@ def floor_job(frames=3):
 def test_floor_unit_on_every_backend(backend):
     """The unit registry's ``floor`` unit (``python -m sim compare --unit floor``) on the golden
     pipeline's records of three frames, each frame's line learned from the frame before and
-    written between frames, with stalls, bit-exact on each simulator."""
+    written between frames, with stalls, bit-exact on each simulator (obstacle feet kept)."""
     from sim.backends.run import run_unit
     from sim.units import UNITS, floor_lines_for
     job = floor_job()
     unit = UNITS["floor"]
     assert len(set(floor_lines_for(job)[0])) >= 2
     assert sum(f.sum() for f in unit.expected(job)) > 10
+    lines, params = floor_lines_for(job)
+    assert sum(int(np.sum(f != floor_flags(g.records["y"], g.records["d16"], line, params)))
+               for f, g, line in zip(unit.expected(job), job.golden, lines)) > 0   # feet kept
     r = run_unit(unit, job, backend=backend, stall_seed=4)
     assert r["mismatches"] == 0
 
@@ -262,7 +333,7 @@ def test_search_start_through_the_registers():
     assert all(0 < st["evaluations"] < whole["evaluations"] for _, st, whole in golden)
     fp = FloorParams(tol=tol, tol_shift=shift)
     flags = [np.zeros(len(golden[0][0]), np.uint8),
-             floor_flags(golden[1][0]["y"], golden[1][0]["d16"], line, fp)]
+             golden_flags(golden[1][0], line, fp)]
     expected = [(int(r["x"]), int(r["y"]), int(r["d16"]), int(f))
                 for (recs, _, _), fl in zip(golden, flags) for r, f in zip(recs, fl)]
     assert len(expected) > 20 and 0 < flags[1].sum() < len(flags[1]), (len(expected), flags)

@@ -4,7 +4,7 @@ import pytest
 from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
-from golden.floor import FloorLine, FloorParams, floor_flags
+from golden.floor import FloorLine, FloorParams, record_flags
 from golden.freespace import FreeSpaceParams
 from golden.frontend import FrontEndParams
 from golden.ground import GroundParams, GroundMode
@@ -67,7 +67,7 @@ def test_configure_stream_and_read_results_over_the_bus():
     offset = int(np.median(16 * recs["d16"].astype(np.int64) - slope * recs["y"]))
     line = FloorLine(slope, offset)
     flags = [np.zeros(len(golden[0].records), np.uint8),
-             floor_flags(golden[1].records["y"], golden[1].records["d16"], line, fp)]
+             record_flags(golden[1].records, line, fp)]
     assert 0 < flags[1].sum() < len(flags[1])
 
     soc, sim = soc_simulator(max_width=64, max_height=16, fifo_depth=64)

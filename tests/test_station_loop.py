@@ -149,13 +149,13 @@ def test_frame_by_frame_golden_pipeline_equals_the_chained_model():
                      supersample=False) for k in range(3)]
     ref = pipeline_frames([f.left for f in frames], [f.right for f in frames],
                           default_params(160, 120))
-    from golden.floor import FloorLine, floor_flags
+    from golden.floor import FloorLine, record_flags
     gp = GoldenPipeline(160, 120)
     line = FloorLine.from_camera(rig.camera())
     dropped = 0
     for f, r in zip(frames, ref):
         got = gp(f.left, f.right)
-        keep = floor_flags(r.records["y"], r.records["d16"], line, gp.floor) == 0
+        keep = record_flags(r.records, line, gp.floor) == 0
         dropped += int((~keep).sum())
         want = np.stack([r.records["x"], r.records["y"], r.records["d"]], axis=1)[keep]
         assert np.array_equal(got, want)

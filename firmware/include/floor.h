@@ -39,28 +39,10 @@ int floor_learn(const uint16_t *y, const uint16_t *d16, uint32_t n, const floor_
  * The floor flag of one record (golden/floor.py floor_flags, hdl/floor.py): 1 when
  * d16 <= line16(y) + tol + (max(line16(y), 0) >> tol_shift), line16(y) = (slope y + offset) >> 4.
  * The CPU has the line it wrote, so it can flag the records itself where the flag bit does not
- * reach it.
+ * reach it (without the obstacle feet of golden/floor.py keep_feet, which the flag unit adds).
  */
 int floor_flag(uint16_t y, uint16_t d16, const floor_line_t *line, uint8_t tol,
                uint8_t tol_shift);
-
-/*
- * Keep the obstacle feet (golden/floor.py keep_feet): of n records in raster order (at most one
- * per pixel) with their floor flags floor[] (floor_flag), clear the flag of a record above the
- * line (d16 > line16(y)) whose record above (row y - 1, column x) is an obstacle record with a
- * disparity within tol16(y) of its own. An obstacle record is an unflagged one at least two
- * tolerances above the line (d16 >= line16 + 2 tol16) or within tol16 of an obstacle record
- * above it; a kept foot carries the disparity of the obstacle record above it. above: width
- * entries of work (the column's state of the row before). Returns -1 on bad arguments (an
- * x >= width), else the number of flags cleared.
- */
-typedef struct {
-    uint16_t row;       /* the row the state belongs to */
-    int32_t d16;        /* the obstacle disparity there, -1: none */
-} floor_above_t;
-int floor_feet(const uint16_t *x, const uint16_t *y, const uint16_t *d16, uint8_t *floor,
-               uint32_t n, const floor_line_t *line, uint8_t tol, uint8_t tol_shift,
-               floor_above_t *above, uint16_t width);
 
 /*
  * Free space per column band from the records and their floor flags (golden/freespace.py

@@ -173,45 +173,6 @@ int floor_flag(uint16_t y, uint16_t d16, const floor_line_t *line, uint8_t tol,
     return d16 <= l16 + t;
 }
 
-int floor_feet(const uint16_t *x, const uint16_t *y, const uint16_t *d16, uint8_t *floor,
-               uint32_t n, const floor_line_t *line, uint8_t tol, uint8_t tol_shift,
-               floor_above_t *above, uint16_t width)
-{
-    int cleared = 0;
-
-    if (!line || !above || (n && (!x || !y || !d16 || !floor)))
-        return -1;
-    for (uint32_t i = 0; i < n; i++)
-        if (x[i] >= width)
-            return -1;
-    for (uint16_t c = 0; c < width; c++) {
-        above[c].row = 0xFFFFu;         /* no row: y - 1 never reaches it */
-        above[c].d16 = -1;
-    }
-    for (uint32_t i = 0; i < n; i++) {
-        int64_t l16 = asr((int64_t)line->slope * y[i] + line->offset, 4);
-        int64_t t16 = tol + ((l16 > 0 ? l16 : 0) >> (tol_shift & 7));
-        int64_t d = d16[i], up = -1, state = -1;
-        floor_above_t *a = &above[x[i]];
-        int near;
-
-        if (y[i] > 0 && a->row == (uint16_t)(y[i] - 1))
-            up = a->d16;
-        near = up >= 0 && (d - up <= t16) && (up - d <= t16);
-        if (!floor[i]) {
-            if (d >= l16 + 2 * t16 || near)
-                state = d;
-        } else if (near && d > l16) {
-            floor[i] = 0;
-            state = up;
-            cleared++;
-        }
-        a->row = y[i];
-        a->d16 = (int32_t)state;
-    }
-    return cleared;
-}
-
 int floor_free_space(const uint16_t *x, const uint16_t *y, const uint8_t *floor, uint32_t n,
                      uint16_t height, uint16_t band_w, uint8_t run_r,
                      uint16_t out[FLOOR_FREE_BANDS], uint16_t *rows)

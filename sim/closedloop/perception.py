@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from golden.floor import FloorLine, FloorParams, floor_flags
+from golden.floor import FloorLine, FloorParams, record_flags
 from golden.frontend import as_rgb
 from golden.pipeline import PipelineModel, default_params
 
@@ -52,7 +52,7 @@ class GoldenPipeline:
         records = frame.records
         if "d16" in records.dtype.names:        # the SoC flags records with a subpixel d
             line = None if self.floor.mode == "off" else self.floor.initial
-            records = records[floor_flags(records["y"], records["d16"], line, self.floor) == 0]
+            records = records[record_flags(records, line, self.floor) == 0]
         return np.stack([records["x"], records["y"], records["d"]], axis=1).astype(np.int64)
 
 

@@ -19,7 +19,7 @@ Checks (the JSON line):
     flag with the installed camera's line (its image's ``floor_table.h``: the scene's line,
     ``sim.flows.floor_table.scene_line``, else FLOOR_LINE's reset value,
     ``hdl.regmap.RIG_FLOOR_LINE``) and learns none (``firmware/include/app.h`` APP_FLOOR_LEARN): golden flags by that line
-    (``golden.floor.floor_flags``); ``floor_points`` counts the flagged records, ``floor_line``
+    (``golden.floor.record_flags``: the obstacle feet kept, as the flag unit does); ``floor_points`` counts the flagged records, ``floor_line``
     is that line (slope, offset).
 ``radio_packets``, ``radio_exact``
     The packets decoded from the pin; each one's bands equal the firmware's summary rule
@@ -82,7 +82,7 @@ from __future__ import annotations
 import ctypes as C
 import time
 
-from golden.floor import FloorParams, floor_flags
+from golden.floor import FloorParams, record_flags
 from golden.pipeline import default_params, pipeline_frames
 from hdl import regmap
 from sim.system.run import LOST_FIELDS, camera_lost_span
@@ -227,7 +227,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
     floor = FloorParams(mode="rig", initial=floor_line or regmap.RIG_FLOOR_LINE)
     want = [[(int(r["x"]), int(r["y"]), int(r["d"]), int(f)) for r, f in
-             zip(g.records, floor_flags(g.records["y"], g.records["d16"], floor.initial, floor))]
+             zip(g.records, record_flags(g.records, floor.initial, floor))]
             for g in golden]
 
     nack = 0b10 if fault == "iic-nack" else 0

@@ -305,12 +305,11 @@ def _config(lib_fw, params):
 def floor_model(line=None):
     """The floor decision of the firmware's drain build (``firmware/src/app.c``): the rig's
     line first (``line``, a ``golden.floor.FloorLine``; None: ``hdl.regmap.RIG_FLOOR_LINE``), learning with the steeper slopes of a field (``APP_FLOOR_SLOPE_MAX``), each
-    line loaded by the SoC one frame after the CPU learned it (lag 2). The SoC's flag unit
-    (``hdl/floor.py``) flags each record by itself: without the obstacle feet
-    (``golden.floor.keep_feet``)."""
+    line loaded by the SoC one frame after the CPU learned it (lag 2); the obstacle feet kept
+    (``golden.floor.keep_feet``), as the SoC's flag unit (``hdl/floor.py``) does."""
     from golden.floor import FloorModel, FloorParams
     return FloorModel(FloorParams(initial=line or regmap.RIG_FLOOR_LINE,
-                                  slope_max=FLOOR_SLOPE_MAX, feet=False),
+                                  slope_max=FLOOR_SLOPE_MAX),
                       lag=2)
 
 
