@@ -29,27 +29,30 @@ above when the columns are equal. The matcher sends the records of a row in incr
 (one job per left edge, in scan order, through in-order queues), so the walk meets each entry
 once; records out of that order get the walk's answer, which golden models exactly.
 
-Pipeline (every path one carry chain of at most 16 bits): (1) ``slope * y`` (a multiplier
-block, registered); (2) the low 12 bits of ``+ offset`` and their carry; (3) the high bits
-with the carry; ``line16`` saturated to 14 bits signed (a disparity window never reaches
-beyond 2 ** 12 in 1/16 px, so no decision changes); (4) ``tol16``; (5) the thresholds
-``line16 + tol16`` and ``line16 + 2 tol16``; (6) the flag, above the line, two tolerances
-above it, and the window ``d16 - tol16 .. d16 + tol16`` a record above must lie in; (7) the
-feet: the walk, the comparisons with the entry under the pointer (read asynchronously), the
-flag into the output register and the entry into the current row's list. All unsigned: the
-line is carried in offset binary (``line16 + 2 ** 13``). The stages advance together when the
-output register is free or taken and stage (7) does not hold its record (no skid buffer: its
-payload multiplexer would cost a LUT per record bit, and the unit sits between the matcher's
-output FIFO and the result FIFO, both registered); ``i.ready`` is that condition, except in the
-one cycle after each ``eof`` record. Stage (7) holds a record one cycle when it starts a row
-(the banks swap) and one cycle per list entry its walk passes; it walks while the output
-waits. Latency: 7 cycles without those holds; one record a cycle otherwise, so a row of ``n``
-records whose row above has ``k`` entries takes at most ``n + k + 1`` cycles.
+Pipeline (every path one carry chain of at most 16 bits): (0) the input's skid buffer
+(:class:`hdl.skid.SkidBuffer`: ``i.ready`` is a register, so the holds below never reach the
+upstream unit's read logic); (1) ``slope * y`` (a multiplier block, registered); (2) the low
+12 bits of ``+ offset`` and their carry; (3) the high bits with the carry; ``line16``
+saturated to 14 bits signed (a disparity window never reaches beyond 2 ** 12 in 1/16 px, so no
+decision changes); (4) ``tol16``; (5) the thresholds ``line16 + tol16`` and ``line16 + 2
+tol16``; (6) the flag, above the line, two tolerances above it, and the window ``d16 - tol16
+.. d16 + tol16`` a record above must lie in; (7) the feet: the walk, the comparisons with the
+entry under the pointer (held in a register: the read bank's asynchronous output is the next
+entry, taken when the walk steps, and a row's first entry is kept as it is written, for the
+walk of the row after it, so no RAM read lies on the path to the holds), the flag into the
+output register and the entry into the current row's list. All unsigned: the line is carried
+in offset binary (``line16 + 2 ** 13``). The stages advance together when the output register
+is free or taken and stage (7) does not hold its record; the skid buffer's output is taken on
+that condition, except in the one cycle after each ``eof`` record. Stage (7) holds a record one
+cycle when it starts a row (the banks swap) and one cycle per list entry its walk passes; it
+walks while the output waits. Latency: 8 cycles without those holds; one record a cycle
+otherwise, so a row of ``n`` records whose row above has ``k`` entries takes at most ``n + k +
+1`` cycles.
 
 Resources: the comparisons and the walk's counters are a few carry chains of up to 16 bits
 (about a LUT a bit), the lists ``2 feet_depth x (bits of x + bits of d16)`` bits of
-distributed RAM (single-port: each bank has one address, the write pointer's or the walk's),
-and the seventh stage a second copy of the record in registers.
+distributed RAM (single-port: each bank has one address, the write pointer's or the walk's
+next entry's), the skid buffer two copies of the record in registers and a multiplexer.
 """
 from amaranth.hdl import Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
@@ -58,9 +61,11 @@ from amaranth.lib.wiring import In, Out
 
 from golden.floor import FEET_DEPTH, OFFSET_BITS, SLOPE_BITS, TOL_BITS, TOL_SHIFT_BITS
 
+from .skid import SkidBuffer
+
 __all__ = ["FloorFlag", "floor_record_layout", "LATENCY", "FEET_DEPTH"]
 
-LATENCY = 7
+LATENCY = 8
 #: Bits of the saturated line and of the threshold (signed).
 _LINE_BITS = 14
 _LO = 12
@@ -89,9 +94,8 @@ class FloorFlag(wiring.Component):
     Ports
     -----
     i : In(stream of ``layout``)
-        Records; ``eof`` ends a frame (its flag is 0). ``ready`` = ``~o.valid | o.ready``
-        while the feet stage does not hold its record; low in the cycle after an ``eof``
-        record (the registers are loaded).
+        Records; ``eof`` ends a frame (its flag is 0). ``ready`` is a register (the
+        skid buffer's: high while its spare register is empty).
     o : Out(stream of :func:`floor_record_layout`)
         The same records with ``floor`` (the obstacle feet cleared), in order, :data:`LATENCY`
         cycles later without stalls and holds.
@@ -119,6 +123,10 @@ class FloorFlag(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        # the input through a skid buffer: the walk's holds stay inside the unit instead of
+        # reaching the upstream unit's read logic through i.ready
+        m.submodules.skid = skid = SkidBuffer(self._in)
+        wiring.connect(m, wiring.flipped(self.i), skid.i)
         # out: the output register is free or taken; go: every stage advances (the feet
         # stage holds its record while it walks the row above's list or starts a row)
         out = ~self.o.valid | self.o.ready
@@ -129,9 +137,9 @@ class FloorFlag(wiring.Component):
         # the registers of a frame are loaded in the cycle after the previous frame's eof
         # record entered (or after reset), while the input waits
         load = Signal(init=1)
-        m.d.comb += self.i.ready.eq(en & ~load)
-        take = self.i.valid & en & ~load
-        rec = self.i.payload
+        m.d.comb += skid.o.ready.eq(en & ~load)
+        take = skid.o.valid & en & ~load
+        rec = skid.o.payload
         live = {n: Signal.like(getattr(self, n), name=f"cur_{n}")
                 for n in ("enable", "slope", "offset", "tol", "tol_shift")}
         with m.If(load):
@@ -210,36 +218,46 @@ class FloorFlag(wiring.Component):
             banks.append((mem.write_port(), mem.read_port(domain="comb")))
         wbank = Signal()                    # the bank of the current row (the other is read)
         ptr = Signal(range(n + 1))          # the walk in the previous row's list
+        ptr1 = Signal(range(n + 2))         # ptr + 1: the read bank's address
         count = Signal(range(n + 1))        # its entries
         fill = Signal(range(n + 1))         # the current row's entries
         row = Signal.like(r.y)              # the current row
         next_row = Signal(len(r.y) + 1)     # row + 1
         have_row = Signal()                 # a row of this frame has started
+        # the entry under the walk's pointer, in a register (the read bank's output is the next
+        # entry's, taken when the walk steps; the current row's first entry is kept as it is
+        # written, for the walk of the row after it): no RAM read on the path to the holds
+        head = Signal(entry)
+        first = Signal(entry)
         for k, (wp, rp) in enumerate(banks):
             writing = wbank == k
-            m.d.comb += [wp.addr.eq(Mux(writing, fill, ptr)), rp.addr.eq(wp.addr)]
-        above = Signal(entry)
-        m.d.comb += above.eq(Mux(wbank, banks[0][1].data, banks[1][1].data))
+            m.d.comb += [wp.addr.eq(Mux(writing, fill, ptr1)), rp.addr.eq(wp.addr)]
+        ahead = Signal(entry)
+        m.d.comb += ahead.eq(Mux(wbank, banks[0][1].data, banks[1][1].data))
         rec_v = s6["v"] & ~r.eof
         new_row = rec_v & (~have_row | (r.y != row))
         more = ptr != count
-        step = rec_v & ~new_row & more & (above.x < r.x)
+        step = rec_v & ~new_row & more & (head.x < r.x)
         m.d.comb += hold.eq(new_row | step)
-        hit = more & (above.x == r.x)
-        near = hit & (Cat(above.d16, Const(0, len(s6["lo"]) - dw - 1), Const(1, 1)) >= s6["lo"]) & \
-            (above.d16 <= s6["hi"])
+        hit = more & (head.x == r.x)
+        near = hit & (Cat(head.d16, Const(0, len(s6["lo"]) - dw - 1), Const(1, 1)) >= s6["lo"]) & \
+            (head.d16 <= s6["hi"])
         foot = s6["flag"] & near & s6["above"]
         obstacle = ~s6["flag"] & (s6["start"] | near)
+        write = go & rec_v & (foot | obstacle) & (fill != n)
+        new = Signal(entry)
+        m.d.comb += [new.x.eq(r.x), new.d16.eq(Mux(foot, head.d16, r.d16))]
         for k, (wp, rp) in enumerate(banks):
-            m.d.comb += [wp.en.eq(go & rec_v & (foot | obstacle) & (fill != n) & (wbank == k)),
-                         wp.data.x.eq(r.x), wp.data.d16.eq(Mux(foot, above.d16, r.d16))]
+            m.d.comb += [wp.en.eq(write & (wbank == k)), wp.data.eq(new)]
+        with m.If(write & (fill == 0)):
+            m.d.sync += first.eq(new)
         with m.If(new_row):
-            m.d.sync += [wbank.eq(~wbank), ptr.eq(0), fill.eq(0), row.eq(r.y),
-                         next_row.eq(r.y + 1), have_row.eq(1),
+            m.d.sync += [wbank.eq(~wbank), ptr.eq(0), ptr1.eq(1), fill.eq(0), row.eq(r.y),
+                         next_row.eq(r.y + 1), have_row.eq(1), head.eq(first),
                          count.eq(Mux(have_row & (r.y == next_row), fill, 0))]
         with m.Elif(step):
-            m.d.sync += ptr.eq(ptr + 1)
-        with m.Elif(go & rec_v & (foot | obstacle) & (fill != n)):
+            m.d.sync += [ptr.eq(ptr + 1), ptr1.eq(ptr1 + 1), head.eq(ahead)]
+        with m.Elif(write):
             m.d.sync += fill.eq(fill + 1)
         with m.If(go & s6["v"] & r.eof):
             m.d.sync += have_row.eq(0)
