@@ -102,13 +102,19 @@ uint32_t radio_encode_api_frame(const uint8_t *rf_data, uint32_t rf_len, uint16_
 #ifndef RADIO_FLOOR_COLUMNS
 #define RADIO_FLOOR_COLUMNS 768u
 #endif
+/** The largest min_support a summary keeps room for (top's second dimension). The image that
+ *  merges the SoC's summary unit (bands_hw.h) can only use min_support <= BANDS_HW_SLOTS, so it
+ *  defines it as that and spares the other slots of every band. */
+#ifndef RADIO_SUMMARY_MAX_SUPPORT
+#define RADIO_SUMMARY_MAX_SUPPORT RADIO_MAX_MIN_SUPPORT
+#endif
 
 typedef struct {
     uint16_t width;
     uint8_t n_bands;
     uint8_t min_support;
     uint8_t count[RADIO_MAX_BANDS];
-    uint8_t top[RADIO_MAX_BANDS][RADIO_MAX_MIN_SUPPORT]; /**< descending */
+    uint8_t top[RADIO_MAX_BANDS][RADIO_SUMMARY_MAX_SUPPORT]; /**< descending */
     uint16_t start[RADIO_MAX_BANDS + 1u]; /**< first column of each band; start[n_bands] = width */
     uint8_t band;                         /**< band of the last match kept: where a walk starts */
     uint8_t floor[RADIO_FLOOR_COLUMNS];   /**< per column: a match must exceed it to count */

@@ -13,6 +13,10 @@
 
 #include <string.h>
 
+/** The summary keeps room for the default min_support (radio.h RADIO_SUMMARY_MAX_SUPPORT). */
+typedef char app_summary_holds_default_support[
+    (RADIO_DEFAULT_MIN_SUPPORT <= RADIO_SUMMARY_MAX_SUPPORT) ? 1 : -1];
+
 fw_status_t app_init_decoders(app_t *app, uint32_t iic_base, uint32_t iic_timeout_polls)
 {
     static const uint8_t addrs[APP_N_DECODERS] = { ADV7180_ADDR_ALSB_LOW, ADV7180_ADDR_ALSB_HIGH };

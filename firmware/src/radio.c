@@ -160,7 +160,8 @@ fw_status_t radio_summary_init(radio_summary_t *s, uint16_t width, uint8_t n_ban
 {
     uint32_t i;
     if (s == NULL || n_bands == 0u || n_bands > RADIO_MAX_BANDS || width < n_bands ||
-        width > RADIO_MAX_WIDTH || min_support == 0u || min_support > RADIO_MAX_MIN_SUPPORT) {
+        width > RADIO_MAX_WIDTH || min_support == 0u ||
+        min_support > RADIO_SUMMARY_MAX_SUPPORT) {
         return FW_ERR_PARAM;
     }
     s->width = width;
