@@ -26,15 +26,20 @@ BASE = regmap.REGS_BASEADDR
 
 
 
-def soc_simulator(**kw):
-    """A :class:`StereoSoC` (IIC clock divider 4) in a simulator with a 100 MHz clock."""
-    soc = StereoSoC(clk_div=4, **kw)
+def simulate(soc):
+    """A simulator of ``soc`` with a 100 MHz clock."""
     m = Module()
     m.domains.sync = ClockDomain("sync")
     m.submodules.soc = soc
     sim = Simulator(m)
     sim.add_clock(1e-8)
-    return soc, sim
+    return sim
+
+
+def soc_simulator(**kw):
+    """A :class:`StereoSoC` (IIC clock divider 4) and its simulator (:func:`simulate`)."""
+    soc = StereoSoC(clk_div=4, **kw)
+    return soc, simulate(soc)
 
 
 def addr(name):
