@@ -305,22 +305,15 @@ def test_search_start_through_the_registers():
     statistics are golden ``match(lowest16=search_start16(line, H, margin))``'s (the flag unit
     takes the same line from the second frame), fewer evaluations than the whole window."""
     from golden.floor import search_start16
-    from golden.freespace import FreeSpaceParams
-    from golden.frontend import FrontEndParams
-    from golden.ground import GroundMode, GroundParams
-    from golden.matcher import RTL, MatcherParams, match
-    from golden.pipeline import PipelineParams, pipeline_frames
-    from golden.sobel import SobelParams
+    from golden.matcher import match
+    from golden.pipeline import pipeline_frames
     from sim.scenes.data import crop, motorcycle
     from sim.system.cosim.iobus import io_read, io_write
-    from tests.test_soc import (addr, read_results, run_with_cameras, soc_simulator, wait_frames,
-                                write_floor_line, write_pipeline)
+    from tests.test_soc import (addr, bus_params, read_results, run_with_cameras, soc_simulator,
+                                wait_frames, write_floor_line, write_pipeline)
     left, right, _ = motorcycle()
     lf, rf = crop(left, 64, 16, 360, 236), crop(right, 64, 16, 360, 236)
-    params = PipelineParams(
-        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7, **RTL))
+    params = bus_params()
     line, margin, tol, shift = FloorLine(60, -50), 21, 5, 3
     low = search_start16(line, 16, margin)
     golden = []

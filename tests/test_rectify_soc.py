@@ -5,19 +5,15 @@ import json
 
 import numpy as np
 
-from golden.freespace import FreeSpaceParams
-from golden.frontend import FrontEndParams
-from golden.ground import GroundMode, GroundParams
-from golden.matcher import RTL, MatcherParams
-from golden.pipeline import PipelineParams, pipeline_frames
+from golden.pipeline import pipeline_frames
 from golden.rectify import (MAP_DTYPE, RectifyParams, fits, grid_shape, node_words,
                             rectified_pipeline_frames, row_window)
-from golden.sobel import SobelParams
 from hdl import regmap
 from hdl.soc import StereoSoC
 from sim.scenes.data import crop, motorcycle
 from sim.system.cosim.iobus import BusTimeout, io_read, io_write
-from tests.test_soc import read_results, run_with_cameras, simulate, wait_frames, write_pipeline
+from tests.test_soc import (bus_params, read_results, run_with_cameras, simulate, wait_frames,
+                            write_pipeline)
 
 
 def _rect(name):
@@ -81,10 +77,7 @@ def test_map_over_the_bus_equals_golden():
     left, right, _ = motorcycle()
     w, h = 48, 20
     lf, rf = crop(left, w, h, 500, 300), crop(right, w, h, 500, 300)
-    params = PipelineParams(
-        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7, **RTL))
+    params = bus_params()
     rng = np.random.default_rng(3)
     nodes = np.zeros(grid_shape(w, h), MAP_DTYPE)
     nodes["dx"] = np.rint(rng.uniform(-1.5, 1.5, nodes.shape) * 16)

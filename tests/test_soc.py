@@ -50,6 +50,15 @@ def fields(name, value):
     return {f.name: (value >> f.lsb) & ((1 << f.width) - 1) for f in regmap.register(name).fields}
 
 
+def bus_params():
+    """The pipeline the bus tests configure: ground compensation off, Sobel threshold 64,
+    free-space bands of 6 columns, the RTL matcher (d_max 15, window 7)."""
+    return PipelineParams(
+        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
+                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
+        MatcherParams(d_max=15, window=7, **RTL))
+
+
 def run_with_cameras(soc, sim, cpu, left=(), right=()):
     """Runs the testbench ``cpu(ctx, start)``; once it has called ``start()``, the RGB frames
     ``left`` and ``right`` stream into the SoC's cameras in the background, with random idle
@@ -113,10 +122,7 @@ def test_configure_stream_and_read_results_over_the_bus():
     left, right, _ = motorcycle()
     box = (40, 12, 380, 240)
     lf, rf = crop(left, *box), crop(right, *box)
-    params = PipelineParams(
-        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7, **RTL))
+    params = bus_params()
     golden = pipeline_frames([lf, lf], [rf, rf], params)
     assert sum(len(g.records) for g in golden) > 0
     compared = record_fields(params)
