@@ -8,6 +8,7 @@ from amaranth.sim import Simulator
 
 from golden.bt656 import decode_bt656, encode_bt656, rgb_to_ycbcr, ycbcr_to_rgb
 from hdl.bt656 import Bt656ToRGB
+from tests.simulate import simulate
 
 
 def run(data, *, lines, gap_seed=None, ready=lambda cycle: True, max_cycles=None):
@@ -121,7 +122,6 @@ def test_malformed_lines_counted_and_resynchronised(n_cut):
 
 
 def test_converter_matches_golden_on_random_codes():
-    from amaranth.sim import Simulator
     from hdl.bt656 import YCbCrToRGB, CONVERT_LATENCY
     rng = np.random.default_rng(7)
     # every code near the ends and the centres of Y, Cb, Cr crossed (the carries out of the
@@ -145,10 +145,7 @@ def test_converter_matches_golden_on_random_codes():
             if ctx.get(dut.o_valid):
                 o = ctx.get(dut.o)
                 got.append(([o.r, o.g, o.b], o.sof))
-    sim = Simulator(dut)
-    sim.add_clock(1 / 27e6)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1 / 27e6)
     assert [g for g, _ in got] == want
     assert [s for _, s in got][:2] == [1, 0]
 

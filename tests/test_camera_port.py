@@ -3,51 +3,27 @@ core domain through an AsyncFIFO, converted to RGB there (hdl.bt656.Ycc422ToRGB,
 overflow drops whole frame tails and is counted."""
 import random
 
-import numpy as np
 import pytest
-from amaranth.hdl import ClockDomain, Module
-from amaranth.sim import Simulator
 
-from golden.bt656 import decode_bt656, encode_bt656, rgb_to_ycbcr
+from golden.bt656 import decode_bt656, encode_bt656
 from hdl.bt656 import Ycc422ToRGB
 from hdl.camera_port import CameraPort
+from tests.camera_drive import camera_module, drive, make_fields
 
 
-def make_fields(seed, n, h, w):
-    rng = np.random.default_rng(seed)
-    return [rgb_to_ycbcr(rng.integers(0, 256, (h, w, 3), dtype=np.uint8)) for _ in range(n)]
-
-
-def run(data, *, lines, ready, fifo_depth=16, cam_period=1 / 27e6, core_period=1 / 50e6):
+def run(data, *, lines, ready, fifo_depth=16):
     port = CameraPort(domain="cam", lines=lines, fifo_depth=fifo_depth)
-    m = Module()
-    m.domains.sync = ClockDomain()
-    m.domains.cam = ClockDomain()
-    m.submodules.port = port
+    m = camera_module(port)
     m.submodules.convert = convert = Ycc422ToRGB()
     m.d.comb += [convert.i.valid.eq(port.o.valid), convert.i.payload.eq(port.o.payload),
                  port.o.ready.eq(convert.i.ready)]
     out = convert.o
-    sim = Simulator(m)
-    sim.add_clock(core_period, domain="sync")
-    sim.add_clock(cam_period, domain="cam", phase=cam_period * 0.37)
     beats, state = [], {}
 
-    async def camera(ctx):
-        for b in data:
-            ctx.set(port.i.valid, 1)
-            ctx.set(port.i.payload, b)
-            await ctx.tick("cam")
-        ctx.set(port.i.valid, 0)
-        await ctx.tick("cam").repeat(40)
-        state["done"] = True
+    def core(ctx, n):
+        ctx.set(out.ready, ready(n))
 
-    async def core(ctx):
-        n = 0
-        while "done" not in state:
-            ctx.set(out.ready, ready(n))
-            await ctx.tick()
-            n += 1
+    async def finish(ctx):
         await ctx.tick().repeat(8)
         state.update(errors=ctx.get(port.errors), overflow=ctx.get(port.overflow),
                      locked=ctx.get(port.locked))
@@ -57,10 +33,7 @@ def run(data, *, lines, ready, fifo_depth=16, cam_period=1 / 27e6, core_period=1
             if v and r:
                 beats.append((p.r, p.g, p.b, p.sof, p.eol, p.eof))
 
-    sim.add_testbench(camera)
-    sim.add_testbench(core)
-    sim.add_testbench(monitor, background=True)
-    sim.run()
+    drive(m, port, [data], each_cycle=core, finish=finish, background=[monitor])
     return beats, state
 
 
@@ -79,7 +52,7 @@ def test_crosses_clock_domains_bit_exact_with_stalls(cut):
     rng = random.Random(3)
     beats, st = run(bytes(data), lines=3, ready=lambda n: rng.random() < 0.7)
     assert beats == gold.beats
-    assert st == {"errors": gold.errors, "overflow": 0, "locked": 1, "done": True}
+    assert st == {"errors": gold.errors, "overflow": 0, "locked": 1}
     assert gold.errors == (cut != 0)
 
 

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 from amaranth.hdl import Module, Signal
-from amaranth.sim import Simulator
 
 from hdl.counter import saturating_sum, wide_accumulator, wide_counter
+from tests.simulate import simulate
 
 
 @pytest.mark.parametrize("width, chunk, saturate", [(8, 3, True), (8, 3, False), (7, 7, True),
@@ -34,10 +34,7 @@ def test_matches_plain_counter(width, chunk, saturate):
             assert got == expect, f"cycle {i}: {got} != {expect}"
             seen.append(got)
 
-    sim = Simulator(m)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(m, bench)
     # the run reached the top (saturated or wrapped), so every chunk's carry was exercised
     assert top in seen
 
@@ -67,10 +64,7 @@ def test_accumulator_matches_plain_sum(width, chunk):
                 expect = (expect + int(adds[i])) & top
             assert ctx.get(value) == expect, f"cycle {i}"
 
-    sim = Simulator(m)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(m, bench)
     assert any(wrapped)             # the sum passed the top: every carry was exercised
 
 
@@ -94,7 +88,4 @@ def test_saturating_sum_two_cycles_later(width, chunk):
         # set before edge k, registered at edges k and k + 1: read after edge k + 1
         assert got[1:] == [min(x + y, top) for x, y in pairs]
 
-    sim = Simulator(m)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(m, bench)

@@ -304,26 +304,16 @@ def test_search_start_through_the_registers():
     FLOOR_LINE written over the bus before the first frame: the records of both frames and the
     statistics are golden ``match(lowest16=search_start16(line, H, margin))``'s (the flag unit
     takes the same line from the second frame), fewer evaluations than the whole window."""
-    import random
     from golden.floor import search_start16
-    from golden.freespace import FreeSpaceParams
-    from golden.frontend import FrontEndParams
-    from golden.ground import GroundMode, GroundParams
-    from golden.matcher import RTL, MatcherParams, match
-    from golden.pipeline import PipelineParams, pipeline_frames
-    from golden.sobel import SobelParams
-    from hdl import regmap
-    from hdl.types import RGBPixel
+    from golden.matcher import match
+    from golden.pipeline import pipeline_frames
     from sim.scenes.data import crop, motorcycle
-    from sim.streams import Packer, frames_words, stream_put
     from sim.system.cosim.iobus import io_read, io_write
-    from tests.test_soc import addr, fields, soc_simulator
+    from tests.test_soc import (addr, bus_params, read_results, run_with_cameras, soc_simulator,
+                                wait_frames, write_floor_line, write_pipeline)
     left, right, _ = motorcycle()
     lf, rf = crop(left, 64, 16, 360, 236), crop(right, 64, 16, 360, 236)
-    params = PipelineParams(
-        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7, **RTL))
+    params = bus_params()
     line, margin, tol, shift = FloorLine(60, -50), 21, 5, 3
     low = search_start16(line, 16, margin)
     golden = []
@@ -339,45 +329,19 @@ def test_search_start_through_the_registers():
     assert len(expected) > 20 and 0 < flags[1].sum() < len(flags[1]), (len(expected), flags)
 
     soc, sim = soc_simulator(max_width=64, max_height=16, fifo_depth=64)
-    state = {"configured": False, "results": []}
+    state = {}
 
-    async def cpu(ctx):
-        regs = regmap.encode_params(params.frontend.ground, params.frontend.sobel, params.matcher,
-                                    free=params.frontend.free)
-        for name, value in regs.items():
-            await io_write(ctx, soc.bus, addr(name), value)
+    async def cpu(ctx, start):
+        await write_pipeline(ctx, soc.bus, params)
         await io_write(ctx, soc.bus, addr("FLOOR"),
                        1 | 1 << 1 | tol << 8 | shift << 16 | margin << 24)
-        await io_write(ctx, soc.bus, addr("FLOOR_LINE"),
-                       line.slope | (line.offset & 0x3FFFF) << 10)
-        state["configured"] = True
-        for _ in range(20000):
-            if await io_read(ctx, soc.bus, addr("FRAME_COUNT")) == 2:
-                break
-            await ctx.tick().repeat(20)
-        else:
-            raise AssertionError("the pipeline did not finish two frames")
-        while True:
-            word = fields("RESULT", await io_read(ctx, soc.bus, addr("RESULT")))
-            word.update(fields("RESULT_EXT", await io_read(ctx, soc.bus, addr("RESULT_EXT"))))
-            if not word["valid"]:
-                break
-            state["results"].append((word["x"], word["y"], word["d16"], word["floor"]))
+        await write_floor_line(ctx, soc.bus, line)
+        start()
+        await wait_frames(ctx, soc.bus, 2)
+        state["results"] = [(w["x"], w["y"], w["d16"], w["floor"])
+                            for w in await read_results(ctx, soc.bus)]
         state["evaluations"] = await io_read(ctx, soc.bus, addr("STAT_EVALUATIONS"))
 
-    def camera(port, seed):
-        async def run(ctx):
-            while not state["configured"]:
-                await ctx.tick()
-            frame = dict(r=lf[..., 0], g=lf[..., 1], b=lf[..., 2]) if seed == 1 else \
-                dict(r=rf[..., 0], g=rf[..., 1], b=rf[..., 2])
-            await stream_put(ctx, port, frames_words(Packer(RGBPixel), [frame, frame]),
-                             rng=random.Random(seed), idle=0.2)
-        return run
-
-    sim.add_testbench(cpu)
-    sim.add_testbench(camera(soc.left, 1), background=True)
-    sim.add_testbench(camera(soc.right, 2), background=True)
-    sim.run()
+    run_with_cameras(soc, sim, cpu, [lf, lf], [rf, rf])
     assert state["results"] == expected
     assert state["evaluations"] == golden[1][1]["evaluations"]

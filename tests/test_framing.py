@@ -17,6 +17,7 @@ from sim.config import apply_config
 from sim.scenes.data import crop, motorcycle
 from sim.streams import Packer, frame_words, stream_get
 from sim.units import records_from_words, rgb
+from tests.simulate import simulate
 
 
 IDLE_ABORT = "idle, abort"
@@ -50,10 +51,7 @@ def run_tracker(beats, *, max_width=8, max_height=8):
         end.update(errors=ctx.get(dut.errors), dropped=ctx.get(dut.dropped),
                    in_frame=ctx.get(dut.in_frame))
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
     return trace, end
 
 

@@ -11,6 +11,7 @@ from hdl.freespace import LATENCY, FreeSpace, FreeSpaceTable
 from hdl.types import FreeBand, GroundPixel
 from sim.streams import (Packer, check_unit, frames_words, malformed_cases,
                          words_to_frames)
+from tests.simulate import simulate
 
 PIN, POUT = Packer(GroundPixel), Packer(FreeBand)
 
@@ -180,10 +181,7 @@ def test_table_keeps_last_frame_rows():
         await ctx.tick()
         result["rows"] = await words(ctx)
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
     partial = [FREE_NONE] * FREE_BANDS
     partial[5], partial[10] = 105, 110
     assert result["partial"] == partial

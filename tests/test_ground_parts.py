@@ -3,18 +3,11 @@ memory with its read-modify-write count update, against small Python models."""
 import random
 
 import pytest
-from amaranth.sim import Simulator
 
 from golden.ground import HIST_BITS
 from hdl.ground import GroundHistogram, GroundSets
 from hdl.ground_search import HIST_WORDS
-
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
+from tests.simulate import simulate
 
 
 def test_sets_read_one_bank_while_the_other_is_written():

@@ -3,20 +3,13 @@ formula (golden.ground.GroundModel.learn) and the thresholds against golden.grou
 import random
 
 import pytest
-from amaranth.sim import Simulator
 
 from golden.color import HUE_STEPS
 from golden.ground import FRAC_SHIFT, HIST_BITS
 from hdl.ground_search import HIST_WORDS, LUMA_BASE, GroundBlend, GroundThresholds
+from tests.simulate import simulate
 
 MASK = (1 << HIST_BITS) - 1
-
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
 
 
 @pytest.mark.parametrize("commit,model_valid,shift",

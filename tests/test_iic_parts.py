@@ -4,19 +4,12 @@ small cycle models, the bus engine against the golden I2C device and monitor mod
 import random
 
 import pytest
-from amaranth.sim import Simulator
 
 from golden.iic import I2CDevice, I2CMonitor, WiredBus, expected_write_reg8
 from hdl.iic import IICBusEngine, IICBusMonitor, IICQuarterTimer, XIIC
+from tests.simulate import simulate
 
 START, STOP = XIIC.TX_DYN_START_MASK, XIIC.TX_DYN_STOP_MASK
-
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
 
 
 @pytest.mark.parametrize("seed", [1, 2])

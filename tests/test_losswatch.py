@@ -1,19 +1,14 @@
 """Camera loss indication (hdl/camera_port.py): the camera port's field starts, taken before
 the overflow guard, cross into the core domain; LossWatch flags a camera whose starts stop."""
-import numpy as np
 import pytest
 from amaranth.hdl import ClockDomain, Module, ResetInserter, Signal
 from amaranth.sim import Simulator
 
-from golden.bt656 import decode_bt656, encode_bt656, rgb_to_ycbcr
+from golden.bt656 import decode_bt656, encode_bt656
 from hdl.camera_port import CameraPort, LossWatch
+from tests.camera_drive import camera_module, drive, make_fields
 
 PRESCALE_BITS, LIMIT = 6, 20        # 1216..1280 core cycles: about two of these fields
-
-
-def make_fields(seed, n, h=4, w=16):
-    rng = np.random.default_rng(seed)
-    return [rgb_to_ycbcr(rng.integers(0, 256, (h, w, 3), dtype=np.uint8)) for _ in range(n)]
 
 
 class WatchModel:
@@ -44,43 +39,17 @@ def run(segments, *, ready, reset_at=()):
     port = CameraPort(domain="cam", lines=4, fifo_depth=16)
     watch = LossWatch(n=1, prescale_bits=PRESCALE_BITS, limit=LIMIT)
     rst = Signal()
-    m = Module()
-    m.domains.sync = ClockDomain()
-    m.domains.cam = ClockDomain()
-    m.submodules.port = port
+    m = camera_module(port)
     m.submodules.watch = ResetInserter(rst)(watch)
     m.d.comb += [watch.start.eq(port.field_start), port.o.ready.eq(ready)]
-    sim = Simulator(m)
-    sim.add_clock(1 / 50e6, domain="sync")
-    sim.add_clock(1 / 27e6, domain="cam", phase=0.37 / 27e6)
-    trace, state = [], {}
+    trace = []
 
-    async def camera(ctx):
-        for seg in segments:
-            if isinstance(seg, int):
-                ctx.set(port.i.valid, 0)
-                await ctx.tick("cam").repeat(seg)
-                continue
-            for b in seg:
-                ctx.set(port.i.valid, 1)
-                ctx.set(port.i.payload, b)
-                await ctx.tick("cam")
-        ctx.set(port.i.valid, 0)
-        await ctx.tick("cam").repeat(40)
-        state["done"] = True
+    def core(ctx, n):
+        r = n in reset_at
+        ctx.set(rst, r)
+        trace.append((ctx.get(port.field_start), ctx.get(watch.lost), r))
 
-    async def core(ctx):
-        n = 0
-        while "done" not in state:
-            r = n in reset_at
-            ctx.set(rst, r)
-            trace.append((ctx.get(port.field_start), ctx.get(watch.lost), r))
-            await ctx.tick()
-            n += 1
-
-    sim.add_testbench(camera)
-    sim.add_testbench(core)
-    sim.run()
+    drive(m, port, segments, each_cycle=core)
     return trace
 
 

@@ -4,11 +4,11 @@ import random
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from golden.matcher import SUBPIXEL_ONE, confidence, subpixel_offset
 from hdl.matcher_post import SubpixelConfidence
 from sim.flows.synth import MAX_CARRY, MAX_LEVELS, synthesize_component
+from tests.simulate import simulate
 
 D_WIDTH = 8
 
@@ -66,10 +66,7 @@ def run(dut, vecs, gaps_seed=None):
                             ctx.get(dut.o_d), cycle))
             assert cycle < 10 * len(vecs) + 100, "results stopped coming"
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
     return got, issued
 
 

@@ -17,6 +17,7 @@ from golden.matcher import MatcherParams, candidates
 from hdl.matcher_scan import (KIND_FRAME, KIND_JOB, KIND_ROW, MATCHER_WIDEN, CandidateMask,
                               RowReady, Scanner)
 from hdl.matcher_start import SearchStart
+from tests.simulate import simulate
 
 MW, MH = 32, 16
 XB = 5                                   # ceil(log2(MW)): the column bits of a flag address
@@ -249,10 +250,7 @@ def test_candidate_mask_rule():
                     therm.append(c2 >= d_min + r + WD - 1)
                     c2 += 1
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
 
 
 def test_row_ready_rule():
@@ -298,10 +296,7 @@ def test_row_ready_rule():
                     int(bool(ok[0] and ok[1] and row >= r)), int(bool(doom))]
             row = 0 if complete else (row + next_row) % (1 << len(dut.row))
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
 
 
 @pytest.mark.parametrize("max_disparity", [20, 255])
@@ -344,10 +339,7 @@ def test_search_start_rule(max_disparity):
                 ctx.set(dut.step, 0)
                 await ctx.tick().repeat(2 + rng.randrange(2))
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
 
 
 def test_search_start_meets_the_timing_rule(tmp_path):

@@ -4,16 +4,9 @@ pipeline's rounding and clamps, the sampler's routing and blends."""
 import random
 
 import pytest
-from amaranth.sim import Simulator
 
 from hdl.rectify_parts import LineBuffer, NodeColumns, Sampler, SourceAddress
-
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
+from tests.simulate import simulate
 
 
 def test_node_columns_blend_down_the_cell():

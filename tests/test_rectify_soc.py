@@ -2,30 +2,18 @@
 registers on the I/O bus (hdl/rectify_regs.py), the map written over the bus, and the records
 read from the result FIFO against the golden rectified pipeline."""
 import json
-import random
 
 import numpy as np
-from amaranth.hdl import ClockDomain, Module
-from amaranth.sim import Simulator
 
-from golden.freespace import FreeSpaceParams
-from golden.frontend import FrontEndParams
-from golden.ground import GroundMode, GroundParams
-from golden.matcher import RTL, MatcherParams
-from golden.pipeline import PipelineParams, pipeline_frames
+from golden.pipeline import pipeline_frames
 from golden.rectify import (MAP_DTYPE, RectifyParams, fits, grid_shape, node_words,
                             rectified_pipeline_frames, row_window)
-from golden.sobel import SobelParams
 from hdl import regmap
 from hdl.soc import StereoSoC
-from hdl.types import RGBPixel
 from sim.scenes.data import crop, motorcycle
-from sim.streams import Packer, frames_words, stream_put
 from sim.system.cosim.iobus import BusTimeout, io_read, io_write
-
-
-def _addr(name):
-    return regmap.REGS_BASEADDR + regmap.register(name).offset
+from tests.test_soc import (bus_params, read_results, run_with_cameras, simulate, wait_frames,
+                            write_pipeline)
 
 
 def _rect(name):
@@ -36,15 +24,9 @@ def _fields(reg, value):
     return {f.name: (value >> f.lsb) & ((1 << f.width) - 1) for f in reg.fields}
 
 
-def _simulate(soc, cpu, cameras):
-    m = Module()
-    m.domains.sync = ClockDomain("sync")
-    m.submodules.soc = soc
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
+def _simulate(soc, cpu):
+    sim = simulate(soc)
     sim.add_testbench(cpu)
-    for c in cameras:
-        sim.add_testbench(c, background=True)
     sim.run()
 
 
@@ -70,7 +52,7 @@ def test_registers_without_pipeline_traffic():
         got["check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK"))
         got["want"] = regmap.rect_map_check(words)
 
-    _simulate(soc, cpu, [])
+    _simulate(soc, cpu)
     assert got["info"] == {"span": 6, "stride_log2": 3, "node_rows": 2, "linear": 1,
                            "preloaded": 0}
     assert got["ctrl"] == 1 | 0x3C << 8 and got["pos"] == 3 | 2 << 16
@@ -85,7 +67,7 @@ def test_registers_without_pipeline_traffic():
         except BusTimeout:
             seen["unanswered"] = True
 
-    _simulate(plain, probe, [])
+    _simulate(plain, probe)
     assert seen == {"unanswered": True}
 
 
@@ -95,10 +77,7 @@ def test_map_over_the_bus_equals_golden():
     left, right, _ = motorcycle()
     w, h = 48, 20
     lf, rf = crop(left, w, h, 500, 300), crop(right, w, h, 500, 300)
-    params = PipelineParams(
-        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7, **RTL))
+    params = bus_params()
     rng = np.random.default_rng(3)
     nodes = np.zeros(grid_shape(w, h), MAP_DTYPE)
     nodes["dx"] = np.rint(rng.uniform(-1.5, 1.5, nodes.shape) * 16)
@@ -114,15 +93,11 @@ def test_map_over_the_bus_equals_golden():
 
     soc = StereoSoC(clk_div=4, max_width=64, max_height=32, fifo_depth=256,
                     rectify=dict(span=span, horizontal="nearest"))
-    packer = Packer(RGBPixel)
-    state = {"configured": False, "results": []}
+    state = {}
     stride = 1 << 3
 
-    async def cpu(ctx):
-        for name, value in regmap.encode_params(params.frontend.ground, params.frontend.sobel,
-                                                params.matcher,
-                                                free=params.frontend.free).items():
-            await io_write(ctx, soc.bus, _addr(name), value)
+    async def cpu(ctx, start):
+        await write_pipeline(ctx, soc.bus, params)
         words = node_words(nodes, stride)
         for a, word in words:
             await io_write(ctx, soc.bus, regmap.RECT_BASEADDR + regmap.RECT_MAP_OFFSET + 4 * a,
@@ -130,31 +105,11 @@ def test_map_over_the_bus_equals_golden():
         state["check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK"))
         state["want"] = regmap.rect_map_check(words)
         await io_write(ctx, soc.bus, _rect("RECT_CTRL"), 1 | (lo & 63) << 8)
-        state["configured"] = True
-        for _ in range(40000):
-            if await io_read(ctx, soc.bus, _addr("FRAME_COUNT")) == 2:
-                break
-            await ctx.tick().repeat(20)
-        else:
-            raise AssertionError("the pipeline did not finish two frames")
-        reg = regmap.register("RESULT")
-        while True:
-            word = _fields(reg, await io_read(ctx, soc.bus, _addr("RESULT")))
-            await io_read(ctx, soc.bus, _addr("RESULT_EXT"))    # the record's second half
-            if not word["valid"]:
-                break
-            state["results"].append((word["x"], word["y"], word["d"]))
+        start()
+        await wait_frames(ctx, soc.bus, 2, polls=40000)
+        state["results"] = [(w["x"], w["y"], w["d"]) for w in await read_results(ctx, soc.bus)]
 
-    def camera(port, frames, seed):
-        async def run(ctx):
-            while not state["configured"]:
-                await ctx.tick()
-            words = frames_words(packer, [dict(r=f[..., 0], g=f[..., 1], b=f[..., 2])
-                                          for f in frames])
-            await stream_put(ctx, port, words, rng=random.Random(seed), idle=0.2)
-        return run
-
-    _simulate(soc, cpu, [camera(soc.left, [lf, lf], 1), camera(soc.right, [rf, rf], 2)])
+    run_with_cameras(soc, simulate(soc), cpu, [lf, lf], [rf, rf])
     assert state["check"] == state["want"]
     assert state["results"] == [(int(r["x"]), int(r["y"]), int(r["d"]))
                                 for g in golden for r in g.records]
@@ -178,7 +133,7 @@ def test_firmware_table_matches_the_bitstream_map(tmp_path, capsys):
         got["info"] = await io_read(ctx, soc.bus, _rect("RECT_INFO"))
         got["check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK"))
 
-    _simulate(soc, cpu, [])
+    _simulate(soc, cpu)
     info = regmap.rect_register("RECT_INFO")
     need, have = _fields(info, t["need"]), _fields(info, got["info"])
     assert have["preloaded"] == 1 and 2 <= need["span"] <= have["span"] == 8

@@ -3,10 +3,10 @@ by cycle: random field starts, field starts taken from two camera streams with s
 stalls, and bad streams (a lost field start, a field start in the middle of a field)."""
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from golden.skew import skew_measurements
 from hdl.skew import SkewCounter
+from tests.simulate import simulate
 
 
 def _register(n, cycles, skews):
@@ -34,10 +34,7 @@ def _simulate(a, b, **kw):
             got["count"][t] = ctx.get(dut.count)
             await ctx.tick()
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
     return got["skew"], got["count"] % (1 << kw.get("bits", 16))
 
 

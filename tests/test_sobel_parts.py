@@ -4,16 +4,9 @@ abandoned at random; the flush's made-up beats with random steps."""
 import random
 
 import pytest
-from amaranth.sim import Simulator
 
 from hdl.sobel import SobelFlush, SobelMagnitude
-
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(bench)
-    sim.run()
+from tests.simulate import simulate
 
 
 def tag_bits(t):

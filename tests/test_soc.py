@@ -26,15 +26,21 @@ BASE = regmap.REGS_BASEADDR
 
 
 
-def soc_simulator(**kw):
-    """A :class:`StereoSoC` (IIC clock divider 4) in a simulator with a 100 MHz clock."""
-    soc = StereoSoC(clk_div=4, **kw)
+def simulate(soc):
+    """A simulator of ``soc`` with a 100 MHz clock."""
     m = Module()
     m.domains.sync = ClockDomain("sync")
     m.submodules.soc = soc
     sim = Simulator(m)
     sim.add_clock(1e-8)
-    return soc, sim
+    return sim
+
+
+def soc_simulator(**kw):
+    """A :class:`StereoSoC` (IIC clock divider 4) and its simulator (:func:`simulate`)."""
+    soc = StereoSoC(clk_div=4, **kw)
+    return soc, simulate(soc)
+
 
 def addr(name):
     return BASE + regmap.register(name).offset
@@ -44,14 +50,79 @@ def fields(name, value):
     return {f.name: (value >> f.lsb) & ((1 << f.width) - 1) for f in regmap.register(name).fields}
 
 
+def bus_params():
+    """The pipeline the bus tests configure: ground compensation off, Sobel threshold 64,
+    free-space bands of 6 columns, the RTL matcher (d_max 15, window 7)."""
+    return PipelineParams(
+        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
+                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
+        MatcherParams(d_max=15, window=7, **RTL))
+
+
+def run_with_cameras(soc, sim, cpu, left=(), right=()):
+    """Runs the testbench ``cpu(ctx, start)``; once it has called ``start()``, the RGB frames
+    ``left`` and ``right`` stream into the SoC's cameras in the background, with random idle
+    cycles (seeds 1 and 2)."""
+    started = []
+
+    def camera(port, frames, seed):
+        async def run(ctx):
+            while not started:
+                await ctx.tick()
+            words = frames_words(Packer(RGBPixel),
+                                 [dict(r=f[..., 0], g=f[..., 1], b=f[..., 2]) for f in frames])
+            await stream_put(ctx, port, words, rng=random.Random(seed), idle=0.2)
+        return run
+
+    async def bench(ctx):
+        await cpu(ctx, lambda: started.append(True))
+
+    sim.add_testbench(bench)
+    for port, frames, seed in ((soc.left, left, 1), (soc.right, right, 2)):
+        if len(frames):
+            sim.add_testbench(camera(port, frames, seed), background=True)
+    sim.run()
+
+
+async def write_pipeline(ctx, bus, params):
+    """Writes the pipeline's registers (``regmap.encode_params``) over the bus; returns them."""
+    regs = regmap.encode_params(params.frontend.ground, params.frontend.sobel, params.matcher,
+                                free=params.frontend.free)
+    for name, value in regs.items():
+        await io_write(ctx, bus, addr(name), value)
+    return regs
+
+
+async def write_floor_line(ctx, bus, line):
+    await io_write(ctx, bus, addr("FLOOR_LINE"), line.slope | (line.offset & 0x3FFFF) << 10)
+
+
+async def wait_frames(ctx, bus, frames, polls=20000):
+    """Polls FRAME_COUNT every 20 cycles until it reads ``frames``; fails after ``polls``."""
+    for _ in range(polls):
+        if await io_read(ctx, bus, addr("FRAME_COUNT")) == frames:
+            return
+        await ctx.tick().repeat(20)
+    raise AssertionError(f"the pipeline did not finish {frames} frames")
+
+
+async def read_results(ctx, bus):
+    """Reads the result FIFO (RESULT, then RESULT_EXT) until a word is not valid; returns the
+    valid words' fields, both registers' in one dict each."""
+    words = []
+    while True:
+        word = fields("RESULT", await io_read(ctx, bus, addr("RESULT")))
+        word.update(fields("RESULT_EXT", await io_read(ctx, bus, addr("RESULT_EXT"))))
+        if not word["valid"]:
+            return words
+        words.append(word)
+
+
 def test_configure_stream_and_read_results_over_the_bus():
     left, right, _ = motorcycle()
     box = (40, 12, 380, 240)
     lf, rf = crop(left, *box), crop(right, *box)
-    params = PipelineParams(
-        FrontEndParams(GroundParams(mode=GroundMode.OFF, ref_x=0, ref_y=8, ref_w=8, ref_h=4),
-                       SobelParams(threshold=64), free=FreeSpaceParams(band_w=6, run_r=2)),
-        MatcherParams(d_max=15, window=7, **RTL))
+    params = bus_params()
     golden = pipeline_frames([lf, lf], [rf, rf], params)
     assert sum(len(g.records) for g in golden) > 0
     compared = record_fields(params)
@@ -71,33 +142,19 @@ def test_configure_stream_and_read_results_over_the_bus():
     assert 0 < flags[1].sum() < len(flags[1])
 
     soc, sim = soc_simulator(max_width=64, max_height=16, fifo_depth=64)
-    packer = Packer(RGBPixel)
-    state = {"configured": False, "results": [], "stats": {}, "errors": {}}
+    state = {"results": [], "stats": {}, "errors": {}}
 
-    async def cpu(ctx):
-        regs = regmap.encode_params(params.frontend.ground, params.frontend.sobel, params.matcher,
-                                    free=params.frontend.free)
-        for name, value in regs.items():
-            await io_write(ctx, soc.bus, addr(name), value)
+    async def cpu(ctx, start):
+        regs = await write_pipeline(ctx, soc.bus, params)
         await io_write(ctx, soc.bus, addr("FLOOR"), 1 | fp.tol << 8 | fp.tol_shift << 16)
-        await io_write(ctx, soc.bus, addr("FLOOR_LINE"),
-                       line.slope | (line.offset & 0x3FFFF) << 10)
+        await write_floor_line(ctx, soc.bus, line)
         assert await io_read(ctx, soc.bus, addr("MATCH")) == regs["MATCH"]
         ident = fields("ID", await io_read(ctx, soc.bus, addr("ID")))
         assert ident["magic"] == regmap.ID_MAGIC
-        state["configured"] = True
-        for _ in range(20000):
-            if await io_read(ctx, soc.bus, addr("FRAME_COUNT")) == 2:
-                break
-            await ctx.tick().repeat(20)
-        else:
-            raise AssertionError("the pipeline did not finish two frames")
-        while True:
-            word = fields("RESULT", await io_read(ctx, soc.bus, addr("RESULT")))
-            word.update(fields("RESULT_EXT", await io_read(ctx, soc.bus, addr("RESULT_EXT"))))
-            if not word["valid"]:
-                break
-            state["results"].append(tuple(word[k] for k in compared + ("floor",)))
+        start()
+        await wait_frames(ctx, soc.bus, 2)
+        state["results"] = [tuple(w[k] for k in compared + ("floor",))
+                            for w in await read_results(ctx, soc.bus)]
         for reg in ("STAT_EDGES", "STAT_EVALUATIONS", "STAT_MATCHES", "STAT_REJECTS", "STAT_DROPS"):
             state["stats"][reg] = await io_read(ctx, soc.bus, addr(reg))
         for reg in ("ERR_LEFT", "ERR_RIGHT", "ERR_MATCH"):
@@ -109,18 +166,7 @@ def test_configure_stream_and_read_results_over_the_bus():
         level = fields("RESULT_LEVEL", await io_read(ctx, soc.bus, addr("RESULT_LEVEL")))
         state["overflow"] = level["overflow"]
 
-    def camera(port, frames, seed):
-        async def run(ctx):
-            while not state["configured"]:
-                await ctx.tick()
-            words = frames_words(packer, [dict(r=f[..., 0], g=f[..., 1], b=f[..., 2]) for f in frames])
-            await stream_put(ctx, port, words, rng=random.Random(seed), idle=0.2)
-        return run
-
-    sim.add_testbench(cpu)
-    sim.add_testbench(camera(soc.left, [lf, lf], 1), background=True)
-    sim.add_testbench(camera(soc.right, [rf, rf], 2), background=True)
-    sim.run()
+    run_with_cameras(soc, sim, cpu, [lf, lf], [rf, rf])
 
     expected = [tuple(int(r[k]) for k in compared) + (int(f),)
                 for g, fl in zip(golden, flags) for r, f in zip(g.records, fl)]
@@ -241,13 +287,8 @@ def test_abort_marker_waits_for_the_fifo(cost):
         await send(recs[2], rst_after=True)
         await send(recs[3])
         await ctx.tick().repeat(4)
-        while True:
-            word = fields("RESULT", await io_read(ctx, regs.bus, addr("RESULT")))
-            word.update(fields("RESULT_EXT", await io_read(ctx, regs.bus, addr("RESULT_EXT"))))
-            if not word["valid"]:
-                break
-            got.append({k: word[k] for k in ("x", "y", "d", "d16", "conf", "floor", "eof",
-                                             "abort")})
+        got.extend({k: word[k] for k in ("x", "y", "d", "d16", "conf", "floor", "eof", "abort")}
+                   for word in await read_results(ctx, regs.bus))
 
     sim.add_testbench(bench)
     sim.run()

@@ -6,13 +6,13 @@ import pytest
 from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.sim import Simulator
 
 from hdl.platform import BoardTop, RobotBoardPlatform
 from hdl.regs import ResultLayout
 from hdl.soc import CPU_FIFO_DEPTH, SystemSoC, _records_to_summary
 from sim.designs import silenced
 from sim.system import firmware
+from tests.simulate import simulate
 
 
 def test_ise_tree_has_the_cpu_and_its_image(tmp_path):
@@ -88,10 +88,7 @@ def test_records_reach_the_summary_and_the_fifo_only_when_enabled(enable):
                 n += 1
             await ctx.tick()
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(dut, bench, 1e-8)
     takes = [i for i, e in enumerate(log) if e[1]]
     assert len(takes) > 100
     assert all(b - a >= 2 for a, b in zip(takes, takes[1:]))
