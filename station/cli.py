@@ -336,7 +336,11 @@ def main(argv=None) -> int:
                     help="with --http: start replaying once N live-view clients are "
                          "connected")
     args = ap.parse_args(argv)
+    # SIGTERM and SIGINT both stop cleanly; SIGINT's handler is set here because Python keeps
+    # it ignored when the station was started in the background by a shell without job
+    # control (a start-up script's `&`), where `kill -INT` would otherwise do nothing
     signal.signal(signal.SIGTERM, _terminate)
+    signal.signal(signal.SIGINT, _terminate)
     try:
         if args.cmd == "decode":
             try:

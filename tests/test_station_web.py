@@ -25,12 +25,12 @@ def recording(tmp_path_factory):
     return small_recording(tmp_path_factory)
 
 
-def start_replay(*args):
+def start_replay(*args, preexec_fn=None):
     """``python -m station replay ... --http 127.0.0.1:0``: (process, URL of the view); the
     process' stderr lines go to ``proc.lines`` (a queue) as they come."""
     proc = subprocess.Popen([sys.executable, "-m", "station", "replay", *args, "--http",
                              "127.0.0.1:0"], cwd=ROOT, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=preexec_fn)
     proc.lines = queue.Queue()
 
     def pump():
@@ -260,3 +260,16 @@ def test_a_client_that_stops_reading_is_disconnected_not_buffered_without_end():
         stuck.close()
     finally:
         view.stop()
+
+
+def test_sigint_stops_a_station_started_with_it_ignored(recording, tmp_path):
+    """A shell without job control starts a background command with SIGINT ignored, and
+    Python keeps it so: the station sets its own handler, so `kill -INT` still stops it
+    cleanly, outputs written."""
+    proc, _ = start_replay(str(recording), "--speed", "0", "--out", str(tmp_path / "out"),
+                           *WORLD, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        wait_line(proc, "recording ended")
+    finally:
+        code = stop(proc)
+    assert code == 0 and (tmp_path / "out" / "map.npy").exists()
