@@ -18,7 +18,7 @@ class ColorConvert(FramedUnit):
     i : In(stream of :data:`RGBPixel`)
         Camera pixels. ``ready`` follows the output (backpressure goes straight through).
     o : Out(stream of :data:`YHSPixel`)
-        Converted pixels, ``LATENCY`` = 8 cycles after the input transfer when nothing stalls.
+        Converted pixels, ``LATENCY`` = 9 cycles after the input transfer when nothing stalls.
     errors, dropped : Out(16), Out(32)
         Saturating counts of malformed-stream events and of beats dropped; malformed frames are
         cut at the first bad beat and the unit resynchronises at the next ``sof``, by the rules
@@ -35,18 +35,21 @@ class ColorConvert(FramedUnit):
        77 r, 75 g and 29 b;
     4. register of the table outputs (a block-RAM output never feeds a multiplier directly);
        the sum of two luma products, the rounding constant added to the third;
-    5. the two multiplies; the luma sum;
-    6. the products registered again, with no logic: the multiplier blocks sit in a few
-       fixed columns and rows of the die, often far from the fabric around them, so each
-       product gets a register the placer can put beside its block and the long route to
-       the rounding logic starts at a register instead of at the multiplier's output;
-    7. hue quotient rounding; saturation rounding and clamp;
-    8. output register: hue sextant offset and wrap-around.
+    5. the multiplier operands registered again, with no logic; the luma sum;
+    6. the two multiplies;
+    7. the products registered again, with no logic;
+    8. hue quotient rounding; saturation rounding and clamp;
+    9. output register: hue sextant offset and wrap-around.
+
+    Stages 5 and 7 are there for the placement: the multiplier blocks sit in a few fixed rows
+    of the die, often far from the fabric around them, so the long routes to and from a block
+    each start at a register of their own, which the placer can put beside the block, instead
+    of meeting the multiply in one register-to-register path.
 
     Resources: one block RAM (the 256 x 17-bit reciprocal table, read by both ports) and the
     multipliers of the two 8 x 17 products.
     """
-    LATENCY = 8
+    LATENCY = 9
 
     i: In(stream.Signature(RGBPixel))
     o: Out(stream.Signature(YHSPixel))
@@ -122,32 +125,36 @@ class ColorConvert(FramedUnit):
                    neg=s3["neg"], absnum=s3["absnum"], base=s3["base"],
                    yrg=(s3["yr"] + (s3["yg"] << 1))[:16], yb=(s3["yb"] + 128)[:14],
                    rhue=rd_hue.data, rsat=rd_sat.data)
-        # 5. multiplies (|num| <= delta, so the hue product stays below 2**17 + 2**8)
+        # 5. the operands again, next to their multiplier blocks; the luma sum
         s5 = stage(5, v=s4["v"], flags=s4["flags"], chroma=s4["chroma"], neg=s4["neg"],
                    base=s4["base"], y=((s4["yrg"] + s4["yb"]) >> 8)[:8],
-                   hprod=(s4["absnum"] * s4["rhue"])[:18], sprod=s4["delta"] * s4["rsat"])
-        # 6. the products again, next to their multiplier blocks
+                   absnum=s4["absnum"], rhue=s4["rhue"], delta=s4["delta"], rsat=s4["rsat"])
+        # 6. multiplies (|num| <= delta, so the hue product stays below 2**17 + 2**8)
         s6 = stage(6, v=s5["v"], flags=s5["flags"], chroma=s5["chroma"], neg=s5["neg"],
-                   base=s5["base"], y=s5["y"], hprod=s5["hprod"], sprod=s5["sprod"])
-        # 7. rounding; saturation clamp: (sprod + 128) >> 8 > 255 exactly when sprod >= 65408
-        sprod = s6["sprod"]
-        sat_max = (sprod[16:] != 0) | (sprod[7:16] == 0x1FF)
+                   base=s5["base"], y=s5["y"],
+                   hprod=(s5["absnum"] * s5["rhue"])[:18], sprod=s5["delta"] * s5["rsat"])
+        # 7. the products again, next to their multiplier blocks
         s7 = stage(7, v=s6["v"], flags=s6["flags"], chroma=s6["chroma"], neg=s6["neg"],
-                   base=s6["base"], y=s6["y"],
-                   q=((s6["hprod"] + 1024) >> 11)[:6],
+                   base=s6["base"], y=s6["y"], hprod=s6["hprod"], sprod=s6["sprod"])
+        # 8. rounding; saturation clamp: (sprod + 128) >> 8 > 255 exactly when sprod >= 65408
+        sprod = s7["sprod"]
+        sat_max = (sprod[16:] != 0) | (sprod[7:16] == 0x1FF)
+        s8 = stage(8, v=s7["v"], flags=s7["flags"], chroma=s7["chroma"], neg=s7["neg"],
+                   base=s7["base"], y=s7["y"],
+                   q=((s7["hprod"] + 1024) >> 11)[:6],
                    sat=Mux(sat_max, 255, ((sprod[:16] + 128) >> 8)[:8]))
-        # 8. output register: hue = (base +- q) mod 192; only base 0 minus q > 0 wraps
-        q = s7["q"]
+        # 9. output register: hue = (base +- q) mod 192; only base 0 minus q > 0 wraps
+        q = s8["q"]
         hue = Signal(8)
-        m.d.comb += hue.eq(Mux(~s7["neg"], s7["base"] + q,
-                               Mux((s7["base"] == 0) & (q != 0), HUE_STEPS - q, s7["base"] - q)))
+        m.d.comb += hue.eq(Mux(~s8["neg"], s8["base"] + q,
+                               Mux((s8["base"] == 0) & (q != 0), HUE_STEPS - q, s8["base"] - q)))
         o = self.o.payload
         with m.If(advance):
             m.d.sync += [
-                self.o.valid.eq(s7["v"]),
-                o.y.eq(s7["y"]),
-                o.h.eq(Mux(s7["chroma"], hue, 0)),
-                o.s.eq(Mux(s7["chroma"], s7["sat"], 0)),
-                Cat(o.sof, o.eol, o.eof).eq(s7["flags"]),
+                self.o.valid.eq(s8["v"]),
+                o.y.eq(s8["y"]),
+                o.h.eq(Mux(s8["chroma"], hue, 0)),
+                o.s.eq(Mux(s8["chroma"], s8["sat"], 0)),
+                Cat(o.sof, o.eol, o.eof).eq(s8["flags"]),
             ]
         return m

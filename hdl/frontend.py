@@ -29,7 +29,7 @@ class FrontEnd(FramedUnit):
     o : Out(stream of :data:`EdgePixel`)
         Luminance (its census word with ``census``, see :class:`hdl.sobel.SobelEdges`),
         vertical obstacle edge bit and Gx sign, one per input pixel. Latency: the
-        colour converter's 8 cycles + the classifier's 3 + the Sobel unit's one line and 8
+        colour converter's 9 cycles + the classifier's 3 + the Sobel unit's one line and 8
         cycles + 3 for the registered-ready buffers between the units and at the output.
     free : Out(stream of :data:`FreeBand`)
         Free space per column band (:class:`hdl.freespace.FreeSpace`, observing the
