@@ -422,7 +422,7 @@ def rect_geometry(rig, doffs_px, R1, max_dx=31.5, step=8, grid=32):
     buffer must hold the worst one, the image's top and bottom rows, whose warp no curve
     changes: the rows between have room to spare, which the refined curve spends on
     squeezing the scene less (the fit's ``g0`` is below 1). Columns stay linear in the ray
-    (``scale fx``, so that the disparity is ``scale fx B / z - doffs`` as before), ``scale``
+    (``scale fx``, so that the disparity keeps the form ``scale fx B / z - doffs``), ``scale``
     the largest of 1, 0.995, ... whose horizontal warp stays within ``max_dx`` pixels at the
     map's nodes (every ``grid`` pixels, to a node past the last column: the node words'
     range). ``doffs_px`` is the principal points' distance at scale 1 (it scales with
