@@ -286,6 +286,16 @@ bool step() {
 
 }  // namespace
 
+// Move up to `max` logged pairs (a, b) into the buffers; returns how many.
+template <typename A, typename B>
+static uint64_t take(std::vector<A>& a, std::vector<B>& b, A* out_a, B* out_b, uint64_t max) {
+    uint64_t n = b.size() < max ? b.size() : max;
+    for (uint64_t i = 0; i < n; i++) { out_a[i] = a[i]; out_b[i] = b[i]; }
+    a.erase(a.begin(), a.begin() + n);
+    b.erase(b.begin(), b.begin() + n);
+    return n;
+}
+
 extern "C" {
 
 int sys_init(const uint8_t* left, uint64_t left_len, const uint8_t* right, uint64_t right_len,
@@ -343,30 +353,18 @@ void sys_run_until(int64_t until_ps) {
 
 // Move up to `max` logged records into the buffers; returns how many.
 uint64_t sys_take_records(uint64_t* cycles, uint32_t* words, uint64_t max) {
-    uint64_t n = rec_word.size() < max ? rec_word.size() : max;
-    for (uint64_t i = 0; i < n; i++) { cycles[i] = rec_cycle[i]; words[i] = rec_word[i]; }
-    rec_cycle.erase(rec_cycle.begin(), rec_cycle.begin() + n);
-    rec_word.erase(rec_word.begin(), rec_word.begin() + n);
-    return n;
+    return take(rec_cycle, rec_word, cycles, words, max);
 }
 
 // Move up to `max` bytes received from the TX pin into the buffers; returns how many.
 uint64_t sys_take_tx(uint64_t* cycles, uint8_t* bytes, uint64_t max) {
-    uint64_t n = tx_bytes.size() < max ? tx_bytes.size() : max;
-    for (uint64_t i = 0; i < n; i++) { cycles[i] = tx_cycle[i]; bytes[i] = tx_bytes[i]; }
-    tx_cycle.erase(tx_cycle.begin(), tx_cycle.begin() + n);
-    tx_bytes.erase(tx_bytes.begin(), tx_bytes.begin() + n);
-    return n;
+    return take(tx_cycle, tx_bytes, cycles, bytes, max);
 }
 
 // Move up to `max` changes of the loss watch's bits into the buffers (the core cycle of each
 // and the bits from then on: bit 0 left lost, bit 1 right lost); returns how many.
 uint64_t sys_take_lost(uint64_t* cycles, uint8_t* bits, uint64_t max) {
-    uint64_t n = lost_bits.size() < max ? lost_bits.size() : max;
-    for (uint64_t i = 0; i < n; i++) { cycles[i] = lost_cycle[i]; bits[i] = lost_bits[i]; }
-    lost_cycle.erase(lost_cycle.begin(), lost_cycle.begin() + n);
-    lost_bits.erase(lost_bits.begin(), lost_bits.begin() + n);
-    return n;
+    return take(lost_cycle, lost_bits, cycles, bits, max);
 }
 
 void sys_send_rx(const uint8_t* bytes, uint64_t n) {
