@@ -40,8 +40,8 @@ their frame (STATUS.lost). Write CFG between frames: the frame in progress would
 geometries.
 
 Registers (byte offsets in the window at ``base``; ``hdl.regmap.BANDS_REGS``); whole-word
-access, byte enables ignored; reads answer one cycle after the strobe, TOP reads three cycles
-after (four when a record writes meanwhile; while the table fills, after the fill):
+access, byte enables ignored; reads answer two cycles after the strobe, TOP reads four cycles
+after (five when a record writes meanwhile; while the table fills, after the fill):
 
 - CFG (rw): width bits 10..0 (columns, ``n_bands..max_width``), n_bands bits 22..16
   (``1..max_bands``). Reset: 720 and 32 (limited to the elaboration's maxima).

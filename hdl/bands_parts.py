@@ -159,8 +159,8 @@ class TopInsert(wiring.Component):
 class BandRegisters(wiring.Component):
     """The unit's register window on the I/O bus (``hdl.regmap.BANDS_REGS``, whole words).
 
-    CFG, STATUS and DROPS answer one cycle after the strobe. A TOP read raises ``top_pending``
-    with ``top_band`` and ``top_half`` (the word of the band) from the cycle after the strobe
+    CFG, STATUS and DROPS answer two cycles after the strobe. A TOP read raises ``top_pending``
+    with ``top_band`` and ``top_half`` (the word of the band) from two cycles after the strobe
     until a cycle with ``top_issue`` (the unit reads that word on its port B then); the next
     cycle ``top_word`` holds the word, and the answer (``top_word`` when ``band_valid`` was
     high in the ``top_issue`` cycle, else 0) comes one cycle later: a TOP read answers two
@@ -223,7 +223,7 @@ class BandRegisters(wiring.Component):
         ready, read_data = Signal(), Signal(32)
         m.d.comb += [bus.ready.eq(ready), bus.read_data.eq(read_data)]
         m.d.sync += [ready.eq(0), read_data.eq(0)]
-        with m.If(window.hit & (bus.read_strobe | bus.write_strobe)):
+        with m.If(window.read | window.write):
             with m.If(top_read):
                 m.d.sync += [self.top_pending.eq(1), self.top_band.eq(word_index >> pb)]
                 if pb:
@@ -232,12 +232,12 @@ class BandRegisters(wiring.Component):
                 m.d.sync += [ready.eq(1), read_data.eq(Mux(window.read, value, 0))]
             with m.If(window.write & (window.offset == regs["CFG"])):
                 m.d.comb += self.cfg_write.eq(1)
-                data_in = bus.write_data
+                data_in = window.write_data
                 m.d.sync += [self.width.eq(data_in[:CFG_WIDTH_BITS]),
                              self.n_bands.eq(data_in[CFG_BANDS_LSB:
                                                      CFG_BANDS_LSB + CFG_BANDS_BITS])]
             with m.If(window.write & (window.offset == regs["RECORDS"])):
-                m.d.sync += self.fifo_enable.eq(bus.write_data[0])
+                m.d.sync += self.fifo_enable.eq(window.write_data[0])
         answer, answer_valid, answer_half = Signal(), Signal(), Signal(max(1, pb))
         m.d.sync += answer.eq(self.top_issue)
         with m.If(self.top_issue):

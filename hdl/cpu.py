@@ -25,9 +25,10 @@ other addresses, bit 31 = 1  the I/O bus: the register block, the IIC master, th
 Timing of one access: RAM one wait state (the read starts from the core's look-ahead address,
 a cycle before the access, and its data go through a register: ``ram_register``; without it
 no wait state); timer 2 cycles, WAIT n more; I/O bus the strobe from a register in the
-access's second cycle, ``ready`` from the slave (one cycle later for every slave of this SoC),
-then the core's ``mem_ready`` a cycle after that, from a register (the read data go through a
-register, not from the bus's OR into the core's decoder): 4 cycles. The core itself takes 3 to 6 cycles an
+access's second cycle, ``ready`` from the slave (two cycles later for every slave of this SoC:
+each registers the bus before it decodes, :class:`hdl.regs.BusWindow`), then the core's
+``mem_ready`` a cycle after that, from a register (the read data go through a register, not
+from the bus's OR into the core's decoder): 5 cycles. The core itself takes 3 to 6 cycles an
 instruction without memory waits.
 
 The RAM is ``ram_bytes`` / 4 words of 32 bits with byte writes, initialised with ``image``

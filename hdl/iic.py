@@ -533,7 +533,7 @@ class IICMaster(wiring.Component):
     Ports
     -----
     bus : In(IOBusSignature)
-        Register access; ``ready`` one cycle after the strobe, never stalls.
+        Register access; ``ready`` two cycles after the strobe, never stalls.
     scl_o, scl_oe, scl_i, sda_o, sda_oe, sda_i
         Open-drain pads: ``*_o`` is always 0, ``*_oe`` pulls the line low.
     """
@@ -560,15 +560,15 @@ class IICMaster(wiring.Component):
         bus = self.bus
         window = BusWindow(m, bus, self._base, regmap.IIC_WINDOW)
         offset, do_read = window.offset, window.read
-        do_write = window.write & (bus.byte_enable == 0xF)
+        do_write = window.write & (window.byte_enable == 0xF)
 
         soft_reset = Signal()
         m.d.sync += soft_reset.eq(do_write & (offset == XIIC.RESETR_OFFSET)
-                                  & (bus.write_data == XIIC.RESET_MASK))
+                                  & (window.write_data == XIIC.RESET_MASK))
         core = m.submodules.core = ResetInserter(soft_reset)(_Core(self._clk_div))
 
         m.d.comb += [
-            core.wdata.eq(bus.write_data),
+            core.wdata.eq(window.write_data),
             core.wr_isr.eq(do_write & (offset == XIIC.IISR_OFFSET)),
             core.wr_cr.eq(do_write & (offset == XIIC.CR_REG_OFFSET)),
             core.wr_tx.eq(do_write & (offset == XIIC.DTR_REG_OFFSET)),

@@ -12,7 +12,7 @@ table's (:func:`hdl.regmap.rect_map_check`).
 Ports
 -----
 bus : In(:class:`hdl.regs.IOBusSignature`)
-    Answers in its window one cycle after the strobe.
+    Answers in its window two cycles after the strobe (:class:`hdl.regs.BusWindow`).
 enable, lo : Out(1), Out(signed(6))
     RECT_CTRL's fields, to the pipeline's ``rect_enable`` and ``rect_lo``.
 map_addr, map_data, map_we : Out(12), Out(20), Out(1)
@@ -82,13 +82,13 @@ class RectifyRegs(wiring.Component):
         for name, reg in (("RECT_CTRL", ctrl), ("RECT_VALID_POS", pos),
                           ("RECT_VALID_SIZE", size)):
             with m.If(window.write & (offset == _offset(name))):
-                m.d.sync += reg.eq(bus.write_data & masks[name])
+                m.d.sync += reg.eq(window.write_data & masks[name])
         in_map = offset >= regmap.RECT_MAP_OFFSET
         m.d.sync += [self.map_we.eq(window.write & in_map),
                      self.map_addr.eq(offset[2:14]),
-                     self.map_data.eq(bus.write_data[:2 * OFFSET_BITS])]
+                     self.map_data.eq(window.write_data[:2 * OFFSET_BITS])]
         with m.If(window.write & in_map):     # visible to the next transfer
-            m.d.sync += check.eq(check ^ Cat(bus.write_data[:2 * OFFSET_BITS], offset[2:14]))
+            m.d.sync += check.eq(check ^ Cat(window.write_data[:2 * OFFSET_BITS], offset[2:14]))
         value = Signal(32)
         with m.Switch(offset):
             for name, reg in (("RECT_CTRL", ctrl), ("RECT_VALID_POS", pos),

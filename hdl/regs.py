@@ -19,7 +19,7 @@ ready           IO_Ready         one-cycle answer; the CPU stalls until it comes
 ==============  =========  =====================================================================
 
 This block answers every transfer inside its window ``[base, base + 0x100)`` with ``ready``
-exactly one cycle after the strobe (latency 1, never stalls). Unmapped offsets read 0 and
+exactly two cycles after the strobe (latency 2, never stalls; :class:`BusWindow` says why 2). Unmapped offsets read 0 and
 ignore writes. Addresses outside the window get no answer.
 """
 
@@ -63,26 +63,45 @@ def check_window_base(component, base, window):
 
 class BusWindow:
     """The slave side of one peripheral's address window on the I/O bus, shared by every
-    peripheral: ``hit`` (a transfer into ``[base, base + window)`` starts this cycle),
-    ``offset`` (its word-aligned byte offset), ``read`` and ``write`` (hit and the direction).
-    :meth:`answer` gives the one-cycle ``ready`` a cycle after the strobe, with ``value`` as
-    read data for a read and 0 otherwise (so the SoC can OR the answers of all peripherals)."""
+    peripheral.
+
+    The window registers the bus in the strobe's cycle: ``hit`` (a transfer into
+    ``[base, base + window)`` started last cycle), ``offset`` (its word-aligned byte offset),
+    ``read`` and ``write`` (hit and the direction), ``write_data`` and ``byte_enable`` are
+    flip-flops, valid the cycle after the strobe. :meth:`answer` gives the one-cycle
+    ``ready`` a cycle after that (two cycles after the strobe), with ``value`` as read data
+    for a read and 0 otherwise (so the SoC can OR the answers of all peripherals).
+
+    Why the register: the bus's initiator (the soft CPU, the MCS's pins) sits on one side of
+    the chip and its peripherals are spread over the rest; decoding straight from the
+    initiator's registers put the long routes to every peripheral and the address compare,
+    the read multiplexer and the read-data register's clear into one clock period. With the
+    register a long route ends at a flip-flop (plus the window's address compare), and the
+    decode starts beside the peripheral. The cost is one cycle on every access."""
 
     def __init__(self, m, bus, base, window):
         bits = (window - 1).bit_length()
         self._m, self._bus = m, bus
         self.hit = Signal(name="bus_hit")
         self.offset = Signal(bits, name="bus_offset")
-        m.d.comb += [
-            self.hit.eq(bus.addr_strobe & (bus.address[bits:] == base >> bits)),
+        self.read = Signal(name="bus_read")
+        self.write = Signal(name="bus_write")
+        self.write_data = Signal(32, name="bus_write_data")
+        self.byte_enable = Signal(4, name="bus_byte_enable")
+        hit = bus.addr_strobe & (bus.address[bits:] == base >> bits)
+        m.d.sync += [
+            self.hit.eq(hit),
             self.offset.eq(bus.address[:bits] & ~0b11),
+            self.read.eq(hit & bus.read_strobe),
+            self.write.eq(hit & bus.write_strobe),
+            self.write_data.eq(bus.write_data),
+            self.byte_enable.eq(bus.byte_enable),
         ]
-        self.read = self.hit & bus.read_strobe
-        self.write = self.hit & bus.write_strobe
 
     def answer(self, value):
+        """``ready`` and ``read_data`` from registers, a cycle after :attr:`hit`."""
         bus = self._bus
-        self._m.d.sync += [bus.ready.eq(self.hit & (bus.read_strobe | bus.write_strobe)),
+        self._m.d.sync += [bus.ready.eq(self.read | self.write),
                            bus.read_data.eq(Mux(self.read, value, 0))]
 
 
@@ -138,8 +157,9 @@ class ResultFIFO(wiring.Component):
     ``depth`` of 256 records that is 512 x 30 bits, one RAMB16 in 512 x 36 mode (as many as a
     FIFO of 512 one-word records would take). Why two words
     a record in 512 x 36 and not three in 1K x 18 (341 records): the memory gives one word a
-    cycle and the CPU takes a record in two bus transfers (RESULT, RESULT_EXT), which the MCS
-    may issue in consecutive cycles. With two words the FIFO reads the popped record's second
+    cycle and the CPU takes a record in two bus transfers (RESULT, RESULT_EXT), which a bus may
+    issue in consecutive cycles (this block's: one every two cycles at most, :class:`BusWindow`).
+    With two words the FIFO reads the popped record's second
     word in the cycle of the RESULT_EXT read and the next record's first word in the cycle
     after, so a firmware reading as fast as the bus goes never finds the next record not
     ready; three words a record would take three cycles for every two of the bus. A FIFO of
@@ -257,7 +277,7 @@ class RegisterBlock(wiring.Component):
     Ports
     -----
     bus : In(IOBusSignature)
-        Register access, latency 1 cycle, never stalls.
+        Register access, latency 2 cycles, never stalls.
     <parameter field> : Out(width)
         One output per ``rw`` field of the map, named after the field (``mode``, ``d_max``...),
         reset to the field's reset value.
@@ -269,8 +289,8 @@ class RegisterBlock(wiring.Component):
     <table>_index : Out(range(n)), <table>_word : In(32)
         One pair per table of ``n`` registers (``Register.table``: ``free_left``...): a read of
         the table's register ``k`` shows ``<table>_word`` in the cycle ``<table>_index`` is
-        ``k`` (the strobe's cycle; the table answers combinationally, e.g. from distributed
-        RAM).
+        ``k`` (the cycle after the strobe; the table answers combinationally, e.g. from
+        distributed RAM).
     results : In(stream.Signature(ResultLayout))
         Result records into the FIFO, two cycles each: ``ready`` is low in the cycle after a
         record was stored, high otherwise. A full FIFO does not hold the producer up (a
@@ -332,7 +352,7 @@ class RegisterBlock(wiring.Component):
                 for f in reg.fields:
                     m.d.comb += getattr(self, f.name).eq(store[f.lsb:f.lsb + f.width])
                 with m.If(do_write & (offset == reg.offset)):
-                    merged = Cat(*(Mux(bus.byte_enable[b], bus.write_data[8 * b:8 * b + 8],
+                    merged = Cat(*(Mux(window.byte_enable[b], window.write_data[8 * b:8 * b + 8],
                                        store[8 * b:8 * b + 8]) for b in range(4)))
                     m.d.sync += store.eq(merged & Const(mask, 32))
 
@@ -343,7 +363,7 @@ class RegisterBlock(wiring.Component):
             p = Signal(name=f"pulse_{f.name}")
             pulses[f.name] = p
             m.d.sync += p.eq(do_write & (offset == ctrl.offset)
-                             & bus.byte_enable[f.lsb // 8] & bus.write_data[f.lsb])
+                             & window.byte_enable[f.lsb // 8] & window.write_data[f.lsb])
         m.d.comb += flush.eq(pulses["flush_results"])
         for name, p in pulses.items():
             if name != "flush_results":

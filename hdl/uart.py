@@ -1,8 +1,8 @@
 """UART (8N1) for the radio on the MicroBlaze I/O bus, and the byte-level transmitter and
 receiver it is made of (also used by the UART register bridge, ``hdl/bridge.py``).
 
-Registers of :class:`UART` (window of 0x10 bytes at ``base``; :data:`UART_REGS`), latency 1
-cycle, never stalls:
+Registers of :class:`UART` (window of 0x10 bytes at ``base``; :data:`UART_REGS`), latency 2
+cycles, never stalls:
 
 =======  ======  ==========================================================================
 offset   name    meaning
@@ -118,7 +118,7 @@ class UART(wiring.Component):
     Parameters (keyword-only): ``divisor`` (core cycles per bit at reset, >= 4; BAUD changes it),
     ``base`` (bus address, aligned to 0x10).
 
-    Ports: ``bus`` In(IOBusSignature) (answers in its window, latency 1); ``tx`` Out(1) (idle
+    Ports: ``bus`` In(IOBusSignature) (answers in its window, latency 2); ``tx`` Out(1) (idle
     high); ``rx`` In(1) (idle high, asynchronous).
     """
 
@@ -139,8 +139,8 @@ class UART(wiring.Component):
         baud = Signal(DIVISOR_BITS, init=self._divisor)
         m.d.comb += [self.tx.eq(tx.tx), rx.rx.eq(self.rx), tx.divisor.eq(baud),
                      rx.divisor.eq(baud)]
-        with m.If(window.write & (offset == UART_REGS["BAUD"]) & (bus.write_data[:DIVISOR_BITS] >= 4)):
-            m.d.sync += baud.eq(bus.write_data[:DIVISOR_BITS])
+        with m.If(window.write & (offset == UART_REGS["BAUD"]) & (window.write_data[:DIVISOR_BITS] >= 4)):
+            m.d.sync += baud.eq(window.write_data[:DIVISOR_BITS])
 
         tx_hold = Signal(8)
         tx_full = Signal()
@@ -161,7 +161,7 @@ class UART(wiring.Component):
             m.d.comb += value.eq(baud)
         window.answer(value)
         with m.If(window.write & (offset == UART_REGS["DATA"]) & ~tx_full):
-            m.d.sync += [tx_hold.eq(bus.write_data[:8]), tx_full.eq(1)]
+            m.d.sync += [tx_hold.eq(window.write_data[:8]), tx_full.eq(1)]
         with m.If(window.read & (offset == UART_REGS["DATA"])):
             m.d.sync += [rx_valid.eq(0), rx_overrun.eq(0)]
         # after the bus: a byte completing during a DATA read is kept

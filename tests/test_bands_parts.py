@@ -136,10 +136,13 @@ def test_registers_answer_and_top_handshake():
         ctx.set(bus.address, BASE + REGS["CFG"])
         ctx.set(bus.write_strobe, 1)
         ctx.set(bus.write_data, 100 | 7 << 16)
-        seen["cfg_write"] = ctx.get(dut.cfg_write)
+        seen["cfg_write_strobe"] = ctx.get(dut.cfg_write)     # the window decodes a cycle later
+        await ctx.tick()
         ctx.set(bus.addr_strobe, 0)
         ctx.set(bus.write_strobe, 0)
-        seen["cfg_write_off"] = ctx.get(dut.cfg_write)
+        seen["cfg_write"] = ctx.get(dut.cfg_write), (ctx.get(dut.width), ctx.get(dut.n_bands))
+        await ctx.tick()
+        seen["cfg_write_off"] = ctx.get(dut.cfg_write), (ctx.get(dut.width), ctx.get(dut.n_bands))
         seen["cfg1"] = await access(ctx, bus, BASE + REGS["CFG"], write=100 | 7 << 16)
         seen["fields"] = (ctx.get(dut.width), ctx.get(dut.n_bands))
         seen["status"] = await access(ctx, bus, BASE + REGS["STATUS"])
@@ -158,21 +161,22 @@ def test_registers_answer_and_top_handshake():
         seen["top"] = await access(ctx, bus, BASE + REGS["TOP"] + 4 * 5, issue_after=3, dut=dut)
         seen["top_band"] = (ctx.get(dut.top_band), ctx.get(dut.top_half))
         ctx.set(dut.band_valid, 0)
-        seen["top_empty"] = await access(ctx, bus, BASE + REGS["TOP"], issue_after=1, dut=dut)
+        seen["top_empty"] = await access(ctx, bus, BASE + REGS["TOP"], issue_after=2, dut=dut)
 
     simulate(dut, bench, "bands_regs")
-    assert seen["cfg0"][:2] == (720 | 32 << 16, 1)
-    assert seen["cfg_write"] == 1 and seen["cfg_write_off"] == 0
-    assert seen["cfg1"][:2] == (0, 1) and seen["fields"] == (100, 7)
-    assert seen["status"][:2] == (0x1234 | 1 << 16 | 1 << 18, 1)
-    assert seen["drops"][:2] == (7 | 3 << 16, 1)
+    assert seen["cfg0"][:2] == (720 | 32 << 16, 2)
+    assert seen["cfg_write_strobe"] == 0
+    assert seen["cfg_write"] == (1, (720, 32)) and seen["cfg_write_off"] == (0, (100, 7))
+    assert seen["cfg1"][:2] == (0, 2) and seen["fields"] == (100, 7)
+    assert seen["status"][:2] == (0x1234 | 1 << 16 | 1 << 18, 2)
+    assert seen["drops"][:2] == (7 | 3 << 16, 2)
     assert seen["outside"][0] is None
     # RECORDS.fifo: reset 0, bit 0 of a write, read back; the band table's CFG untouched
     assert seen["records0"] == (0, 0)
-    assert seen["records_write"][:2] == (0, 1)
+    assert seen["records_write"][:2] == (0, 2)
     assert seen["records1"] == (1, 1, 0)
     assert seen["records2"] == (0, (100, 7))
     data, waited, pending = seen["top"]
-    assert data == 0x88776655 and waited == 3 + 2 and pending == [1, 1, 1, 0]
+    assert data == 0x88776655 and waited == 3 + 2 and pending == [0, 1, 1, 0]
     assert seen["top_band"] == (2, 1)
-    assert seen["top_empty"][:2] == (0, 3)
+    assert seen["top_empty"][:2] == (0, 4)

@@ -111,9 +111,9 @@ def test_write_read_repeated_start_and_timing():
         await drv.init()
         assert await drv.rd(XIIC.SR_REG_OFFSET) == XIIC.SR_TX_FIFO_EMPTY_MASK | XIIC.SR_RX_FIFO_EMPTY_MASK
         assert await drv.write_reg8(0x20, 0x12, 0xA5) == "OK"
-        assert last_latency[0] == 1                        # IO_Ready one cycle after the strobe
+        assert last_latency[0] == 2                        # IO_Ready two cycles after the strobe
         assert await drv.read_regs(0x20, 0x12, 1) == ("OK", [0xA5])
-        assert last_latency[0] == 1
+        assert last_latency[0] == 2
         assert await drv.read_regs(0x20, 0x40, 4) == ("OK", [0xDE, 0xAD, 0xBE, 0xEF])
 
     run(dut, [dev], bench, mon)

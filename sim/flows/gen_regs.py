@@ -103,7 +103,7 @@ def _rect_markdown() -> list[str]:
     out = ["", "# Rectifier", "",
            f"A build with the right camera's rectifier (`StereoSoC` / `SystemSoC` `rectify=`, "
            f"[camera.md](camera.md)) has its registers at `0x{regmap.RECT_BASEADDR:08X}` "
-           f"({regmap.RECT_WINDOW} bytes), latency 1; a build without it leaves the window "
+           f"({regmap.RECT_WINDOW} bytes), latency 2; a build without it leaves the window "
            "unanswered. The map's node words are write-only from offset "
            f"`0x{regmap.RECT_MAP_OFFSET:X}`: node `(j, k)` at `0x{regmap.RECT_MAP_OFFSET:X} + "
            "4 (j * 2^stride_log2 + k)`, word `dx | dy << 10` (1/16 px, two's complement, "
@@ -166,7 +166,8 @@ def render_markdown() -> str:
         "Bus protocol (MCS I/O bus, Xilinx PG116): a one-cycle `IO_Addr_Strobe` with "
         "`IO_Read_Strobe` or `IO_Write_Strobe` starts a transfer; `IO_Address`, "
         "`IO_Write_Data` and `IO_Byte_Enable` are valid in that cycle. The register block "
-        "answers with a one-cycle `IO_Ready` on the next cycle (read data valid with it); "
+        "answers with a one-cycle `IO_Ready` two cycles after the strobe (read data valid "
+        "with it; every peripheral registers the bus before it decodes, see `hdl.regs.BusWindow`); "
         "writes honour `IO_Byte_Enable`. Addresses outside the block's window get no answer "
         "(ready low, read data 0), so the answers of all peripherals are ORed.",
         "",
