@@ -215,3 +215,17 @@ def test_rect_geometry_rows_keep_the_centre_scale_and_need_no_more_buffer(monkey
         return max(hi - lo for lo, hi in G.rect_vertical_span(rig, doffs * scale, R1, scale, g))
     assert g[0] == 1.0 and g_fit[0] < 0.99 and scale == scale_fit
     assert warp(g) <= warp(g_fit) - 0.5
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--rigs", "barrel,nope"], "unknown rig 'nope'"),
+    (["--views", "3"], "at least 4"),
+    (["--seed", "-1"], "--seed -1"),
+    (["--seed", "one"], "--seed"),
+])
+def test_rig_bench_bad_input_is_one_error_line(args, says, capsys):
+    from sim.bench.rig import main
+    with pytest.raises(SystemExit) as e:
+        main(args)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1 and err.startswith("error: ") and says in err

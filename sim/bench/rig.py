@@ -25,8 +25,11 @@ off its side (as it may in the original pair too, which is scored there), and dr
 matches whose chosen partner lies in the black would drop wrong matches for being wrong. The
 last column scores every match with a truth pixel, the black edges included.
 
-``python -m sim.bench.rig [--rigs NAME,...] [--views N] [--span ROWS] [--horizontal
-linear|nearest]`` prints the table.
+``python -m sim.bench.rig [--rigs NAME,...] [--views N] [--seed N] [--span ROWS]
+[--horizontal linear|nearest]`` prints the table; ``--seed`` seeds the board poses
+(:func:`sim.scenes.rig.board_views`), so one calibration's luck can be told from the
+procedure's. Bad input (an unknown rig, fewer views than a calibration needs) is one
+``error:`` line and exit 2.
 """
 from __future__ import annotations
 
@@ -176,20 +179,36 @@ def markdown(rows):
     return "\n".join(out)
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        print(f"error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+
 def main(argv=None):
-    p = argparse.ArgumentParser(prog="python -m sim.bench.rig", description=__doc__.split("\n\n")[0])
+    from sim.cli.calibrate import MIN_VIEWS
+    from sim.scenes.rig import RIGS
+    p = _Parser(prog="python -m sim.bench.rig", description=__doc__.split("\n\n")[0])
     p.add_argument("--rigs", help="comma-separated rig names (default: all)")
     p.add_argument("--views", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0, help="seed of the board poses")
     p.add_argument("--span", type=int, default=8)
     p.add_argument("--grid", type=int, default=32)
     p.add_argument("--horizontal", default="nearest", choices=("linear", "nearest"))
     p.add_argument("--json", action="store_true", help="one JSON line per rig")
     a = p.parse_args(argv)
-    names = a.rigs.split(",") if a.rigs else None
+    names = a.rigs.split(",") if a.rigs else list(RIGS)
+    unknown = [n for n in names if n not in RIGS]
+    if unknown:
+        p.error(f"unknown rig {unknown[0]!r} (rigs: {', '.join(RIGS)})")
+    if a.views < MIN_VIEWS:
+        p.error(f"--views {a.views}: a calibration needs at least {MIN_VIEWS}")
+    if a.seed < 0:
+        p.error(f"--seed {a.seed}: a seed is not negative")
     rows = []
-    from sim.scenes.rig import RIGS
-    for n in names or list(RIGS):
-        row = run_rig(n, views=a.views, span=a.span, horizontal=a.horizontal, grid=a.grid)
+    for n in names:
+        row = run_rig(n, views=a.views, span=a.span, horizontal=a.horizontal, grid=a.grid,
+                      seed=a.seed)
         rows.append(row)
         if a.json:
             print(json.dumps(row), flush=True)
