@@ -9,6 +9,7 @@ from PIL import Image
 
 from golden.camera import Camera
 from golden.rig import map_vertical_span, rect_vertical_span
+from sim.cli.calibrate import rectification
 from sim.cli.main import main
 from sim.scenes.rig import board_views, rig_named, write_views
 
@@ -78,6 +79,32 @@ def test_a_rig_without_distortion_rectifies_the_right_camera_alone(tmp_path, cap
     tlo, thi = map_vertical_span(rig, cam.doffs_px, focus=cam.rig["focus"])
     assert abs(lo - tlo) < 1.5 and abs(hi - thi) < 1.5
 
+
+
+@pytest.mark.parametrize("name, sides", [("all together", "both"), ("roll 0.5", "right")])
+def test_rectification_of_the_true_rig_is_exact(name, sides):
+    """The rectification of a rig known exactly (the calibration a perfect fit would give):
+    its lenses and pose as they are, the true corners on common rows, the line buffers' warp
+    the rig's own."""
+    rig = rig_named(name)
+    views = board_views(rig, views=4, seed=1)
+    cal = rectification(rig, np.concatenate([v[2] for v in views]),
+                        np.concatenate([v[3] for v in views]))
+    cam = cal["camera"]
+    got = cam.rectified
+    assert cal["rectified"] == sides and cal["rms_px"] == 0.0
+    assert got.left == rig.left and got.right == rig.right
+    assert np.allclose(got.Rm, rig.Rm) and np.allclose(got.Tv, rig.Tv)
+    assert cal["residual_px"] < 0.01 and cal["module_residual_px"] < 0.01
+    lo, hi = cal["vertical_span_rows"]
+    if sides == "right":
+        tlo, thi = map_vertical_span(rig, cam.doffs_px, focus=cam.rig["focus"])
+    else:
+        both = cam.rig["left_rect"]
+        spans = rect_vertical_span(rig, cam.doffs_px, np.array(both["R"]), both["scale"],
+                                   both["g"])
+        tlo, thi = min(a for a, _ in spans), max(b for _, b in spans)
+    assert abs(lo - tlo) < 1e-3 and abs(hi - thi) < 1e-3
 
 def test_near_sets_the_window(boards, tmp_path, capsys):
     _, folder = boards

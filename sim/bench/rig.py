@@ -6,7 +6,10 @@ alone, or both cameras' when the lenses distort: :func:`golden.rectify.both_side
 Per rig: the calibration's figures (views, RMS, Bouguet's and the module's vertical
 residual, the map's vertical warp in rows), then the matches, the points within 2 px of the
 ground truth and bad-2 (the share of scored matches that are more than 2 px off),
-unrectified and rectified. Scoring goes through the points in the left camera's frame: a
+unrectified, rectified, and rectified by the true rig: the rectification the calibration
+would give were its fit perfect (:func:`sim.cli.calibrate.rectification` of the rig itself,
+at the true corners of the same views), so the table tells what the calibration's errors
+cost from what the rectification and the re-shoot cost whatever the calibration. Scoring goes through the points in the left camera's frame: a
 rectified match's ``cam_x_m cam_y_m cam_z_m``, as ``matches.csv`` has them
 (:func:`sim.scenes.camera.match_table` with the calibration's camera file: the left lens'
 distortion removed), is projected into the original left image with its documented camera,
@@ -23,7 +26,8 @@ has no truth. The right pixel is not tested: the true partner of a left pixel th
 scene shows the same scene point, which the original right image holds unless the point lies
 off its side (as it may in the original pair too, which is scored there), and dropping the
 matches whose chosen partner lies in the black would drop wrong matches for being wrong. The
-last column scores every match with a truth pixel, the black edges included.
+column after the rectified one scores every match with a truth pixel, the black edges
+included.
 
 ``python -m sim.bench.rig [--rigs NAME,...] [--views N] [--seed N] [--span ROWS]
 [--horizontal linear|nearest]`` prints the table; ``--seed`` seeds the board poses
@@ -118,31 +122,39 @@ def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workd
     """One rig's row of the table (a dict)."""
     from golden.pipeline import default_params, pipeline_frames
     from golden.rectify import both_sides, params_for_rig, rectified_pipeline_frames
-    from sim.cli.calibrate import calibrate
+    from sim.cli.calibrate import calibrate, rectification
     from sim.scenes.camera import MOTORCYCLE
     from sim.scenes.data import motorcycle
     from sim.scenes.rig import board_views, motorcycle_rig, reshoot_pair, rig_named, write_views
     t0 = time.time()
     rig = rig_named(name)
     left, right, gt = motorcycle()
+    shots = board_views(rig, views=views, seed=seed)
     with tempfile.TemporaryDirectory(dir=workdir) as folder:
-        write_views(folder, board_views(rig, views=views, seed=seed))
+        write_views(folder, shots)
         cal = calibrate(folder, (9, 6), 0.03, grid=grid)
     t_cal = time.time() - t0
     cam = cal["camera"]
+    true_cam = rectification(rig, np.concatenate([s[2] for s in shots]),
+                             np.concatenate([s[3] for s in shots]), grid=grid)["camera"]
     l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
     h, w = l2.shape[:2]
     params = default_params(w, h, ground="off")
     unrect = pipeline_frames([l2], [r2], params)[0]
-    rect = params_for_rig(cam, w, h, span=span, horizontal=horizontal)
-    lrect = (params_for_rig(cam, w, h, span=span, horizontal=horizontal, side="left")
-             if both_sides(cam) else None)
-    rectified = rectified_pipeline_frames([l2], [r2], params, rect, lrect)[0]
     ideal = motorcycle_rig()
+
+    def rectified_run(c):
+        rect = params_for_rig(c, w, h, span=span, horizontal=horizontal)
+        lrect = (params_for_rig(c, w, h, span=span, horizontal=horizontal, side="left")
+                 if both_sides(c) else None)
+        return rect, lrect, rectified_pipeline_frames([l2], [r2], params, rect, lrect)[0]
+    rect, lrect, rectified = rectified_run(cam)
     u = score(unrect.records[inside_scene(unrect.records, None, rig, ideal)], gt)
     keep = inside_scene(rectified.records, cam, rig, ideal)
     r = score(rectified.records[keep], gt, MOTORCYCLE, cam)
     r_all = score(rectified.records, gt, MOTORCYCLE, cam)
+    true_recs = rectified_run(true_cam)[2].records
+    t = score(true_recs[inside_scene(true_recs, true_cam, rig, ideal)], gt, MOTORCYCLE, true_cam)
     return {"rig": name, "views": cal["views"], "rms_px": cal["rms_px"],
             "residual_px": cal["residual_px"], "module_residual_px": cal["module_residual_px"],
             "rectified_sides": cal["rectified"], "scale": cam.rig.get("left_rect", {}).get(
@@ -152,6 +164,7 @@ def run_rig(name, views=20, span=8, horizontal="nearest", grid=32, seed=0, workd
             "unrectified": dict(zip(("matches", "within2", "bad2"), u)),
             "rectified": dict(zip(("matches", "within2", "bad2"), r)),
             "rectified_all": dict(zip(("matches", "within2", "bad2"), r_all)),
+            "true_rig": dict(zip(("matches", "within2", "bad2"), t)),
             "seconds": round(time.time() - t0, 1), "calibration_s": round(t_cal, 1)}
 
 
@@ -163,10 +176,11 @@ def run(names=None, **kw):
 def markdown(rows):
     out = ["| rig | views | RMS px | residual px (Bouguet / module) | warp rows | "
            "lo, span (right; left) | unrectified matches / within 2 / bad-2 | "
-           "rectified matches / within 2 / bad-2 | rectified, black edges scored too |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "rectified matches / within 2 / bad-2 | rectified, black edges scored too | "
+           "rectified by the true rig |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        u, c, i = r["unrectified"], r["rectified"], r["rectified_all"]
+        u, c, i, t = r["unrectified"], r["rectified"], r["rectified_all"], r["true_rig"]
         out.append(f"| {r['rig']} | {r['views']} | {r['rms_px']:.3f} | "
                    f"{r['residual_px']:.3f} / {r['module_residual_px']:.3f} | "
                    f"{r['warp_rows'][0]:+.2f} .. {r['warp_rows'][1]:+.2f} | "
@@ -175,7 +189,8 @@ def markdown(rows):
                    f" | "
                    f"{u['matches']:,} / {u['within2']:,} / {100 * u['bad2']:.1f} % | "
                    f"{c['matches']:,} / {c['within2']:,} / {100 * c['bad2']:.1f} % | "
-                   f"{i['matches']:,} / {i['within2']:,} / {100 * i['bad2']:.1f} % |")
+                   f"{i['matches']:,} / {i['within2']:,} / {100 * i['bad2']:.1f} % | "
+                   f"{t['matches']:,} / {t['within2']:,} / {100 * t['bad2']:.1f} % |")
     return "\n".join(out)
 
 

@@ -35,7 +35,8 @@ import numpy as np
 
 from sim.errors import CliError
 
-__all__ = ["MIN_VIEWS", "calibrate", "add_parser", "cmd_calibrate", "parse_board"]
+__all__ = ["MIN_VIEWS", "calibrate", "rectification", "add_parser", "cmd_calibrate",
+           "parse_board"]
 
 #: Fewest pairs in which the board must be found in both images.
 MIN_VIEWS = 4
@@ -103,7 +104,7 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     ``vertical_span_rows`` and ``window``. CliError on
     bad input (see :func:`cmd_calibrate`)."""
     import cv2
-    from golden.rig import Lens, Rig, distortion_px, map_vertical_span, undistort, project
+    from golden.rig import Lens, Rig
     if not square > 0:
         raise CliError(f"square size must be positive, not {square}")
     pairs = _pairs(folder)
@@ -142,10 +143,30 @@ def calibrate(folder, board, square, near_m=None, grid=32):
         obj, pl, pr, K1, D1, K2, D2, (w, h), criteria=crit,
         flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags)
     rig = Rig(Lens.from_K(K1, D1), Lens.from_K(K2, D2), R, T.ravel(), w, h)
+    return rectification(rig, np.concatenate(pl), np.concatenate(pr), near_m, grid, rms=rms,
+                         views=len(obj), pairs=len(pairs), source=f"calibration of {folder}")
+
+
+def rectification(rig, corners_left, corners_right, near_m=None, grid=32, rms=0.0, views=0,
+                  pairs=0, source=None):
+    """The result of :func:`calibrate` (the same dict) for a rig whose lenses and pose are
+    known (a :class:`golden.rig.Rig`: as the OpenCV steps fit it, or a test rig's own, the
+    calibration a perfect fit would give): Bouguet's residual and the module's rectification
+    with its figures at the board corners ``corners_left``, ``corners_right`` (both cameras'
+    corners, (N, 1, 2) or (N, 2) pixels), the fit's ``rms``, ``views`` and ``pairs`` passed
+    through, ``source`` the camera file's. CliError when the module cannot rectify the rig
+    (the right camera not to the right of the left, a map that does not fit)."""
+    import cv2
+    from golden.rig import Lens, distortion_px, map_vertical_span, project, undistort
+    al = np.asarray(corners_left, np.float64).reshape(-1, 1, 2)
+    ar = np.asarray(corners_right, np.float64).reshape(-1, 1, 2)
+    w, h = rig.width, rig.height
+    K1, K2 = rig.left.K, rig.right.K
+    D1, D2 = np.asarray(rig.left.dist, np.float64), np.asarray(rig.right.dist, np.float64)
+    R, T = rig.Rm, rig.Tv.reshape(3, 1)
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-9)
     # Bouguet: rectified rows of both views' corners
     R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(K1, D1, K2, D2, (w, h), R, T, alpha=0)
-    al = np.concatenate(pl)
-    ar = np.concatenate(pr)
     yl = cv2.undistortPointsIter(al, K1, D1, R1, P1, crit)[:, 0, 1]
     yr = cv2.undistortPointsIter(ar, K2, D2, R2, P2, crit)[:, 0, 1]
     residual = float(np.median(np.abs(yl - yr)))
@@ -155,8 +176,8 @@ def calibrate(folder, board, square, near_m=None, grid=32):
         raise CliError("the right camera is not to the right of the left one: swap the "
                        "left_ and right_ images")
     if max(distortion_px(rig.left, w, h), distortion_px(rig.right, w, h)) > DISTORTION_PX:
-        return _calibrated(folder, rig, both_rect(rig, doffs, al, ar, near_m, grid),
-                           rms, residual, len(obj), len(pairs))
+        return _calibrated(source, rig, both_rect(rig, doffs, al, ar, near_m, grid),
+                           rms, residual, views, pairs)
     # the module's rectification: right corners into the left camera's geometry, the
     # distortion centred for the middle of the disparity window
     window = _window(rig.left.fx * baseline, doffs, near_m)
@@ -182,7 +203,7 @@ def calibrate(folder, board, square, near_m=None, grid=32):
             "valid": valid, "module_residual_px": round(module_residual, 4),
             "vertical_span_rows": [round(lo, 3), round(hi, 3)],
             "scale": 1.0, "baseline": baseline}
-    return _calibrated(folder, rig, rect, rms, residual, len(obj), len(pairs))
+    return _calibrated(source, rig, rect, rms, residual, views, pairs)
 
 
 def both_rect(rig, doffs, al, ar, near_m, grid):
@@ -223,7 +244,7 @@ def both_rect(rig, doffs, al, ar, near_m, grid):
             "left_rect": both, "scale": scale, "baseline": baseline}
 
 
-def _calibrated(folder, rig, rect, rms, residual, views, pairs):
+def _calibrated(source, rig, rect, rms, residual, views, pairs):
     """The result of :func:`calibrate` from the rig and its rectification's figures."""
     from golden.camera import Camera
     s = rect["scale"]
@@ -239,7 +260,7 @@ def _calibrated(folder, rig, rect, rms, residual, views, pairs):
     camera = Camera(fx=rig.left.fx * s, fy=rig.left.fy, cx=rig.left.cx, cy=rig.left.cy,
                     baseline_m=rect["baseline"], doffs_px=rect["doffs"], width=rig.width,
                     height=rig.height, valid=rect["valid"], rig=extra,
-                    source=f"calibration of {folder}")
+                    source=source)
     return {"camera": camera, "views": views, "pairs": pairs,
             "rms_px": round(float(rms), 4), "residual_px": round(residual, 4),
             "module_residual_px": rect["module_residual_px"],
