@@ -26,6 +26,10 @@
 #include "xbee.h"
 #ifdef FIRMWARE_BANDS_HW
 #include "bands_hw.h"
+/** The summary keeps room for every disparity a band word of the unit brings
+ *  (the build's RADIO_SUMMARY_MAX_SUPPORT, firmware/Makefile). */
+typedef char main_summary_holds_the_units_slots[
+    (BANDS_HW_SLOTS <= RADIO_SUMMARY_MAX_SUPPORT) ? 1 : -1];
 #endif
 
 #define REPORT_PERIOD_US 100000u
