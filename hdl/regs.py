@@ -19,8 +19,8 @@ ready           IO_Ready         one-cycle answer; the CPU stalls until it comes
 ==============  =========  =====================================================================
 
 This block answers every transfer inside its window ``[base, base + 0x100)`` with ``ready``
-exactly two cycles after the strobe (latency 2, never stalls; :class:`BusWindow` says why 2). Unmapped offsets read 0 and
-ignore writes. Addresses outside the window get no answer.
+exactly two cycles after the strobe (latency 2, never stalls; :class:`BusWindow` says why).
+Unmapped offsets read 0 and ignore writes. Addresses outside the window get no answer.
 """
 
 from amaranth.hdl import Cat, Const, Module, Mux, ResetInserter, Signal
