@@ -80,7 +80,6 @@ def test_a_rig_without_distortion_rectifies_the_right_camera_alone(tmp_path, cap
     assert abs(lo - tlo) < 1.5 and abs(hi - thi) < 1.5
 
 
-
 @pytest.mark.parametrize("name, sides", [("all together", "both"), ("roll 0.5", "right")])
 def test_rectification_of_the_true_rig_is_exact(name, sides):
     """The rectification of a rig known exactly (the calibration a perfect fit would give):
@@ -105,6 +104,7 @@ def test_rectification_of_the_true_rig_is_exact(name, sides):
                                    both["g"])
         tlo, thi = min(a for a, _ in spans), max(b for _, b in spans)
     assert abs(lo - tlo) < 1e-3 and abs(hi - thi) < 1e-3
+
 
 def test_near_sets_the_window(boards, tmp_path, capsys):
     _, folder = boards

@@ -43,13 +43,14 @@ procedure's. Bad input (an unknown rig, fewer views than a calibration needs) is
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
 import time
 
 import numpy as np
+
+from sim.errors import EXIT_USER_ERROR, CliError
 
 __all__ = ["score", "inside_scene", "run_rig", "run", "markdown"]
 
@@ -143,11 +144,11 @@ def run_rig(name, views=40, span=8, horizontal="nearest", grid=32, seed=0, workd
     cam = cal["camera"]
     true_cam = rectification(rig, np.concatenate([s[2] for s in shots]),
                              np.concatenate([s[3] for s in shots]), grid=grid)["camera"]
-    l2, r2 = reshoot_pair(left, right, motorcycle_rig(), rig)
+    ideal = motorcycle_rig()
+    l2, r2 = reshoot_pair(left, right, ideal, rig)
     h, w = l2.shape[:2]
     params = default_params(w, h, ground="off")
     unrect = pipeline_frames([l2], [r2], params)[0]
-    ideal = motorcycle_rig()
 
     def rectified_run(c):
         rect = params_for_rig(c, w, h, span=span, horizontal=horizontal)
@@ -200,16 +201,20 @@ def markdown(rows):
     return "\n".join(out)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        print(f"error: {message}", file=sys.stderr)
-        sys.exit(2)
-
-
 def main(argv=None):
+    """The command; bad input, here or in a calibration, is one ``error:`` line and exit 2."""
+    try:
+        return _main(argv)
+    except CliError as e:
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(EXIT_USER_ERROR) from None
+
+
+def _main(argv):
     from sim.cli.calibrate import MIN_VIEWS
+    from sim.cli.main import Parser
     from sim.scenes.rig import RIGS
-    p = _Parser(prog="python -m sim.bench.rig", description=__doc__.split("\n\n")[0])
+    p = Parser(prog="python -m sim.bench.rig", description=__doc__.split("\n\n")[0])
     p.add_argument("--rigs", help="comma-separated rig names (default: all)")
     p.add_argument("--views", type=int, default=40, help="checkerboard pairs per calibration")
     p.add_argument("--seed", type=int, default=0, help="seed of the board poses")
