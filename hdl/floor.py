@@ -218,7 +218,7 @@ class FloorFlag(wiring.Component):
             banks.append((mem.write_port(), mem.read_port(domain="comb")))
         wbank = Signal()                    # the bank of the current row (the other is read)
         ptr = Signal(range(n + 1))          # the walk in the previous row's list
-        ptr1 = Signal(range(n + 2))         # ptr + 1: the read bank's address
+        ptr1 = Signal(range(n + 2))         # ptr + 1 in a register: the read bank's address
         count = Signal(range(n + 1))        # its entries
         fill = Signal(range(n + 1))         # the current row's entries
         row = Signal.like(r.y)              # the current row
