@@ -155,10 +155,11 @@ def _listen_loop(args, port, station, view) -> int:
     import serial
     from station.session import StationRun, write_outputs
     run = StationRun(station, _sinks(args, view))
-    print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
     t0 = last = last_write = time.monotonic()
     got_any = False
     try:
+        # inside the try: a stop signalled as soon as the line is read is a clean stop
+        print(f"listening on {args.port} at {args.baud} baud", file=sys.stderr, flush=True)
         while True:
             data = port.read(max(1, port.in_waiting))
             now = time.monotonic()
@@ -264,10 +265,12 @@ def _replay_run(args, data, pkts, station, view) -> int:
     print(f"replayed {stats.packets} packets, {stats.station_s:.1f} s of station time in "
           f"{stats.wall_s:.2f} s (x{stats.speed:.1f})", file=sys.stderr, flush=True)
     if view is not None and args.hold != 0:
-        print("recording ended; the live view stays up " +
-              ("until Ctrl-C" if args.hold is None else f"for {args.hold} s"),
-              file=sys.stderr, flush=True)
         try:
+            # the line is printed inside the try: a stop signalled as soon as it is read
+            # can arrive before the next statement
+            print("recording ended; the live view stays up " +
+                  ("until Ctrl-C" if args.hold is None else f"for {args.hold} s"),
+                  file=sys.stderr, flush=True)
             end = math.inf if args.hold is None else time.monotonic() + args.hold
             while time.monotonic() < end:
                 time.sleep(min(0.2, max(0.0, end - time.monotonic())))
