@@ -79,3 +79,19 @@ def test_critical_path_is_the_core_clocks():
                                   "routing_ns": 11.0, "logic_cells": 0}
     rep["critical_paths"].pop()
     assert critical_path(rep)["from"] == "c0"
+
+
+def test_utilisation_from_the_log():
+    from sim.flows.timing import _fit, utilisation
+    log = ("Info: Device utilisation:\n"
+           "Info: \t          TRELLIS_IO:       5/    197     2%\n"
+           "Info: \t              DP16KD:      39/     56    69%\n"
+           "Info: \t          MULT18X18D:      23/     28    82%\n"
+           "Info: \t          TRELLIS_FF:   16441/  24288    67%\n"
+           "Info: \t        TRELLIS_COMB:   21720/  24288    89%\n")
+    use = utilisation(log)
+    assert use == {"DP16KD": [39, 56], "MULT18X18D": [23, 28], "TRELLIS_FF": [16441, 24288],
+                   "TRELLIS_COMB": [21720, 24288]}
+    assert _fit(use) == "21,720 / 16,441 / 39 / 23 of 24,288 / 24,288 / 56 / 28"
+    use["DP16KD"] = [57, 56]
+    assert _fit(use).endswith("does not fit**")
