@@ -50,8 +50,10 @@ class YCbCrToRGB(wiring.Component):
         :data:`CONVERT_LATENCY` cycles later.
 
     Stages: (1) ``c = Y - 16``, ``d = Cb - 128``, ``e = Cr - 128``; (2) the five constant
-    products (``-100 d`` and ``-208 e`` for G); (3) the products registered again (routing
-    to and from a multiplier block); (4) per channel, the sum of the products' high parts
+    products (``-100 d`` and ``-208 e`` for G), four of them on multiplier blocks and
+    ``516 d = 512 (d + (d >> 7)) + (4 d mod 512)`` as one 8-bit addition (a block spent on
+    one addition is a block the other units' multiplies cannot sit beside); (3) the products
+    registered again (routing to and from a multiplier block); (4) per channel, the sum of the products' high parts
     (``p >> 8``) and the sum of their low bytes plus the rounding constant 128; (5) the high
     sum plus the low sum's carry (its bits from 8 up), which is the whole sum ``>> 8``
     (floor); (6) the clamp to 0..255. Each stage is one multiplier or adders of at most 11 bits
@@ -82,7 +84,9 @@ class YCbCrToRGB(wiring.Component):
         ngd_p, nge_p = Signal(signed(15)), Signal(signed(16))
         py, pre, pbd = Signal.like(py_p), Signal.like(pre_p), Signal.like(pbd_p)
         ngd, nge = Signal.like(ngd_p), Signal.like(nge_p)
-        m.d.sync += [py_p.eq(k["y"] * c), pre_p.eq(k["r_cr"] * e), pbd_p.eq(k["b_cb"] * d),
+        assert k["b_cb"] == 516, "the B product is elaborated as 512 d + 4 d"
+        m.d.sync += [py_p.eq(k["y"] * c), pre_p.eq(k["r_cr"] * e),
+                     pbd_p.eq(Cat((d << 2)[:9], d - d[7]).as_signed()),
                      ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e)]
         # stage 3: the products registered again: the multipliers' own registers have one
         # load each and sit by their multiplier (on the ECP5 a register that feeds both the

@@ -125,10 +125,12 @@ def test_converter_matches_golden_on_random_codes():
     from hdl.bt656 import YCbCrToRGB, CONVERT_LATENCY
     rng = np.random.default_rng(7)
     # every code near the ends and the centres of Y, Cb, Cr crossed (the carries out of the
-    # low bytes and the clamps at both ends), then random codes
+    # low bytes and the clamps at both ends), every Cb (the B product is an addition, not a
+    # multiplier block), then random codes
     edges = [0, 1, 15, 16, 17, 127, 128, 129, 235, 240, 254, 255]
+    every_cb = np.stack([np.full(256, 100), np.arange(256), np.full(256, 128)], axis=1)
     ycc = np.concatenate([np.array(np.meshgrid(edges, edges, edges)).reshape(3, -1).T,
-                          rng.integers(0, 256, (400, 3))])
+                          every_cb, rng.integers(0, 256, (400, 3))])
     want = ycbcr_to_rgb(ycc[:, 0], ycc[:, 1], ycc[:, 2]).tolist()
     dut = YCbCrToRGB()
     got = []
