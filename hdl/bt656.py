@@ -49,21 +49,40 @@ class YCbCrToRGB(wiring.Component):
         The RGB888 pixel (:data:`RGBPixel`, framing flags passed through), exactly
         :data:`CONVERT_LATENCY` cycles later.
 
+    Parameters (keyword-only)
+    -------------------------
+    g_blocks : bool
+        G's two products on multiplier blocks (True, the default) or by shifts and two
+        additions each (False: two blocks fewer and a few dozen LUT4 more a converter, for a
+        die whose blocks are in demand; see below).
+
     Stages: (1) ``c = Y - 16``, ``d = Cb - 128``, ``e = Cr - 128``; (2) the five constant
-    products (``-100 d`` and ``-208 e`` for G), four of them on multiplier blocks and
-    ``516 d = 512 (d + (d >> 7)) + (4 d mod 512)`` as one 8-bit addition (a block spent on
-    one addition is a block the other units' multiplies cannot sit beside); (3) the products
-    registered again (routing to and from a multiplier block); (4) per channel, the sum of the products' high parts
-    (``p >> 8``) and the sum of their low bytes plus the rounding constant 128; (5) the high
-    sum plus the low sum's carry (its bits from 8 up), which is the whole sum ``>> 8``
-    (floor); (6) the clamp to 0..255. Each stage is one multiplier or adders of at most 11 bits
-    between registers (the full 19-bit sums would be one 19-bit carry chain).
+    products (``-100 d`` and ``-208 e`` for G): ``298 c`` and ``409 e`` on multiplier blocks,
+    ``516 d = 512 (d + (d >> 7)) + (4 d mod 512)`` by one addition, G's two on blocks or
+    (``g_blocks=False``) their first additions, ``7 d = 8 d - d`` and ``3 e = 2 e + e``;
+    (3) the blocks' products registered again (routing to and from a multiplier block), or
+    G's second additions, ``-100 d = 4 (7 d - 32 d)`` and ``-208 e = 16 (3 e - 16 e)``;
+    (4) per channel, the sum of the products' high parts (``p >> 8``) and the sum of their
+    low bytes plus the rounding constant 128; (5) the high sum plus the low sum's carry (its
+    bits from 8 up), which is the whole sum ``>> 8`` (floor); (6) the clamp to 0..255. Each
+    stage is one multiplier or adders of at most 11 bits between registers (the full 19-bit
+    sums would be one 19-bit carry chain).
+
+    Multiplier blocks sit in a few rows of the die, and a block spent on a product of one or
+    two additions is a block another unit's multiply cannot sit beside: on the ECP5-25F with
+    the rectifier, most blocks in use, the placer left the converters' registers across the
+    die from their blocks, the core clock's critical path. ``516 d`` is always an addition;
+    G's products are a choice, because the XC3S1000 has blocks to spare and few LUTs.
     """
 
     i_valid: In(1)
     i: In(YCbCrPixel)
     o_valid: Out(1)
     o: Out(RGBPixel)
+
+    def __init__(self, *, g_blocks=True):
+        self.g_blocks = bool(g_blocks)
+        super().__init__()
 
     def elaborate(self, platform):
         m = Module()
@@ -79,19 +98,27 @@ class YCbCrToRGB(wiring.Component):
         c, d, e = Signal(signed(9)), Signal(signed(8)), Signal(signed(8))
         # (x - 128 of a byte is the byte with its top bit flipped, read as signed)
         m.d.sync += [c.eq(self.i.y - 16), d.eq(self.i.cb ^ 0x80), e.eq(self.i.cr ^ 0x80)]
-        # stage 2: the five products (G's two negated: every sum below is an addition)
+        # stage 2: the products (G's two negated: every sum below is an addition); those by
+        # shifts and additions are elaborated from these three coefficients
+        assert (k["b_cb"], k["g_cb"], k["g_cr"]) == (516, 100, 208), COEFFICIENTS
         py_p, pre_p, pbd_p = Signal(signed(18)), Signal(signed(17)), Signal(signed(18))
-        ngd_p, nge_p = Signal(signed(15)), Signal(signed(16))
-        py, pre, pbd = Signal.like(py_p), Signal.like(pre_p), Signal.like(pbd_p)
-        ngd, nge = Signal.like(ngd_p), Signal.like(nge_p)
-        assert k["b_cb"] == 516, "the B product is elaborated as 512 d + 4 d"
         m.d.sync += [py_p.eq(k["y"] * c), pre_p.eq(k["r_cr"] * e),
-                     pbd_p.eq(Cat((d << 2)[:9], d - d[7]).as_signed()),
-                     ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e)]
-        # stage 3: the products registered again: the multipliers' own registers have one
-        # load each and sit by their multiplier (on the ECP5 a register that feeds both the
-        # sums and a distant multiplier block puts a long route on the critical path)
-        m.d.sync += [py.eq(py_p), pre.eq(pre_p), pbd.eq(pbd_p), ngd.eq(ngd_p), nge.eq(nge_p)]
+                     pbd_p.eq(Cat((d << 2)[:9], d - d[7]).as_signed())]
+        # stage 3: the blocks' products registered again: their own registers have one load
+        # each and sit by their block (on the ECP5 a register that feeds both the sums and a
+        # distant block puts a long route on the critical path)
+        py, pre, pbd = Signal.like(py_p), Signal.like(pre_p), Signal.like(pbd_p)
+        ngd, nge = Signal(signed(15)), Signal(signed(16))    # -100 d, -208 e
+        m.d.sync += [py.eq(py_p), pre.eq(pre_p), pbd.eq(pbd_p)]
+        if self.g_blocks:
+            ngd_p, nge_p = Signal.like(ngd), Signal.like(nge)
+            m.d.sync += [ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e),
+                         ngd.eq(ngd_p), nge.eq(nge_p)]
+        else:
+            d7, d2 = Signal(signed(11)), Signal(signed(8))   # 7 d, d
+            e3, e2 = Signal(signed(10)), Signal(signed(8))   # 3 e, e
+            m.d.sync += [d7.eq((d << 3) - d), d2.eq(d), e3.eq((e << 1) + e), e2.eq(e),
+                         ngd.eq((d7 - (d2 << 5)) << 2), nge.eq((e3 - (e2 << 4)) << 4)]
         # stage 4: each sum split at bit 8 (v = 256 (v >> 8) + v[:8]): the high parts summed,
         # and the low bytes with the rounding constant, whose bits from 8 up are the carry
         terms = {"r": (py, pre), "g": (py, ngd, nge), "b": (py, pbd)}
@@ -130,17 +157,21 @@ class Ycc422ToRGB(wiring.Component):
         group's first word is taken): one word a cycle sustained. Latency from the second
         word: :data:`CONVERT_LATENCY` cycles for the first pixel, one more for the second.
 
-    The conversion pipeline (:class:`YCbCrToRGB`) and the registers here move together when the
-    output register is empty or being read.
+    The conversion pipeline (:class:`YCbCrToRGB`, ``g_blocks`` its parameter) and the
+    registers here move together when the output register is empty or being read.
     """
 
     i: In(stream.Signature(YCbCr422))
     o: Out(stream.Signature(RGBPixel))
 
+    def __init__(self, *, g_blocks=True):
+        self.g_blocks = bool(g_blocks)
+        super().__init__()
+
     def elaborate(self, platform):
         m = Module()
         advance = Signal()
-        m.submodules.convert = conv = EnableInserter(advance)(YCbCrToRGB())
+        m.submodules.convert = conv = EnableInserter(advance)(YCbCrToRGB(g_blocks=self.g_blocks))
         m.d.comb += [advance.eq(~self.o.valid | self.o.ready), self.i.ready.eq(advance),
                      self.o.valid.eq(conv.o_valid), self.o.payload.eq(conv.o)]
 

@@ -210,7 +210,9 @@ class SystemSoC(wiring.Component):
     (results; None: 256, or :data:`CPU_FIFO_DEPTH` with the CPU inside),
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
     :class:`hdl.pipeline.StereoPipeline`), ``free_space``, ``search_start`` (True by default,
-    as :class:`StereoSoC`'s).
+    as :class:`StereoSoC`'s), ``g_blocks`` (the colour converters' G products on multiplier
+    blocks, True by default: :class:`hdl.bt656.YCbCrToRGB`; False for a die whose blocks are
+    in demand, the ECP5-25F build with the rectifier).
 
     Free space: ``free_space`` (False by default) builds each front end's free-space unit
     (:class:`hdl.freespace.FreeSpace`) and the tables behind FREE_LEFT_k and FREE_RIGHT_k.
@@ -248,7 +250,8 @@ class SystemSoC(wiring.Component):
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
-                 monitor=False, rectify=None, free_space=False, search_start=True, loss=None):
+                 monitor=False, rectify=None, free_space=False, search_start=True, loss=None,
+                 g_blocks=True):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
@@ -260,6 +263,7 @@ class SystemSoC(wiring.Component):
                               free_space=bool(free_space), search_start=bool(search_start))
         self._rectify = _rectify_option(self, rectify, self._pipeline)
         self._lines = lines
+        self._g_blocks = bool(g_blocks)
         self._camera_fifo_depth = camera_fifo_depth
         if not isinstance(buffer_depth, int) or buffer_depth < 4 or buffer_depth & (buffer_depth - 1):
             self._MustUse__silence = True
@@ -353,7 +357,7 @@ class SystemSoC(wiring.Component):
         for side, port, i, o in (("left", ports[0], buffer.i0, buffer.o0),
                                  ("right", ports[1], buffer.i1, buffer.o1)):
             pairer, unpairer = PixelPairer(YCbCr422), PixelUnpairer(YCbCr422)
-            convert = Ycc422ToRGB()
+            convert = Ycc422ToRGB(g_blocks=self._g_blocks)
             m.submodules[f"{side}_pairer"] = ResetInserter(video_rst)(pairer)
             m.submodules[f"{side}_unpairer"] = ResetInserter(video_rst)(unpairer)
             m.submodules[f"{side}_convert"] = ResetInserter(video_rst)(convert)

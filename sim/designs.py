@@ -347,11 +347,12 @@ SYSTEM_DESIGNS = {
     # a build option for the ECP5-25F target: the XC3S1000 has no block RAM to spare for it
     "soc_rect": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
                                         rectify=dict(span=8, horizontal="nearest",
-                                                     extra_rows=10)),
+                                                     extra_rows=10), g_blocks=False),
                              "the SoC with the right camera's rectifier (hdl/rectify.py, its "
                              "registers hdl/rectify_regs.py) and 10 more matcher line slots for "
-                             "the rows it holds back (span + sim.system.rect.EXTRA_SLACK): "
-                             "the ECP5-25F build option",
+                             "the rows it holds back (span + sim.system.rect.EXTRA_SLACK), the "
+                             "colour converters' G products by additions (the rectifier's "
+                             "multiplies take the blocks): the ECP5-25F build option",
                              clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
     # both cameras rectified (lenses that distort): the ECP5-25F build option's pipeline, its
     # line buffers deep enough for the barrel test lens in a 240-line field

@@ -121,18 +121,21 @@ def test_malformed_lines_counted_and_resynchronised(n_cut):
     print(f"malformed stream: {errors} errors counted, output identical to golden")
 
 
-def test_converter_matches_golden_on_random_codes():
+@pytest.mark.parametrize("g_blocks", [True, False])
+def test_converter_matches_golden_on_random_codes(g_blocks):
     from hdl.bt656 import YCbCrToRGB, CONVERT_LATENCY
     rng = np.random.default_rng(7)
     # every code near the ends and the centres of Y, Cb, Cr crossed (the carries out of the
-    # low bytes and the clamps at both ends), every Cb (the B product is an addition, not a
-    # multiplier block), then random codes
+    # low bytes and the clamps at both ends), every Cb and every Cr (products by shifts and
+    # additions), then random codes
     edges = [0, 1, 15, 16, 17, 127, 128, 129, 235, 240, 254, 255]
-    every_cb = np.stack([np.full(256, 100), np.arange(256), np.full(256, 128)], axis=1)
+    codes = np.arange(256)
+    every_cb = np.stack([np.full(256, 100), codes, 255 - codes], axis=1)
+    every_cr = np.stack([np.full(256, 180), 255 - codes, codes], axis=1)
     ycc = np.concatenate([np.array(np.meshgrid(edges, edges, edges)).reshape(3, -1).T,
-                          every_cb, rng.integers(0, 256, (400, 3))])
+                          every_cb, every_cr, rng.integers(0, 256, (400, 3))])
     want = ycbcr_to_rgb(ycc[:, 0], ycc[:, 1], ycc[:, 2]).tolist()
-    dut = YCbCrToRGB()
+    dut = YCbCrToRGB(g_blocks=g_blocks)
     got = []
 
     async def bench(ctx):
