@@ -65,8 +65,8 @@ class YCbCrToRGB(wiring.Component):
     (4) per channel, the sum of the products' high parts (``p >> 8``) and the sum of their
     low bytes plus the rounding constant 128; (5) the high sum plus the low sum's carry (its
     bits from 8 up), which is the whole sum ``>> 8`` (floor); (6) the clamp to 0..255. Each
-    stage is one multiplier or adders of at most 11 bits between registers (the full 19-bit
-    sums would be one 19-bit carry chain).
+    stage is one multiplier or additions of at most 13 bits between registers (the full
+    19-bit sums would be one 19-bit carry chain).
 
     Multiplier blocks sit in a few rows of the die, and a block spent on a product of one or
     two additions is a block another unit's multiply cannot sit beside: on the ECP5-25F with
