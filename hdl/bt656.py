@@ -100,25 +100,25 @@ class YCbCrToRGB(wiring.Component):
         m.d.sync += [c.eq(self.i.y - 16), d.eq(self.i.cb ^ 0x80), e.eq(self.i.cr ^ 0x80)]
         # stage 2: the products (G's two negated: every sum below is an addition); those by
         # shifts and additions are elaborated from these three coefficients
-        assert (k["b_cb"], k["g_cb"], k["g_cr"]) == (516, 100, 208), COEFFICIENTS
         py_p, pre_p, pbd_p = Signal(signed(18)), Signal(signed(17)), Signal(signed(18))
+        ngd_p, nge_p = Signal(signed(15)), Signal(signed(16))
+        py, pre, pbd = Signal.like(py_p), Signal.like(pre_p), Signal.like(pbd_p)
+        ngd, nge = Signal.like(ngd_p), Signal.like(nge_p)       # -100 d, -208 e
+        assert (k["b_cb"], k["g_cb"], k["g_cr"]) == (516, 100, 208), COEFFICIENTS
+        if self.g_blocks:
+            g_products = [ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e)]
+            g_stage3 = [ngd.eq(ngd_p), nge.eq(nge_p)]
+        else:
+            # ngd_p and nge_p hold 7 d and 3 e, d and e kept beside them
+            d2, e2 = Signal(signed(8)), Signal(signed(8))
+            g_products = [ngd_p.eq((d << 3) - d), nge_p.eq((e << 1) + e), d2.eq(d), e2.eq(e)]
+            g_stage3 = [ngd.eq((ngd_p - (d2 << 5)) << 2), nge.eq((nge_p - (e2 << 4)) << 4)]
         m.d.sync += [py_p.eq(k["y"] * c), pre_p.eq(k["r_cr"] * e),
-                     pbd_p.eq(Cat((d << 2)[:9], d - d[7]).as_signed())]
+                     pbd_p.eq(Cat((d << 2)[:9], d - d[7]).as_signed()), *g_products]
         # stage 3: the blocks' products registered again: their own registers have one load
         # each and sit by their block (on the ECP5 a register that feeds both the sums and a
-        # distant block puts a long route on the critical path)
-        py, pre, pbd = Signal.like(py_p), Signal.like(pre_p), Signal.like(pbd_p)
-        ngd, nge = Signal(signed(15)), Signal(signed(16))    # -100 d, -208 e
-        m.d.sync += [py.eq(py_p), pre.eq(pre_p), pbd.eq(pbd_p)]
-        if self.g_blocks:
-            ngd_p, nge_p = Signal.like(ngd), Signal.like(nge)
-            m.d.sync += [ngd_p.eq(-k["g_cb"] * d), nge_p.eq(-k["g_cr"] * e),
-                         ngd.eq(ngd_p), nge.eq(nge_p)]
-        else:
-            d7, d2 = Signal(signed(11)), Signal(signed(8))   # 7 d, d
-            e3, e2 = Signal(signed(10)), Signal(signed(8))   # 3 e, e
-            m.d.sync += [d7.eq((d << 3) - d), d2.eq(d), e3.eq((e << 1) + e), e2.eq(e),
-                         ngd.eq((d7 - (d2 << 5)) << 2), nge.eq((e3 - (e2 << 4)) << 4)]
+        # distant block puts a long route on the critical path); G's second additions
+        m.d.sync += [py.eq(py_p), pre.eq(pre_p), pbd.eq(pbd_p), *g_stage3]
         # stage 4: each sum split at bit 8 (v = 256 (v >> 8) + v[:8]): the high parts summed,
         # and the low bytes with the rounding constant, whose bits from 8 up are the carry
         terms = {"r": (py, pre), "g": (py, ngd, nge), "b": (py, pbd)}
