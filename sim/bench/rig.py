@@ -15,8 +15,9 @@ ground truth and bad-2 (the share of scored matches that are more than 2 px off)
 unrectified, rectified, and rectified by the true rig: the rectification the calibration
 would give were its fit perfect (:func:`sim.cli.calibrate.rectification` of the rig itself,
 at the true corners of the same views), so the table tells what the calibration's errors
-cost from what the rectification and the re-shoot cost whatever the calibration. Scoring goes through the points in the left camera's frame: a
-rectified match's ``cam_x_m cam_y_m cam_z_m``, as ``matches.csv`` has them
+cost from what the rectification and the re-shoot cost whatever the calibration. Scoring goes
+through the points in the left camera's frame: a rectified match's ``cam_x_m cam_y_m
+cam_z_m``, as ``matches.csv`` has them
 (:func:`sim.scenes.camera.match_table` with the calibration's camera file: the left lens'
 distortion removed), is projected into the original left image with its documented camera,
 and its disparity there (``f B / z - doffs``) compared with the ground truth at the nearest

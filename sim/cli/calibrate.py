@@ -138,13 +138,19 @@ def calibrate(folder, board, square, near_m=None, grid=32):
     flags = cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
     _, K1, D1, _, _ = cv2.calibrateCamera(obj, pl, (w, h), None, None, flags=flags)
     _, K2, D2, _, _ = cv2.calibrateCamera(obj, pr, (w, h), None, None, flags=flags)
-    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-9)
+    crit = _criteria()
     rms, K1, D1, K2, D2, R, T, _, _ = cv2.stereoCalibrate(
         obj, pl, pr, K1, D1, K2, D2, (w, h), criteria=crit,
         flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags)
     rig = Rig(Lens.from_K(K1, D1), Lens.from_K(K2, D2), R, T.ravel(), w, h)
     return rectification(rig, np.concatenate(pl), np.concatenate(pr), near_m, grid, rms=rms,
                          views=len(obj), pairs=len(pairs), source=f"calibration of {folder}")
+
+
+def _criteria():
+    """OpenCV's termination criteria for the stereo fit and the corners' undistortion."""
+    import cv2
+    return (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-9)
 
 
 def rectification(rig, corners_left, corners_right, near_m=None, grid=32, rms=0.0, views=0,
@@ -164,7 +170,7 @@ def rectification(rig, corners_left, corners_right, near_m=None, grid=32, rms=0.
     K1, K2 = rig.left.K, rig.right.K
     D1, D2 = np.asarray(rig.left.dist, np.float64), np.asarray(rig.right.dist, np.float64)
     R, T = rig.Rm, rig.Tv.reshape(3, 1)
-    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-9)
+    crit = _criteria()
     # Bouguet: rectified rows of both views' corners
     R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(K1, D1, K2, D2, (w, h), R, T, alpha=0)
     yl = cv2.undistortPointsIter(al, K1, D1, R1, P1, crit)[:, 0, 1]

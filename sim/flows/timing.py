@@ -293,7 +293,7 @@ def _result(name, runs, synth_s):
     result = {"fmax_mhz": fmax, "worst_mhz": worst,
               "spartan3_estimate_mhz": round(worst * SPARTAN3_SCALE, 1),
               "meets_target": worst >= TARGET_MHZ,
-              "utilisation": use, "fits": bool(use) and all(u <= n for u, n in use.values()),
+              "utilisation": use, "fits": _fits(use),
               "critical_path": {"seed": worst_seed, **paths[worst_seed]},
               "seconds": {"synth": round(synth_s, 1),
                           "pnr": {s: round(r[2], 1) for s, r in runs.items()}}}
@@ -333,6 +333,11 @@ def write_report(results, out_dir):
     return out / "report.json"
 
 
+def _fits(use):
+    """Whether a design's :func:`utilisation` (not empty) is within the device."""
+    return bool(use) and all(u <= n for u, n in use.values())
+
+
 def _fit(use):
     """``21,720 / 16,441 / 39 / 23 of 24,288 / 24,288 / 56 / 28`` (over the device: in bold)."""
     if not use:
@@ -340,7 +345,7 @@ def _fit(use):
     got = [use.get(k, [0, 0]) for k in FIT_SITES]
     text = (" / ".join(f"{u:,}" for u, _ in got) + " of "
             + " / ".join(f"{n:,}" for _, n in got))
-    return text if all(u <= n for u, n in got) else f"**{text}: does not fit**"
+    return text if _fits(use) else f"**{text}: does not fit**"
 
 
 def bench_timing(bench, out_dir, quick):
