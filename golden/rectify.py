@@ -48,7 +48,8 @@ import numpy as np
 __all__ = ["GRID", "FRAC", "MAP_DTYPE", "grid_shape", "build_map", "source_positions",
            "rectify", "fits", "row_window", "valid_region", "RectifyParams", "node_words",
            "RectifiedPipelineModel", "rectified_pipeline_frames", "SPAN", "MAX_SPAN",
-           "needs_rectification", "params_for_rig", "both_sides", "source_map"]
+           "needs_rectification", "params_for_rig", "rows_toward_pinhole", "both_sides",
+           "source_map"]
 
 #: Pixels between map nodes (a power of two).
 GRID = 32
@@ -229,6 +230,47 @@ def valid_region(rig, doffs, grid=GRID, focus=None, both=None):
         else:
             y1 -= 1
     raise ValueError("no pixel of the rectified image has its source inside the right image")
+
+
+def rows_toward_pinhole(rig, doffs, both, span, iterations=12):
+    """``both`` (a two-sided rectification, ``{"R", "scale", "g"}``) with its row curve moved
+    from ``g``, the curve of the fewest buffer rows (:func:`golden.rig.rect_geometry`),
+    towards the pinhole's rows (:data:`golden.rig.PINHOLE_ROWS`) as far as line buffers of
+    ``span`` readable rows less one still hold both cameras' maps (:func:`row_window`,
+    :func:`fits`) and their offsets fit the node words: ``g + t (pinhole - g)``, ``t`` the
+    largest of a bisection of ``iterations`` steps over ``0 .. 1``; ``both`` itself when even
+    ``g`` does not fit the span.
+
+    Why: rows that follow the lens squeeze the scene towards the image's top and bottom (and
+    show what lies beyond the pinhole's field there), so the scene covers fewer rows and gives
+    fewer matches; pinhole rows keep the scene's own proportions but need the lens'
+    full vertical distortion in buffer rows. Whatever rows the build's buffer has beyond the
+    fewest are best spent on squeezing less."""
+    from golden.rig import PINHOLE_ROWS
+    g = np.asarray(both["g"], np.float64)
+    step = np.asarray(PINHOLE_ROWS, np.float64) - g
+
+    def curve(t):
+        return tuple(round(float(v), 6) for v in g + t * step)
+
+    def holds(t):
+        b = {**both, "g": curve(t)}
+        try:
+            maps = [build_map(rig, doffs, side=side, both=b) for side in ("left", "right")]
+        except ValueError:
+            return False
+        return all(fits(n, rig.width, rig.height, row_window(n, rig.width, rig.height, span),
+                        span) for n in maps)
+
+    if holds(1.0):
+        return {**both, "g": curve(1.0)}
+    if not holds(0.0):
+        return both
+    lo, hi = 0.0, 1.0
+    for _ in range(iterations):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if holds(mid) else (lo, mid)
+    return {**both, "g": curve(lo)}
 
 
 def needs_rectification(nodes):

@@ -114,6 +114,26 @@ def test_near_sets_the_window(boards, tmp_path, capsys):
     assert 203 <= d_max <= 215 and d_max - d_min == 63
 
 
+def test_span_spends_buffer_rows_on_rows_nearer_the_pinhole(boards, tmp_path, capsys):
+    """``--span``: a longer line buffer than the lenses need gets rows that squeeze the scene
+    less; the camera file's maps fit that buffer, and ``sim run`` builds it."""
+    from golden.rectify import params_for_rig
+    _, folder = boards
+    cams, warps = [], []
+    for span in ("8", "24"):
+        out = tmp_path / f"rig{span}.json"
+        assert _calibrate(folder, out, "--span", span) == 0
+        lo, hi = json.loads(capsys.readouterr().out)["vertical_span_rows"]
+        cams.append(Camera.from_json(out))
+        warps.append(hi - lo)
+    narrow, wide = (c.rig["left_rect"]["g"] for c in cams)
+    assert narrow[0] == wide[0] == 1.0 and abs(wide[1]) < abs(narrow[1])
+    assert warps[1] > warps[0] + 4
+    cam = cams[1]
+    for side in ("left", "right"):
+        assert params_for_rig(cam, cam.width, cam.height, side=side).span <= 24
+
+
 def _error(capsys, argv):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -127,6 +147,8 @@ def test_bad_input(boards, tmp_path, capsys):
     base = ["calibrate", "--pairs", str(folder), "--board", "9x6", "--out", out]
     assert "positive" in _error(capsys, base + ["--square", "0"])
     assert "positive" in _error(capsys, base + ["--square", "-0.03"])
+    for span in ("7", "0", "32"):
+        assert "even, 2..30" in _error(capsys, base + ["--square", "0.03", "--span", span])
     assert "COLSxROWS" in _error(capsys, base[:4] + ["nine", "--out", out, "--square", "0.03"])
     assert "does not exist" in _error(capsys, ["calibrate", "--pairs", str(tmp_path / "none"),
                                                "--board", "9x6", "--square", "0.03", "--out",

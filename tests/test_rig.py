@@ -217,11 +217,42 @@ def test_rect_geometry_rows_keep_the_centre_scale_and_need_no_more_buffer(monkey
     assert warp(g) <= warp(g_fit) - 0.5
 
 
+def test_rows_move_towards_the_pinhole_as_far_as_the_buffer_allows():
+    """A longer line buffer buys rows nearer the pinhole's: the curve that needs the fewest
+    rows stays when the span has no rows to spare (or too few even for it), a longer span
+    gets a curve that squeezes the image's top less, whose maps fill that span (both cameras
+    held by it, not by 4 rows fewer)."""
+    import golden.rig as G
+    from golden.rectify import build_map, fits, row_window, rows_toward_pinhole
+    rig = rig_named("barrel")
+    R1 = G.align_rotation(rig)
+    doffs = rig.right.cx - rig.left.cx
+    scale, g = G.rect_geometry(rig, doffs, R1)
+    both = {"R": R1.tolist(), "scale": scale, "g": list(g)}
+
+    def held(b, span):
+        maps = [build_map(rig, doffs * scale, side=s, both=b) for s in ("left", "right")]
+        return all(fits(n, rig.width, rig.height, row_window(n, rig.width, rig.height, span),
+                        span) for n in maps)
+
+    assert held(both, 16) and not held(both, 12)
+    assert rows_toward_pinhole(rig, doffs * scale, both, 12) == both
+    top = (0 - rig.left.cy) / rig.left.fy            # the top row's ray height
+    squeeze = [abs(G.row_curve(top, g) - top)]
+    for span in (16, 24):
+        b = rows_toward_pinhole(rig, doffs * scale, both, span)
+        assert held(b, span) and not held(b, span - 4)
+        assert b["R"] == both["R"] and b["scale"] == scale
+        squeeze.append(abs(G.row_curve(top, b["g"]) - top))
+    assert squeeze[0] >= squeeze[1] > squeeze[2]
+
+
 @pytest.mark.parametrize("args, says", [
     (["--rigs", "barrel,nope"], "unknown rig 'nope'"),
     (["--views", "3"], "at least 4"),
     (["--seed", "-1"], "--seed -1"),
     (["--seed", "one"], "--seed"),
+    (["--span", "9"], "--span 9"),
 ])
 def test_rig_bench_bad_input_is_one_error_line(args, says, capsys):
     from sim.bench.rig import main

@@ -3,7 +3,12 @@ matched by the golden pipeline (default configuration, ground model off) without
 rectification of a calibration of checkerboards rendered through the rig (the right camera's
 alone, or both cameras' when the lenses distort: :func:`golden.rectify.both_sides`).
 
-Each rig is calibrated from 40 pairs (``--views``) of :func:`sim.scenes.rig.board_views`.
+Each rig is calibrated from 40 pairs (``--views``) of :func:`sim.scenes.rig.board_views`,
+with line buffers of ``--span`` rows (default :data:`golden.rectify.MAX_SPAN`, the unit's
+most): a rig whose lenses distort gets rows as near the pinhole's as they allow
+(:func:`golden.rectify.rows_toward_pinhole`), which squeeze the scene less than the rows of
+the fewest buffer rows and give more matches; the table's ``lo, span`` give what each rig
+takes.
 The least certain figures of a checkerboard calibration are the principal points (they
 trade against the boards' poses), and the rectified points' directions, so where a match is
 scored, move with them: their error falls as the square root of the views, and fewer views
@@ -126,7 +131,7 @@ def inside_scene(records, camera, rig, ideal, margin=4, sides=("left",)):
     return ok
 
 
-def run_rig(name, views=40, span=8, horizontal="nearest", grid=32, seed=0, workdir=None):
+def run_rig(name, views=40, span=30, horizontal="nearest", grid=32, seed=0, workdir=None):
     """One rig's row of the table (a dict)."""
     from golden.pipeline import default_params, pipeline_frames
     from golden.rectify import both_sides, params_for_rig, rectified_pipeline_frames
@@ -140,11 +145,12 @@ def run_rig(name, views=40, span=8, horizontal="nearest", grid=32, seed=0, workd
     shots = board_views(rig, views=views, seed=seed)
     with tempfile.TemporaryDirectory(dir=workdir) as folder:
         write_views(folder, shots)
-        cal = calibrate(folder, (9, 6), 0.03, grid=grid)
+        cal = calibrate(folder, (9, 6), 0.03, grid=grid, span=span)
     t_cal = time.time() - t0
     cam = cal["camera"]
     true_cam = rectification(rig, np.concatenate([s[2] for s in shots]),
-                             np.concatenate([s[3] for s in shots]), grid=grid)["camera"]
+                             np.concatenate([s[3] for s in shots]), grid=grid,
+                             span=span)["camera"]
     ideal = motorcycle_rig()
     l2, r2 = reshoot_pair(left, right, ideal, rig)
     h, w = l2.shape[:2]
@@ -152,8 +158,8 @@ def run_rig(name, views=40, span=8, horizontal="nearest", grid=32, seed=0, workd
     unrect = pipeline_frames([l2], [r2], params)[0]
 
     def rectified_run(c):
-        rect = params_for_rig(c, w, h, span=span, horizontal=horizontal)
-        lrect = (params_for_rig(c, w, h, span=span, horizontal=horizontal, side="left")
+        rect = params_for_rig(c, w, h, horizontal=horizontal)
+        lrect = (params_for_rig(c, w, h, horizontal=horizontal, side="left")
                  if both_sides(c) else None)
         return rect, lrect, rectified_pipeline_frames([l2], [r2], params, rect, lrect)[0]
     rect, lrect, rectified = rectified_run(cam)
@@ -212,6 +218,7 @@ def main(argv=None):
 
 
 def _main(argv):
+    from golden.rectify import MAX_SPAN
     from sim.cli.calibrate import MIN_VIEWS
     from sim.cli.main import Parser
     from sim.scenes.rig import RIGS
@@ -219,7 +226,9 @@ def _main(argv):
     p.add_argument("--rigs", help="comma-separated rig names (default: all)")
     p.add_argument("--views", type=int, default=40, help="checkerboard pairs per calibration")
     p.add_argument("--seed", type=int, default=0, help="seed of the board poses")
-    p.add_argument("--span", type=int, default=8)
+    p.add_argument("--span", type=int, default=MAX_SPAN,
+                   help="line-buffer rows the calibration may spend (sim calibrate --span; "
+                        "default: the unit's most)")
     p.add_argument("--grid", type=int, default=32)
     p.add_argument("--horizontal", default="nearest", choices=("linear", "nearest"))
     p.add_argument("--json", action="store_true", help="one JSON line per rig")
@@ -232,6 +241,8 @@ def _main(argv):
         p.error(f"--views {a.views}: a calibration needs at least {MIN_VIEWS}")
     if a.seed < 0:
         p.error(f"--seed {a.seed}: a seed is not negative")
+    if not (2 <= a.span <= MAX_SPAN and a.span % 2 == 0):
+        p.error(f"--span {a.span}: the line buffer's span is even, 2..{MAX_SPAN}")
     rows = []
     for n in names:
         row = run_rig(n, views=a.views, span=a.span, horizontal=a.horizontal, grid=a.grid,

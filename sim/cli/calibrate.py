@@ -17,7 +17,9 @@ gives at the board's distance) and the vertical warp its line buffer must hold. 
 distort (a pixel displaced by more than :data:`DISTORTION_PX`) instead have both cameras
 rectified into one geometry with epipolar rows (:func:`both_rect`, :mod:`golden.rig`), written
 as ``left_rect``; its residual is that of both cameras' rectified corners, and the camera's
-``fx fy cx cy doffs_px`` are the rectified geometry's.
+``fx fy cx cy doffs_px`` are the rectified geometry's. Its rows follow the lenses as far as the
+line buffer's ``--span`` needs them to (rows that follow a barrel lens squeeze the scene
+towards the top and bottom, so a longer buffer buys matches there).
 
 The file is a :class:`golden.camera.Camera` of the left camera as captured (its ``fx fy cx cy``,
 the baseline along its x axis, ``doffs_px``, the valid region of the rectified right image)
@@ -33,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from golden.rectify import MAX_SPAN, SPAN
 from sim.errors import CliError
 
 __all__ = ["MIN_VIEWS", "calibrate", "rectification", "add_parser", "cmd_calibrate",
@@ -96,12 +99,14 @@ def _corners(img, board):
     return c.astype(np.float32)
 
 
-def calibrate(folder, board, square, near_m=None, grid=32):
+def calibrate(folder, board, square, near_m=None, grid=32, span=SPAN):
     """The calibration of the pairs in ``folder`` (see the module text): a dict with the
     ``camera`` (:class:`golden.camera.Camera`) and the figures ``views``, ``pairs``,
     ``rms_px``, ``residual_px`` (Bouguet, median |dy| at the corners), ``module_residual_px``
     (the module's rectification, the same), ``rectified`` (``"right"`` or ``"both"``),
-    ``vertical_span_rows`` and ``window``. CliError on
+    ``vertical_span_rows`` and ``window``. ``span``: the rows of vertical warp the rectifier's
+    line buffer holds, which a rectification of both cameras spends on rows nearer the
+    pinhole's (:func:`golden.rectify.rows_toward_pinhole`). CliError on
     bad input (see :func:`cmd_calibrate`)."""
     import cv2
     from golden.rig import Lens, Rig
@@ -144,7 +149,8 @@ def calibrate(folder, board, square, near_m=None, grid=32):
         flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags)
     rig = Rig(Lens.from_K(K1, D1), Lens.from_K(K2, D2), R, T.ravel(), w, h)
     return rectification(rig, np.concatenate(pl), np.concatenate(pr), near_m, grid, rms=rms,
-                         views=len(obj), pairs=len(pairs), source=f"calibration of {folder}")
+                         views=len(obj), pairs=len(pairs), source=f"calibration of {folder}",
+                         span=span)
 
 
 def _criteria():
@@ -154,7 +160,7 @@ def _criteria():
 
 
 def rectification(rig, corners_left, corners_right, near_m=None, grid=32, rms=0.0, views=0,
-                  pairs=0, source=None):
+                  pairs=0, source=None, span=SPAN):
     """The result of :func:`calibrate` (the same dict) for a rig whose lenses and pose are
     known (a :class:`golden.rig.Rig`: as the OpenCV steps fit it, or a test rig's own, the
     calibration a perfect fit would give): Bouguet's residual and the module's rectification
@@ -182,7 +188,7 @@ def rectification(rig, corners_left, corners_right, near_m=None, grid=32, rms=0.
         raise CliError("the right camera is not to the right of the left one: swap the "
                        "left_ and right_ images")
     if max(distortion_px(rig.left, w, h), distortion_px(rig.right, w, h)) > DISTORTION_PX:
-        return _calibrated(source, rig, both_rect(rig, doffs, al, ar, near_m, grid),
+        return _calibrated(source, rig, both_rect(rig, doffs, al, ar, near_m, grid, span),
                            rms, residual, views, pairs)
     # the module's rectification: right corners into the left camera's geometry, the
     # distortion centred for the middle of the disparity window
@@ -212,13 +218,15 @@ def rectification(rig, corners_left, corners_right, near_m=None, grid=32, rms=0.
     return _calibrated(source, rig, rect, rms, residual, views, pairs)
 
 
-def both_rect(rig, doffs, al, ar, near_m, grid):
+def both_rect(rig, doffs, al, ar, near_m, grid, span=SPAN):
     """The rectification of both cameras (:mod:`golden.rig`: resampled into one geometry
     whose rows are epipolar lines, turned by :func:`golden.rig.align_rotation`, the column
-    scale and row curve of :func:`golden.rig.rect_geometry`) for a rig with distorting
-    lenses, with its vertical residual at the corners ``al``, ``ar`` (both cameras' corners,
-    (N, 1, 2)): the figures :func:`_calibrated` takes."""
-    from golden.rectify import valid_region
+    scale and row curve of :func:`golden.rig.rect_geometry`, the curve moved towards the
+    pinhole's rows as far as line buffers of ``span`` rows allow:
+    :func:`golden.rectify.rows_toward_pinhole`) for a rig with distorting lenses, with its
+    vertical residual at the corners ``al``, ``ar`` (both cameras' corners, (N, 1, 2)): the
+    figures :func:`_calibrated` takes."""
+    from golden.rectify import rows_toward_pinhole, valid_region
     from golden.rig import (align_rotation, rect_geometry, rect_vertical_span, rectified_lens,
                             row_curve, undistort)
     R1 = align_rotation(rig)
@@ -230,7 +238,9 @@ def both_rect(rig, doffs, al, ar, near_m, grid):
     lens = rectified_lens(rig, scale)
     baseline = float(np.linalg.norm(rig.centre))
     window = _window(lens.fx * baseline, rdoffs, near_m)
-    both = {"R": R1.tolist(), "scale": scale, "g": list(g)}
+    both = rows_toward_pinhole(rig, rdoffs, {"R": R1.tolist(), "scale": scale, "g": list(g)},
+                               span)
+    g = tuple(both["g"])
     try:
         valid = valid_region(rig, rdoffs, grid, both=both)
     except ValueError as e:
@@ -300,6 +310,11 @@ def add_parser(sub, formatter_class=None):
     c.add_argument("--near", type=_metres, metavar="METRES",
                    help="nearest depth the disparity window must reach [unit: m; default: the "
                         "window starts at infinity]")
+    c.add_argument("--span", type=int, default=SPAN, metavar="ROWS",
+                   help="rows of vertical warp the rectifier's line buffer holds (its span: "
+                        f"even, 2..{MAX_SPAN}); a rectification of both cameras spends what "
+                        "its lenses leave on rows nearer the pinhole's, which squeeze the "
+                        "scene less [default: %(default)s, the chip's]")
     c.add_argument("--out", required=True, metavar="rig.json", help="camera file to write")
     return c
 
@@ -326,7 +341,9 @@ def cmd_calibrate(args):
         raise CliError(f"--out {args.out!r} is a folder: give the file to write")
     if not out.parent.exists() or not out.parent.is_dir():
         raise CliError(f"--out {args.out!r}: folder {str(out.parent)!r} does not exist")
-    result = calibrate(args.pairs, board, args.square, args.near)
+    if not (2 <= args.span <= MAX_SPAN and args.span % 2 == 0):
+        raise CliError(f"--span {args.span}: the line buffer's span is even, 2..{MAX_SPAN}")
+    result = calibrate(args.pairs, board, args.square, args.near, span=args.span)
     try:
         result["camera"].to_json(out)
     except OSError as e:
