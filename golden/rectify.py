@@ -49,7 +49,7 @@ __all__ = ["GRID", "FRAC", "MAP_DTYPE", "grid_shape", "build_map", "source_posit
            "rectify", "fits", "row_window", "valid_region", "RectifyParams", "node_words",
            "RectifiedPipelineModel", "rectified_pipeline_frames", "SPAN", "MAX_SPAN",
            "needs_rectification", "params_for_rig", "rows_toward_pinhole", "both_sides",
-           "source_map"]
+           "source_map", "shared_window"]
 
 #: Pixels between map nodes (a power of two).
 GRID = 32
@@ -157,6 +157,29 @@ def fits(nodes, width, height, lo, span, grid=GRID):
     return bool((low & high).all())
 
 
+def shared_window(maps, width, height, span=SPAN, max_span=MAX_SPAN, grid=GRID):
+    """``(lo, span)``: one line-buffer window for every map of ``maps`` (both cameras'), the
+    least even ``span`` from ``span`` up to ``max_span`` for which one ``lo`` fits them all
+    (:func:`fits`), and that ``lo``, the largest (as :func:`row_window` chooses). Rectifiers
+    that share the window hold back the same rows, so their outputs leave in step: a SoC whose
+    cameras cannot stall then needs no matcher line slots for one camera's lag behind the
+    other. ValueError when no window up to ``max_span`` fits."""
+    low, high = 0, -(1 << 30)       # lo <= every map's low; lo >= every map's high - span
+    for nodes in maps:
+        _, sy = source_positions(nodes, width, height, grid)
+        rel = (sy >> FRAC) - np.arange(height)[:, None]
+        y0 = sy >> FRAC
+        # rows outside the image are replaced by the edge row whatever the buffer holds
+        low = min(low, int(rel[y0 < height - 1].min(initial=0)))
+        high = max(high, int((rel + 1)[y0 + 1 > 0].max(initial=0)))
+    for s in range(max(2, span + span % 2), max_span + 1, 2):
+        lo = min(0, max(-s, low))
+        if lo >= high - s:
+            return lo, s
+    raise ValueError(f"the maps' vertical warp needs more than the {max_span + 1} rows a "
+                     f"rectifier's line buffer can hold")
+
+
 def node_words(nodes, stride):
     """``(address, word)`` of every node as the hardware's map memory holds it: address
     ``j * stride + k`` (``stride`` a power of two), word ``dx | dy << OFFSET_BITS`` in
@@ -236,8 +259,9 @@ def rows_toward_pinhole(rig, doffs, both, span, iterations=12):
     """``both`` (a two-sided rectification, ``{"R", "scale", "g"}``) with its row curve moved
     from ``g``, the curve of the fewest buffer rows (:func:`golden.rig.rect_geometry`),
     towards the pinhole's rows (:data:`golden.rig.PINHOLE_ROWS`) as far as line buffers of
-    ``span`` readable rows less one still hold both cameras' maps (:func:`row_window`,
-    :func:`fits`) and their offsets fit the node words: ``g + t (pinhole - g)``, ``t`` the
+    ``span`` readable rows less one still hold both cameras' maps in one shared window
+    (:func:`shared_window`, as the SoC's two rectifiers hold them) and their offsets fit the
+    node words: ``g + t (pinhole - g)``, ``t`` the
     largest of a bisection of ``iterations`` steps over ``0 .. 1``; ``both`` itself when even
     ``g`` does not fit the span.
 
@@ -257,10 +281,10 @@ def rows_toward_pinhole(rig, doffs, both, span, iterations=12):
         b = {**both, "g": curve(t)}
         try:
             maps = [build_map(rig, doffs, side=side, both=b) for side in ("left", "right")]
+            shared_window(maps, rig.width, rig.height, span, span)
         except ValueError:
             return False
-        return all(fits(n, rig.width, rig.height, row_window(n, rig.width, rig.height, span),
-                        span) for n in maps)
+        return True
 
     if holds(1.0):
         return {**both, "g": curve(1.0)}

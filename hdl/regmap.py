@@ -41,6 +41,7 @@ __all__ = ["Field", "Register", "REGISTERS", "REGS_BASEADDR", "IIC_BASEADDR", "R
            "IIC_WINDOW", "ID_MAGIC", "MAP_VERSION", "MAX_WIDTH", "MAX_HEIGHT", "DISPARITY_SPAN",
            "register", "field", "parameter_fields", "config_fields", "param_value",
            "status_fields", "tables", "encode_params", "RECT_BASEADDR", "RECT_WINDOW",
+           "RECT_LEFT_BASEADDR",
            "RECT_MAP_OFFSET", "RECT_REGISTERS", "rect_register", "rect_map_check"]
 
 #: MCS I/O bus addresses: the I/O bus occupies 0xC0000000..0xFFFFFFFF on the MCS.
@@ -539,6 +540,9 @@ BANDS_DOCS = {
 # without it leaves its window unanswered (reads 0: RECT_INFO.span = 0, no rectifier).
 RECT_BASEADDR = 0xC006_0000
 RECT_WINDOW = 0x8000          #: bytes decoded by the rectifier
+#: The left camera's rectifier (SystemSoC / StereoSoC ``rectify_left=``, for calibrations that
+#: rectify both cameras): the same registers in the next window.
+RECT_LEFT_BASEADDR = RECT_BASEADDR + RECT_WINDOW
 #: Byte offset of the map words: node (j, k) at RECT_MAP_OFFSET + 4 (j * 2^stride_log2 + k),
 #: write-only, word dx | dy << 10 (golden.rectify.node_words), 4096 words at most.
 RECT_MAP_OFFSET = 0x4000

@@ -12,7 +12,6 @@ The MicroBlaze MCS itself is a Xilinx IP core (PG116) instantiated in the vendor
 component takes its I/O bus (:class:`hdl.regs.IOBusSignature`) as a port, so the same design
 also runs in simulation with the firmware driving the bus (``sim/system/cosim``).
 """
-import hashlib
 
 from amaranth.hdl import Cat, ClockDomain, ClockSignal, Const, Module, ResetInserter, Signal, Mux
 from amaranth.lib import data, wiring, stream
@@ -92,15 +91,21 @@ class StereoSoC(wiring.Component):
     tables (FREE_LEFT_k, FREE_RIGHT_k); without them those registers read 0 (see
     :class:`SystemSoC`). ``search_start`` (True by default): the matcher's search start under
     the floor line (FLOOR.floor_search, FLOOR.floor_margin and FLOOR_LINE; without it those
-    two fields do nothing).
+    two fields do nothing). ``rectify`` (None by default): the right camera's rectifier
+    (:class:`hdl.rectify.Rectify`: ``span``, ``horizontal``, ``nodes``, the map in the
+    bitstream; ``extra_rows``, the matcher's further line slots) with its registers at
+    RECT_BASEADDR (:mod:`hdl.rectify_regs`); ``rectify_left`` (only with ``rectify``, the same
+    keys but ``extra_rows``): the left camera's too, for calibrations whose lenses distort,
+    its registers at RECT_LEFT_BASEADDR.
     """
 
     def __init__(self, *, max_width=1024, max_height=1024, fifo_depth=256, clk_div=125,
-                 cost="census", rectify=None, free_space=True, search_start=True):
+                 cost="census", rectify=None, rectify_left=None, free_space=True,
+                 search_start=True):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
                               free_space=bool(free_space), search_start=bool(search_start))
-        self._rectify = _rectify_option(self, rectify, self._pipeline)
+        self._rectify = _rectify_option(self, rectify, self._pipeline, rectify_left)
         self._fifo_depth = fifo_depth
         self._clk_div = clk_div
         super().__init__({
@@ -116,7 +121,8 @@ class StereoSoC(wiring.Component):
         m.submodules.pipeline = pipe = StereoPipeline(**self._pipeline)
         m.submodules.regs = regs = RegisterBlock(fifo_depth=self._fifo_depth)
         m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
-        slaves = (regs, iic, *_rectifier(m, pipe, self._rectify))
+        slaves = (regs, iic, *_rectifier(m, pipe, self._rectify[0]),
+                  *_rectifier(m, pipe, self._rectify[1], "left"))
 
         # Bus: every slave sees every transfer; the one whose window it is answers.
         for slave in slaves:
@@ -210,7 +216,8 @@ class SystemSoC(wiring.Component):
     (results; None: 256, or :data:`CPU_FIFO_DEPTH` with the CPU inside),
     ``clk_div`` (IIC), ``uart_divisor``, ``cost`` (the matcher's window cost,
     :class:`hdl.pipeline.StereoPipeline`), ``free_space``, ``search_start`` (True by default,
-    as :class:`StereoSoC`'s), ``g_blocks`` (the colour converters' G products on multiplier
+    as :class:`StereoSoC`'s), ``rectify`` and ``rectify_left`` (the rectifiers, as
+    :class:`StereoSoC`'s), ``g_blocks`` (the colour converters' G products on multiplier
     blocks, True by default: :class:`hdl.bt656.YCbCrToRGB`; False for a die whose blocks are
     in demand, the ECP5-25F build with the rectifier).
 
@@ -250,8 +257,8 @@ class SystemSoC(wiring.Component):
     def __init__(self, *, max_width=720, max_height=240, lines=240,
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
-                 monitor=False, rectify=None, free_space=False, search_start=True, loss=None,
-                 g_blocks=True):
+                 monitor=False, rectify=None, rectify_left=None, free_space=False,
+                 search_start=True, loss=None, g_blocks=True):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
@@ -261,7 +268,7 @@ class SystemSoC(wiring.Component):
         self._monitor = bool(monitor) and cpu is not None
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
                               free_space=bool(free_space), search_start=bool(search_start))
-        self._rectify = _rectify_option(self, rectify, self._pipeline)
+        self._rectify = _rectify_option(self, rectify, self._pipeline, rectify_left)
         self._lines = lines
         self._g_blocks = bool(g_blocks)
         self._camera_fifo_depth = camera_fifo_depth
@@ -312,7 +319,8 @@ class SystemSoC(wiring.Component):
         m.submodules.iic = iic = IICMaster(clk_div=self._clk_div)
         m.submodules.uart = uart = UART(divisor=self._uart_divisor, base=UART_BASEADDR)
         pipe = StereoPipeline(**self._pipeline)
-        slaves = (regs, iic, uart, *_rectifier(m, pipe, self._rectify))
+        slaves = (regs, iic, uart, *_rectifier(m, pipe, self._rectify[0]),
+                  *_rectifier(m, pipe, self._rectify[1], "left"))
         if self._cpu is not None:
             m.submodules.bands = bands = BandSummary(max_width=self._pipeline["max_width"],
                                                      base=regmap.BANDS_BASEADDR)
@@ -441,33 +449,43 @@ def _or(values):
     return out
 
 
-def _rectify_option(component, rectify, pipeline):
-    """The ``rectify`` option of a SoC (None, or a dict of :class:`hdl.rectify.Rectify`'s
-    ``span``, ``horizontal`` and optional ``nodes``, the map in the bitstream, and
-    ``extra_rows``, the matcher's further line slots: cameras that cannot stall need ``span``
-    more, for the right camera's rows the rectifier holds back) put into the pipeline's
-    parameters; the options as kept, for the register peripheral."""
+def _rectify_option(component, rectify, pipeline, rectify_left=None):
+    """The ``rectify`` and ``rectify_left`` options of a SoC put into the pipeline's
+    parameters; ``(right, left)``, the options as kept (None when absent), for the register
+    peripherals. Each is None or a dict of :class:`hdl.rectify.Rectify`'s ``span``,
+    ``horizontal`` and optional ``nodes``, the map in the bitstream; ``rectify`` also takes
+    ``extra_rows``, the matcher's further line slots (cameras that cannot stall need ``span``
+    more, for the rows the rectifiers hold back). ``rectify_left`` only with ``rectify``."""
+    if rectify is None and rectify_left is None:
+        return None, None
     if rectify is None:
-        return None
-    opt = dict(rectify)
-    unknown = set(opt) - {"span", "horizontal", "nodes", "extra_rows"}
-    if unknown:
         component._MustUse__silence = True
-        raise ValueError(f"unknown rectify option {sorted(unknown)[0]!r}")
-    extra = opt.pop("extra_rows", 0)
-    opt.setdefault("span", 8)
-    opt.setdefault("horizontal", "nearest")
-    pipeline.update(rectify=opt, extra_rows=extra)
-    # plain values: what the Verilog depends on (sim.backends.verilator.construction_params)
-    nodes = opt.get("nodes")
-    component._rect_build = (opt["span"], opt["horizontal"], extra, None if nodes is None else
-                             hashlib.sha256(nodes.tobytes()).hexdigest())
-    return opt
+        raise ValueError("rectify_left needs rectify: the left camera is rectified only "
+                         "with the right one")
+    opts = []
+    for given, keys in ((rectify, {"extra_rows"}), (rectify_left, set())):
+        if given is None:
+            opts.append(None)
+            continue
+        opt = dict(given)
+        unknown = set(opt) - {"span", "horizontal", "nodes"} - keys
+        if unknown:
+            component._MustUse__silence = True
+            raise ValueError(f"unknown rectify option {sorted(unknown)[0]!r}")
+        opt.setdefault("span", 8)
+        opt.setdefault("horizontal", "nearest")
+        opts.append(opt)
+    right, left = opts
+    extra = right.pop("extra_rows", 0)
+    pipeline.update(rectify=right, rectify_left=left, extra_rows=extra)
+    return right, left
 
 
-def _rectifier(m, pipe, opt):
-    """The rectifier's bus registers (:class:`hdl.rectify_regs.RectifyRegs`) driving the
-    pipeline's ``rect_*`` ports: ``[]`` without the option, else the one bus slave."""
+def _rectifier(m, pipe, opt, side="right"):
+    """The bus registers (:class:`hdl.rectify_regs.RectifyRegs`) of one camera's rectifier
+    (``side``: the right one at ``RECT_BASEADDR``, the left one at ``RECT_LEFT_BASEADDR``)
+    driving the pipeline's ``rect_*`` or ``rect_left_*`` ports: ``[]`` without the option,
+    else the one bus slave."""
     if opt is None:
         return []
     from golden.rectify import grid_shape, node_words
@@ -476,12 +494,14 @@ def _rectifier(m, pipe, opt):
     stride = pipe.rect_node_stride
     nodes = opt.get("nodes")
     check = None if nodes is None else regmap.rect_map_check(node_words(nodes, stride))
-    m.submodules.rect_regs = rr = RectifyRegs(
-        span=opt["span"], stride_log2=stride.bit_length() - 1,
-        node_rows=grid_shape(w, h)[0], linear=opt["horizontal"] == "linear", check_init=check)
-    m.d.comb += [pipe.rect_lo.eq(rr.lo), pipe.rect_enable.eq(rr.enable),
-                 pipe.rect_map_addr.eq(rr.map_addr), pipe.rect_map_data.eq(rr.map_data),
-                 pipe.rect_map_we.eq(rr.map_we)]
+    prefix, base = (("rect", regmap.RECT_BASEADDR) if side == "right" else
+                    ("rect_left", regmap.RECT_LEFT_BASEADDR))
+    rr = RectifyRegs(span=opt["span"], stride_log2=stride.bit_length() - 1,
+                     node_rows=grid_shape(w, h)[0], linear=opt["horizontal"] == "linear",
+                     check_init=check, base=base)
+    m.submodules[f"{prefix}_regs"] = rr
+    m.d.comb += [getattr(pipe, f"{prefix}_{name}").eq(getattr(rr, name))
+                 for name in ("lo", "enable", "map_addr", "map_data", "map_we")]
     return [rr]
 
 

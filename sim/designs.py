@@ -354,6 +354,21 @@ SYSTEM_DESIGNS = {
                              "colour converters' G products by additions (the rectifier's "
                              "multiplies take the blocks): the ECP5-25F build option",
                              clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
+    "soc_rect2": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
+                                         rectify=dict(span=20, horizontal="nearest",
+                                                      extra_rows=2),
+                                         rectify_left=dict(span=20, horizontal="nearest"),
+                                         g_blocks=False),
+                              "the SoC with a rectifier on each camera (21-row line buffers, "
+                              "the most two RAMB16 a bank hold at 720 columns: the barrel test "
+                              "lens in a 240-line field needs 16, with a row offset and a roll "
+                              "18; the left one's registers at RECT_LEFT_BASEADDR), sharing "
+                              "one line-buffer window so both cameras' rows leave in step, and "
+                              "2 more matcher line slots (sim.system.rect.EXTRA_SLACK), the colour "
+                              "converters' G products by additions: the ECP5-25F build option "
+                              "for lenses that distort",
+                              clocks={"cam0_clk": (None, ("cam0",)),
+                                      "cam1_clk": (None, ("cam1",))}),
     # both cameras rectified (lenses that distort): the ECP5-25F build option's pipeline, its
     # line buffers deep enough for the barrel test lens in a 240-line field
     "pipeline_rect2": SystemDesign(_pipeline, dict(

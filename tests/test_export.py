@@ -48,7 +48,7 @@ def test_read_registers_start_at_zero():
 
 
 def test_unknown_design():
-    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, freespace, frontend, matcher, pipeline, bands, floor, rectify, camera, pairing, uart, bridge, cpu, soc, soc_bus, soc_rect, pipeline_rect2$"):
+    with pytest.raises(ValueError, match="unknown design 'nope'; known: color, ground, sobel, freespace, frontend, matcher, pipeline, bands, floor, rectify, camera, pairing, uart, bridge, cpu, soc, soc_bus, soc_rect, soc_rect2, pipeline_rect2$"):
         elaborate("nope")
 
 

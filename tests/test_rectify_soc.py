@@ -4,6 +4,7 @@ read from the result FIFO against the golden rectified pipeline."""
 import json
 
 import numpy as np
+import pytest
 
 from golden.pipeline import pipeline_frames
 from golden.rectify import (MAP_DTYPE, RectifyParams, fits, grid_shape, node_words,
@@ -152,9 +153,29 @@ def test_firmware_table_matches_the_bitstream_map(tmp_path, capsys):
     assert main([]) == 2 and capsys.readouterr().err.startswith("error: give a camera file")
     assert main(["--none", "--out", str(tmp_path / "nowhere" / "t.h")]) == 2
     assert capsys.readouterr().err.startswith("error: [Errno 2]")
-    # a calibration of lenses that distort rectifies both cameras: not for this SoC's one
+    with pytest.raises(ValueError, match="rectifies the right camera alone"):
+        table(camera, 128, 64, side="left")
+    # a calibration that rectifies both cameras: a table each, the left one's answered by
+    # the left camera's rectifier at RECT_LEFT_BASEADDR
     rig = json.loads((tmp_path / "rig.json").read_text())
     rig["rig"]["left_rect"] = {"R": np.eye(3).tolist(), "scale": 1.0}
     (tmp_path / "both.json").write_text(json.dumps(rig))
-    assert main([str(tmp_path / "both.json")]) == 2
-    assert capsys.readouterr().err.startswith("error: the calibration rectifies both cameras")
+    assert main([str(tmp_path / "both.json"), "--out", str(tmp_path / "both.h")]) == 0
+    both = Camera.from_json(tmp_path / "both.json")
+    left = table(both, 128, 64, side="left")
+    text = (tmp_path / "both.h").read_text()
+    assert "#define RECT_LEFT_TABLE_PRESENT 1" in text and f"0x{left['map_check']:08X}u" in text
+    assert "#define RECT_LEFT_TABLE_PRESENT 0" in render(t)
+    soc = StereoSoC(clk_div=4, max_width=128, max_height=64,
+                    rectify=dict(span=8, nodes=bitstream_map(both)),
+                    rectify_left=dict(span=4, nodes=bitstream_map(both, "left")))
+    base = regmap.RECT_LEFT_BASEADDR - regmap.RECT_BASEADDR
+
+    async def cpu_left(ctx):
+        got["left_info"] = await io_read(ctx, soc.bus, _rect("RECT_INFO") + base)
+        got["left_check"] = await io_read(ctx, soc.bus, _rect("RECT_MAP_CHECK") + base)
+        got["info"] = await io_read(ctx, soc.bus, _rect("RECT_INFO"))
+
+    _simulate(soc, cpu_left)
+    assert _fields(info, got["left_info"])["span"] == 4 and got["left_check"] == left["map_check"]
+    assert _fields(info, got["info"])["span"] == 8

@@ -221,9 +221,9 @@ def test_rows_move_towards_the_pinhole_as_far_as_the_buffer_allows():
     """A longer line buffer buys rows nearer the pinhole's: the curve that needs the fewest
     rows stays when the span has no rows to spare (or too few even for it), a longer span
     gets a curve that squeezes the image's top less, whose maps fill that span (both cameras
-    held by it, not by 4 rows fewer)."""
+    held by it in one window, not by 4 rows fewer)."""
     import golden.rig as G
-    from golden.rectify import build_map, fits, row_window, rows_toward_pinhole
+    from golden.rectify import build_map, fits, rows_toward_pinhole
     rig = rig_named("barrel")
     R1 = G.align_rotation(rig)
     doffs = rig.right.cx - rig.left.cx
@@ -232,8 +232,9 @@ def test_rows_move_towards_the_pinhole_as_far_as_the_buffer_allows():
 
     def held(b, span):
         maps = [build_map(rig, doffs * scale, side=s, both=b) for s in ("left", "right")]
-        return all(fits(n, rig.width, rig.height, row_window(n, rig.width, rig.height, span),
-                        span) for n in maps)
+        # one lo for both: the SoC's two rectifiers share their window
+        return any(all(fits(n, rig.width, rig.height, lo, span) for n in maps)
+                   for lo in range(-span, 1))
 
     assert held(both, 16) and not held(both, 12)
     assert rows_toward_pinhole(rig, doffs * scale, both, 12) == both

@@ -6,5 +6,6 @@
 #include "rectify.h"
 
 #define RECT_TABLE_PRESENT 0 /**< no calibrated rig: the rectifier stays off */
+#define RECT_LEFT_TABLE_PRESENT 0 /**< the left image stays as captured */
 
 #endif /* RECT_TABLE_H */

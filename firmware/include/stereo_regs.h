@@ -625,6 +625,7 @@
 #define STEREO_CONFIG_NREGS 10u /**< registers in STEREO_CONFIG_REGS */
 
 #define STEREO_RECT_BASEADDR                         0xC0060000u  /**< rectifier base address (a build without one leaves it unanswered) */
+#define STEREO_RECT_LEFT_BASEADDR                    0xC0068000u  /**< left camera's rectifier base address (builds that rectify both cameras) */
 #define STEREO_RECT_MAP_OFFSET                       0x4000u      /**< map words: node (j, k) at + 4 (j << stride_log2 | k), write-only */
 
 /* RECT_CTRL (read/write): Rectifier control; change it between frames (the rectifier samples it at each right frame's start). */

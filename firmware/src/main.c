@@ -140,9 +140,14 @@ int main(void)
     st_dec = app_init_decoders(&app, STEREO_IIC_BASEADDR, 0u);
     st_pipe = app_init_pipeline(&app, STEREO_BASEADDR);
 #if RECT_TABLE_PRESENT
-    /* the calibration's rectification: its map in the bitstream, checked, then enabled; a
+    /* the calibration's rectification: its maps in the bitstream, checked, then enabled; a
      * build that cannot take it is reported in every health record (RECT_FAULT) */
+#if RECT_LEFT_TABLE_PRESENT
+    if (rect_setup_both(STEREO_RECT_BASEADDR, &rect_table, STEREO_RECT_LEFT_BASEADDR,
+                        &rect_left_table) != FW_OK) {
+#else
     if (rect_setup(STEREO_RECT_BASEADDR, &rect_table) != FW_OK) {
+#endif
         rect_fault = RADIO_HEALTH_RECT_FAULT;
     }
 #endif

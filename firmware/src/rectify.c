@@ -1,6 +1,6 @@
 /**
  * @file rectify.c
- * Start-up check and enable of the right camera's rectifier (include/rectify.h).
+ * Start-up check and enable of the rectifiers (include/rectify.h).
  */
 #include "rectify.h"
 
@@ -31,4 +31,17 @@ fw_status_t rect_setup(uint32_t base, const rect_table_t *t)
     Xil_Out32(base + STEREO_RECT_VALID_SIZE_OFFSET, t->valid_size);
     Xil_Out32(base + STEREO_RECT_CTRL_OFFSET, t->ctrl);
     return FW_OK;
+}
+
+fw_status_t rect_setup_both(uint32_t base, const rect_table_t *t, uint32_t left_base,
+                            const rect_table_t *left)
+{
+    fw_status_t st = rect_setup(left_base, left);
+    if (st == FW_OK) {
+        st = rect_setup(base, t);
+        if (st != FW_OK) {
+            Xil_Out32(left_base + STEREO_RECT_CTRL_OFFSET, 0u);
+        }
+    }
+    return st;
 }

@@ -84,6 +84,8 @@ def _rect_header() -> list[str]:
     relative to STEREO_RECT_BASEADDR."""
     out = [_define("STEREO_RECT_BASEADDR", _hex(regmap.RECT_BASEADDR),
                    "rectifier base address (a build without one leaves it unanswered)"),
+           _define("STEREO_RECT_LEFT_BASEADDR", _hex(regmap.RECT_LEFT_BASEADDR),
+                   "left camera's rectifier base address (builds that rectify both cameras)"),
            _define("STEREO_RECT_MAP_OFFSET", f"0x{regmap.RECT_MAP_OFFSET:X}u",
                    "map words: node (j, k) at + 4 (j << stride_log2 | k), write-only"),
            ""]
@@ -107,7 +109,9 @@ def _rect_markdown() -> list[str]:
            "unanswered. The map's node words are write-only from offset "
            f"`0x{regmap.RECT_MAP_OFFSET:X}`: node `(j, k)` at `0x{regmap.RECT_MAP_OFFSET:X} + "
            "4 (j * 2^stride_log2 + k)`, word `dx | dy << 10` (1/16 px, two's complement, "
-           "`golden.rectify.node_words`). Write the map and RECT_CTRL between frames.", "",
+           "`golden.rectify.node_words`). Write the map and RECT_CTRL between frames. A "
+           "build that rectifies both cameras (`rectify_left=`) has the left camera's "
+           f"rectifier, the same registers, at `0x{regmap.RECT_LEFT_BASEADDR:08X}`.", "",
            "| Offset | Register | Kind | Description |", "|---|---|---|---|"]
     for reg in regmap.RECT_REGISTERS:
         out.append(f"| `0x{reg.offset:02X}` | {reg.name} | {reg.kind} | {reg.doc} |")

@@ -46,9 +46,10 @@ def main(argv=None):
                          "sim/scenes/rendered.py or 'motorcycle'")
     ap.add_argument("--camera", help="a calibrated camera file (python -m sim calibrate's "
                          "rig.json, of 720 x 240 fields): the SoC rectifies the right camera "
-                         "with the rig's map in its map memory, the firmware built with the "
-                         "rig's table enables it; --left and --right are the rig's fields, "
-                         "taken as they are")
+                         "(both, with two rectifiers, when the calibration's lenses distort) "
+                         "with the rig's maps in their map memories, the firmware built with "
+                         "the rig's table enables them; --left and --right are the rig's "
+                         "fields, taken as they are")
     ap.add_argument("--frames", type=int, default=5,
                     help=f"fields per camera (at least {FAULT_FIELD + 4} with --fault, "
                          f"{FAULT_FIELD + LOST_FIELDS + 1} with camera-lost-left, "

@@ -40,13 +40,15 @@ Checks (the JSON line):
     field start, so the packets of a run's end report both lost.
 ``rectified``, ``rect``
     With a calibrated rig (``rect``, :mod:`sim.system.rect`): the SoC holds the right
-    camera's rectifier with the rig's map in its map memory, the image the rig's table; golden
+    camera's rectifier (and the left camera's, when the calibration rectifies both) with the
+    rig's maps in their map memories, the image the rig's table; golden
     is the rectified pipeline (``golden.rectify.rectified_pipeline_frames``) with the
     registers the firmware sets, or the plain one when the rig's warp exceeds the build (the
     firmware then cannot enable it). ``rectified``: packets came and none carries the
     RECT_FAULT flag (the firmware checked the map and enabled the rectifier); ``rect``: that
     flag (``rect_fault``), the rows less one the rig's warp needs (``need_span``) and the
-    build's line buffer holds (``build_span``).
+    build's line buffer holds (``build_span``), and the cameras rectified (``cameras``:
+    ``right`` or ``both``).
 ``cpu``
     ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
     ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
@@ -133,13 +135,16 @@ def build_cpu_system(soc_params):
 
 def _plain(soc_params):
     """``soc_params`` as plain values for the Verilog's header and the build's key: a
-    rectifier's map (``rectify["nodes"]``, an array) as its SHA-256."""
-    rect = soc_params.get("rectify")
-    if rect is None or rect.get("nodes") is None:
-        return dict(soc_params)
+    rectifier's map (``rectify["nodes"]``, ``rectify_left["nodes"]``, arrays) as its
+    SHA-256."""
     import hashlib
-    nodes = hashlib.sha256(rect["nodes"].tobytes()).hexdigest()
-    return {**soc_params, "rectify": {**rect, "nodes": f"sha256:{nodes}"}}
+    plain = dict(soc_params)
+    for key in ("rectify", "rectify_left"):
+        rect = plain.get(key)
+        if rect is not None and rect.get("nodes") is not None:
+            nodes = hashlib.sha256(rect["nodes"].tobytes()).hexdigest()
+            plain[key] = {**rect, "nodes": f"sha256:{nodes}"}
+    return plain
 
 
 def _load(path):
@@ -197,8 +202,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     production image. The run ends once a packet has covered the last frame and at least
     ``min_packets`` packets came (or at a bound of the start-up, the streams and
     ``min_packets + 1`` report periods). ``rect`` (a :class:`sim.system.rect.SystemRect`):
-    a calibrated rig's rectifier in the SoC, its map in the map memory, and the image built
-    with its table; golden rectifies the right camera as the firmware can set it."""
+    a calibrated rig's rectifiers in the SoC, their maps in the map memories, and the image built
+    with its table; golden rectifies the cameras as the firmware can set them."""
     from sim.system import firmware
     from sim.system.run import (CAM1_PS, CAM_PERIOD_PS, CAM_PS, CORE_PS, FAULT_FIELD,
                                 RIGHT_LEAD_BYTES, camera_streams)
@@ -217,12 +222,15 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                       cost=params.matcher.cost)
     if rect is not None:
         soc_params["rectify"] = rect.soc
+        if rect.soc_left is not None:
+            soc_params["rectify_left"] = rect.soc_left
     libpath, build_s = build_cpu_system(soc_params)
     lib = _load(libpath)
 
     if rect is not None and rect.golden is not None:
         from golden.rectify import rectified_pipeline_frames
-        golden = rectified_pipeline_frames([lrgb] * frames, [rrgb] * frames, params, rect.golden)
+        golden = rectified_pipeline_frames([lrgb] * frames, [rrgb] * frames, params, rect.golden,
+                                           rect.golden_left)
     else:
         golden = pipeline_frames([lrgb] * frames, [rrgb] * frames, params)
     floor = FloorParams(mode="rig", initial=floor_line or regmap.RIG_FLOOR_LINE)
@@ -384,7 +392,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
         "camera_lost_changes": [list(c) for c in lost_changes],
         "rectified": rect is not None and bool(flags) and not rect_fault,
         "rect": None if rect is None else {"rect_fault": rect_fault, "need_span": rect.need_span,
-                                           "build_span": rect.build_span},
+                                           "build_span": rect.build_span,
+                                           "cameras": "right" if rect.soc_left is None
+                                           else "both"},
         "decoders_addressed": [int(a) for a in addressed],
         "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
                 "instructions": int(instructions),
