@@ -1,10 +1,11 @@
-"""Right-camera rectification: the golden model (golden/rectify.py) by hand and against the
+"""Rectification: the golden model (golden/rectify.py) by hand and against the
 float map, and the RTL (hdl/rectify.py) against golden bit for bit, with stalls."""
 import numpy as np
 import pytest
 
 from golden.rectify import (FRAC, MAP_DTYPE, RectifyParams, build_map, fits, grid_shape,
-                            node_words, rectify, row_window, source_positions, valid_region)
+                            node_words, rectify, row_window, shared_window,
+                            source_positions, valid_region)
 from golden.rig import right_to_left_map
 from hdl.rectify import Rectify
 from hdl.types import GroundPixel
@@ -75,6 +76,33 @@ def test_map_follows_the_rig(name):
     assert -8 <= lo <= 0 and fits(nodes, rig.width, rig.height, lo, 8)
     x, yv, w, h = valid_region(rig, 31.086)
     assert w > 0.95 * rig.width and h > 0.95 * rig.height
+
+
+def test_shared_window_fits_every_map_in_the_fewest_rows():
+    """One window (lo, span) for several maps: each fits it, no shallower span has a lo that
+    fits them all, its lo is the largest that does, and for one map it is the map's own
+    (row_window with the least span that fits)."""
+    rng = np.random.default_rng(5)
+    w, h = 96, 48
+    tried = 0
+    for _ in range(200):
+        maps = [_nodes(h, w, 0, 0) for _ in range(2)]
+        for n in maps:
+            n["dy"] = rng.integers(-6 * 16, 6 * 16, n.shape)
+            n["dx"] = rng.integers(-40, 40, n.shape)
+        lo, span = shared_window(maps, w, h, span=2)
+        tried += span > 2
+        assert all(fits(n, w, h, lo, span) for n in maps)
+        assert lo == 0 or not all(fits(n, w, h, lo + 1, span) for n in maps)
+        assert not any(all(fits(n, w, h, b, span - 2) for n in maps)
+                       for b in range(-(span - 2), 1))
+        own_lo, own_span = shared_window(maps[:1], w, h, span=2)
+        assert own_lo == row_window(maps[0], w, h, own_span)
+    assert tried > 100
+    steep = _nodes(h, w, 0, 0)
+    steep["dy"][0] = 40 * 16
+    with pytest.raises(ValueError, match="more than the 31 rows"):
+        shared_window([steep], w, h)
 
 
 def test_params_check_lo():
