@@ -256,11 +256,13 @@ def test_random_map_on_every_backend_with_stalls(backend):
     assert _check(job, backend, 5) > 0
 
 
-def test_both_cameras_icarus_with_stalls():
-    """The exported Verilog with both rectifiers on Icarus, one frame of a crop with random
-    maps, with stalls: equal to the golden pipeline with both cameras rectified."""
+@pytest.mark.parametrize("backend", ["icarus", "ghdl"])
+def test_both_cameras_on_the_hdl_simulators_with_stalls(backend):
+    """The exported design with both rectifiers (its Verilog on Icarus, its VHDL on GHDL),
+    one frame of a crop with random maps, with stalls: equal to the golden pipeline with both
+    cameras rectified."""
     job, _ = _both_job(9, frames=1)
-    assert _check(job, "icarus", 6) > 0
+    assert _check(job, backend, 6) > 0
 
 
 def test_run_rectifies_both_cameras_of_a_distorting_rig_verilator(tmp_path, capsys):
