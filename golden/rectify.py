@@ -261,9 +261,8 @@ def rows_toward_pinhole(rig, doffs, both, span, iterations=12):
     towards the pinhole's rows (:data:`golden.rig.PINHOLE_ROWS`) as far as line buffers of
     ``span`` readable rows less one still hold both cameras' maps in one shared window
     (:func:`shared_window`, as the SoC's two rectifiers hold them) and their offsets fit the
-    node words: ``g + t (pinhole - g)``, ``t`` the
-    largest of a bisection of ``iterations`` steps over ``0 .. 1``; ``both`` itself when even
-    ``g`` does not fit the span.
+    node words: ``g + t (pinhole - g)``, ``t`` the largest of a bisection of ``iterations``
+    steps over ``0 .. 1``; ``both`` itself when even ``g`` does not fit the span.
 
     Why: rows that follow the lens squeeze the scene towards the image's top and bottom (and
     show what lies beyond the pinhole's field there), so the scene covers fewer rows and gives
