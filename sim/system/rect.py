@@ -79,9 +79,11 @@ def system_rect(camera, width, height, source="") -> SystemRect:
     need = [right_table] + ([left_table] if left_table else [])
     fits = all(t["span"] <= b["span"] for t, b in zip(need, builds))
     golden = [RectifyParams(n, t["lo"], b["span"], b["horizontal"]) if fits else None
-              for n, t, b in zip(nodes, need, builds)] + [None]
-    socs = [{**b, "nodes": n} for b, n in zip(builds, nodes)] + [None]
+              for n, t, b in zip(nodes, need, builds)]
+    socs = [{**b, "nodes": n} for b, n in zip(builds, nodes)]
+    both = len(sides) == 2
     return SystemRect(soc=socs[0], table=render(right_table, Path(source).name, left_table),
                       golden=golden[0], need_span=max(t["span"] for t in need),
-                      build_span=min(b["span"] for b in builds), soc_left=socs[1],
-                      golden_left=golden[1])
+                      build_span=min(b["span"] for b in builds),
+                      soc_left=socs[1] if both else None,
+                      golden_left=golden[1] if both else None)
