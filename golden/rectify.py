@@ -145,38 +145,42 @@ def row_window(nodes, width, height, span, grid=GRID):
     return int(min(0, max(-span, ((sy >> FRAC) - v).min())))
 
 
+def _row_reach(nodes, width, height, grid=GRID):
+    """``(low, high)``: the least ``floor(source row) - v`` and the greatest ``floor(source row)
+    + 1 - v`` over the image, of the source rows the buffer must hold (a row outside the image
+    is replaced by the edge row whatever the buffer holds, so those below the last row do not
+    count for ``low``, nor those above the first for ``high``). A window ``lo, span`` holds
+    the map when ``high - span <= lo <= low``."""
+    _, sy = source_positions(nodes, width, height, grid)
+    y0 = sy >> FRAC
+    rel = y0 - np.arange(height)[:, None]
+    low = rel[y0 < height - 1].min(initial=height)
+    high = (rel + 1)[y0 + 1 > 0].max(initial=-height)
+    return int(low), int(high)
+
+
 def fits(nodes, width, height, lo, span, grid=GRID):
     """Whether every pixel's two source rows (those inside the image) lie in the buffer's
     rows ``v + lo .. v + lo + span``."""
-    _, sy = source_positions(nodes, width, height, grid)
-    v = np.arange(height)[:, None]
-    y0 = sy >> FRAC
-    # a row outside the image is replaced by the edge row whatever the buffer holds
-    low = (y0 - v >= lo) | (y0 >= height - 1)
-    high = (y0 + 1 - v <= lo + span) | (y0 + 1 <= 0)
-    return bool((low & high).all())
+    low, high = _row_reach(nodes, width, height, grid)
+    return high - span <= lo <= low
 
 
 def shared_window(maps, width, height, span=SPAN, max_span=MAX_SPAN, grid=GRID):
-    """``(lo, span)``: one line-buffer window for every map of ``maps`` (both cameras'), the
-    least even ``span`` from ``span`` up to ``max_span`` for which one ``lo`` fits them all
-    (:func:`fits`), and that ``lo``, the largest (as :func:`row_window` chooses). Rectifiers
-    that share the window hold back the same rows, so their outputs leave in step: a SoC whose
-    cameras cannot stall then needs no matcher line slots for one camera's lag behind the
-    other. ValueError when no window up to ``max_span`` fits."""
-    low, high = 0, -(1 << 30)       # lo <= every map's low; lo >= every map's high - span
-    for nodes in maps:
-        _, sy = source_positions(nodes, width, height, grid)
-        rel = (sy >> FRAC) - np.arange(height)[:, None]
-        y0 = sy >> FRAC
-        # rows outside the image are replaced by the edge row whatever the buffer holds
-        low = min(low, int(rel[y0 < height - 1].min(initial=0)))
-        high = max(high, int((rel + 1)[y0 + 1 > 0].max(initial=0)))
+    """``(lo, span)``: one line-buffer window for every map of ``maps`` (both cameras', or one
+    camera's), the least even ``span`` from ``span`` up to ``max_span`` for which one ``lo``
+    fits them all (:func:`fits`), and that ``lo``, the largest (for one map the
+    :func:`row_window`). Rectifiers that share the window hold back the same rows, so their
+    outputs leave in step: a SoC whose cameras cannot stall then needs no matcher line slots
+    for one camera's lag behind the other. ValueError when no window up to ``max_span``
+    fits."""
+    reach = [_row_reach(nodes, width, height, grid) for nodes in maps]
+    low, high = min(r[0] for r in reach), max(r[1] for r in reach)
     for s in range(max(2, span + span % 2), max_span + 1, 2):
         lo = min(0, max(-s, low))
-        if lo >= high - s:
+        if high - s <= lo <= low:
             return lo, s
-    raise ValueError(f"the maps' vertical warp needs more than the {max_span + 1} rows a "
+    raise ValueError(f"the rig's vertical warp needs more than the {max_span + 1} rows a "
                      f"rectifier's line buffer can hold")
 
 
@@ -328,12 +332,8 @@ def params_for_rig(camera, width, height, span=SPAN, horizontal="nearest", max_s
         raise ValueError(f"the calibration's map grid is {cal['grid']} px; the module's is {GRID}")
     nodes = build_map(rig, cal.get("doffs", 0.0), focus=cal.get("focus"), side=side,
                       both=cal.get("left_rect"))
-    for s in range(max(2, span + span % 2), max_span + 1, 2):
-        lo = row_window(nodes, width, height, s)
-        if fits(nodes, width, height, lo, s):
-            return RectifyParams(nodes, lo, s, horizontal)
-    raise ValueError(f"the rig's vertical warp needs more than the {max_span + 1} rows a "
-                     f"rectifier's line buffer can hold")
+    lo, span = shared_window([nodes], width, height, span, max_span)
+    return RectifyParams(nodes, lo, span, horizontal)
 
 
 @dataclass(frozen=True)

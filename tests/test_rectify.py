@@ -99,6 +99,10 @@ def test_shared_window_fits_every_map_in_the_fewest_rows():
         own_lo, own_span = shared_window(maps[:1], w, h, span=2)
         assert own_lo == row_window(maps[0], w, h, own_span)
     assert tried > 100
+    # a warp wholly above the output rows: the window must reach down to it
+    above = _nodes(h, w, 0, -5 * 16)
+    lo, span = shared_window([above], w, h, span=2)
+    assert (lo, span) == (-5, 6) and fits(above, w, h, lo, span)
     steep = _nodes(h, w, 0, 0)
     steep["dy"][0] = 40 * 16
     with pytest.raises(ValueError, match="more than the 31 rows"):
