@@ -56,6 +56,7 @@ import time
 
 import numpy as np
 
+from golden.rectify import MAX_SPAN
 from sim.errors import EXIT_USER_ERROR, CliError
 
 __all__ = ["score", "inside_scene", "run_rig", "run", "markdown"]
@@ -131,7 +132,8 @@ def inside_scene(records, camera, rig, ideal, margin=4, sides=("left",)):
     return ok
 
 
-def run_rig(name, views=40, span=30, horizontal="nearest", grid=32, seed=0, workdir=None):
+def run_rig(name, views=40, span=MAX_SPAN, horizontal="nearest", grid=32, seed=0,
+            workdir=None):
     """One rig's row of the table (a dict)."""
     from golden.pipeline import default_params, pipeline_frames
     from golden.rectify import both_sides, params_for_rig, rectified_pipeline_frames
@@ -218,8 +220,7 @@ def main(argv=None):
 
 
 def _main(argv):
-    from golden.rectify import MAX_SPAN
-    from sim.cli.calibrate import MIN_VIEWS
+    from sim.cli.calibrate import MIN_VIEWS, check_span
     from sim.cli.main import Parser
     from sim.scenes.rig import RIGS
     p = Parser(prog="python -m sim.bench.rig", description=__doc__.split("\n\n")[0])
@@ -241,8 +242,7 @@ def _main(argv):
         p.error(f"--views {a.views}: a calibration needs at least {MIN_VIEWS}")
     if a.seed < 0:
         p.error(f"--seed {a.seed}: a seed is not negative")
-    if not (2 <= a.span <= MAX_SPAN and a.span % 2 == 0):
-        p.error(f"--span {a.span}: the line buffer's span is even, 2..{MAX_SPAN}")
+    check_span(a.span)
     rows = []
     for n in names:
         row = run_rig(n, views=a.views, span=a.span, horizontal=a.horizontal, grid=a.grid,

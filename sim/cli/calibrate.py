@@ -39,7 +39,7 @@ from golden.rectify import MAX_SPAN, SPAN
 from sim.errors import CliError
 
 __all__ = ["MIN_VIEWS", "calibrate", "rectification", "add_parser", "cmd_calibrate",
-           "parse_board"]
+           "parse_board", "check_span"]
 
 #: Fewest pairs in which the board must be found in both images.
 MIN_VIEWS = 4
@@ -330,6 +330,12 @@ def _metres(text):
     return v
 
 
+def check_span(span):
+    """CliError unless ``span`` is a line buffer's span the rectifier can have (``--span``)."""
+    if not (2 <= span <= MAX_SPAN and span % 2 == 0):
+        raise CliError(f"--span {span}: the line buffer's span is even, 2..{MAX_SPAN}")
+
+
 def cmd_calibrate(args):
     """Run ``calibrate``; exit 0. Bad input (folder, pairs without partner, fewer than
     :data:`MIN_VIEWS` pairs or views with the board, images that differ in size, an unusable
@@ -341,8 +347,7 @@ def cmd_calibrate(args):
         raise CliError(f"--out {args.out!r} is a folder: give the file to write")
     if not out.parent.exists() or not out.parent.is_dir():
         raise CliError(f"--out {args.out!r}: folder {str(out.parent)!r} does not exist")
-    if not (2 <= args.span <= MAX_SPAN and args.span % 2 == 0):
-        raise CliError(f"--span {args.span}: the line buffer's span is even, 2..{MAX_SPAN}")
+    check_span(args.span)
     result = calibrate(args.pairs, board, args.square, args.near, span=args.span)
     try:
         result["camera"].to_json(out)
