@@ -39,8 +39,10 @@ tol16``; (6) the flag, above the line, two tolerances above it, and the window `
 .. d16 + tol16`` a record above must lie in; (7) the feet: the walk, the comparisons with the
 entry under the pointer (held in a register: the read bank's asynchronous output is the next
 entry, taken when the walk steps, and a row's first entry is kept as it is written, for the
-walk of the row after it, so no RAM read lies on the path to the holds), the flag into the
-output register and the entry into the current row's list. All unsigned: the line is carried
+walk of the row after it, so no RAM read lies on the path to the holds; whether the record
+starts a row and whether the head lies before it are decided a cycle ahead, into registers, so
+the holds are a few LUTs from registers), the flag into the output register and the entry into
+the current row's list. All unsigned: the line is carried
 in offset binary (``line16 + 2 ** 13``). The stages advance together when the output register
 is free or taken and stage (7) does not hold its record; the skid buffer's output is taken on
 that condition, except in the one cycle after each ``eof`` record. Stage (7) holds a record one
@@ -201,10 +203,10 @@ class FloorFlag(wiring.Component):
                    lo=(Cat(dpad, Const(2, 2)) - s5["tol16"])[:_LINE_BITS + 1],
                    hi=(dpad + s5["tol16"])[:_LINE_BITS + 1])
         # (7) the obstacle feet: the previous row's list walked, the current row's written
-        self._feet(m, s6, out, hold, go)
+        self._feet(m, s5, s6, out, hold, go)
         return m
 
-    def _feet(self, m, s6, out, hold, go):
+    def _feet(self, m, s5, s6, out, hold, go):
         r = s6["rec"]
         xw, dw = len(r.x), len(r.d16)
         n = self._depth
@@ -235,10 +237,28 @@ class FloorFlag(wiring.Component):
         ahead = Signal(entry)
         m.d.comb += ahead.eq(Mux(wbank, banks[0][1].data, banks[1][1].data))
         rec_v = s6["v"] & ~r.eof
-        new_row = rec_v & (~have_row | (r.y != row))
+        # The two decisions behind the holds, in registers so that only a few LUTs lie
+        # between a register and every stage's enable: new_row (the record starts a row) is
+        # decided as the record enters stage 6, against the row and have_row it will see (a
+        # row starts only on a hold, and an eof record leaving clears have_row), and is
+        # cleared by the row's start, the one cycle stage 6 holds without go; behind
+        # (head.x < r.x) is decided for the next head and record: first's against the record
+        # when a row starts, the next entry's when the walk steps, the head's against stage
+        # 5's record when that enters.
+        new_row = Signal()
+        behind = Signal()
+        r5 = s5["rec"]
+        have_next = have_row & ~(s6["v"] & r.eof)
+        m.d.sync += new_row.eq(go & s5["v"] & ~r5.eof & (~have_next | (r5.y != row)))
         more = ptr != count
-        step = rec_v & ~new_row & more & (head.x < r.x)
+        step = rec_v & ~new_row & more & behind
         m.d.comb += hold.eq(new_row | step)
+        with m.If(new_row):
+            m.d.sync += behind.eq(first.x < r.x)
+        with m.Elif(step):
+            m.d.sync += behind.eq(ahead.x < r.x)
+        with m.Elif(out):
+            m.d.sync += behind.eq(head.x < r5.x)
         hit = more & (head.x == r.x)
         near = hit & (Cat(head.d16, Const(0, len(s6["lo"]) - dw - 1), Const(1, 1)) >= s6["lo"]) & \
             (head.d16 <= s6["hi"])
