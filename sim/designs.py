@@ -344,22 +344,28 @@ SYSTEM_DESIGNS = {
                             "the SoC without a CPU, its I/O bus a port for an external CPU "
                             "(a MicroBlaze MCS in EDK/ISE, the UART bridge on the ECP5 board)",
                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
-    # a build option for the ECP5-25F target: the XC3S1000 has no block RAM to spare for it
-    "soc_rect": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
-                                        rectify=dict(span=8, horizontal="nearest",
-                                                     extra_rows=10), g_blocks=False),
-                             "the SoC with the right camera's rectifier (hdl/rectify.py, its "
-                             "registers hdl/rectify_regs.py) and 10 more matcher line slots for "
+    # build options for the ECP5-25F target, the chip with its CPU as the bitstream has it:
+    # the XC3S1000 has no block RAM to spare for a rectifier
+    "soc_rect": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240,
+                                            firmware=True, free_space=False,
+                                            rectify=dict(span=8, horizontal="nearest",
+                                                         extra_rows=10), g_blocks=False),
+                             "the chip (soc, its CPU inside) with the right camera's rectifier "
+                             "(hdl/rectify.py, its registers hdl/rectify_regs.py) and 10 more "
+                             "matcher line slots for "
                              "the rows it holds back (span + sim.system.rect.EXTRA_SLACK), the "
                              "colour converters' G products by additions (the rectifier's "
                              "multiplies take the blocks): the ECP5-25F build option",
-                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
-    "soc_rect2": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
-                                         rectify=dict(span=20, horizontal="nearest",
-                                                      extra_rows=2),
-                                         rectify_left=dict(span=20, horizontal="nearest"),
-                                         g_blocks=False),
-                              "the SoC with a rectifier on each camera (21-row line buffers, "
+                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
+                             foreign_verilog=cpu_verilog, cores=("picorv32",)),
+    "soc_rect2": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240,
+                                             firmware=True, free_space=False,
+                                             rectify=dict(span=20, horizontal="nearest",
+                                                          extra_rows=2),
+                                             rectify_left=dict(span=20, horizontal="nearest"),
+                                             g_blocks=False),
+                              "the chip (soc, its CPU inside) with a rectifier on each camera "
+                              "(21-row line buffers, "
                               "the most two RAMB16 a bank hold at 720 columns: the barrel test "
                               "lens in a 240-line field needs 16, with a row offset and a roll "
                               "18; the left one's registers at RECT_LEFT_BASEADDR), sharing "
@@ -368,7 +374,8 @@ SYSTEM_DESIGNS = {
                               "converters' G products by additions: the ECP5-25F build option "
                               "for lenses that distort",
                               clocks={"cam0_clk": (None, ("cam0",)),
-                                      "cam1_clk": (None, ("cam1",))}),
+                                      "cam1_clk": (None, ("cam1",))},
+                              foreign_verilog=cpu_verilog, cores=("picorv32",)),
     # both cameras rectified (lenses that distort): the ECP5-25F build option's pipeline, its
     # line buffers deep enough for the barrel test lens in a 240-line field
     "pipeline_rect2": SystemDesign(_pipeline, dict(
