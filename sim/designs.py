@@ -237,6 +237,9 @@ class SystemDesign:
     #: Module names of :attr:`foreign_verilog` that the resource estimate keeps as their own
     #: modules, its level check applying outside them (``sim/flows/synth.py``).
     cores: tuple = ()
+    #: The ECP5 part ``make timing`` places it on (``sim.flows.timing.PARTS``): the board's
+    #: LFE5U-25F unless the design needs more logic than that part has.
+    ecp5_part: str = "LFE5U-25F"
 
     def build(self, **overrides):
         return self.make(**{**self.params, **overrides})
@@ -344,8 +347,9 @@ SYSTEM_DESIGNS = {
                             "the SoC without a CPU, its I/O bus a port for an external CPU "
                             "(a MicroBlaze MCS in EDK/ISE, the UART bridge on the ECP5 board)",
                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
-    # build options for the ECP5-25F target, the chip with its CPU as the bitstream has it:
-    # the XC3S1000 has no block RAM to spare for a rectifier
+    # build options, the chip with its CPU as a bitstream has it, for the ULX3S 45F: the
+    # XC3S1000 has no block RAM to spare for a rectifier, the ECP5-25F not the logic cells
+    # (docs/camera.md, "Budget")
     "soc_rect": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240,
                                             firmware=True, free_space=False,
                                             rectify=dict(span=8, horizontal="nearest",
@@ -355,9 +359,10 @@ SYSTEM_DESIGNS = {
                              "matcher line slots for "
                              "the rows it holds back (span + sim.system.rect.EXTRA_SLACK), the "
                              "colour converters' G products by additions (the rectifier's "
-                             "multiplies take the blocks): the ECP5-25F build option",
+                             "multiplies take the blocks): the ECP5-45F build option",
                              clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
-                             foreign_verilog=cpu_verilog, cores=("picorv32",)),
+                             foreign_verilog=cpu_verilog, cores=("picorv32",),
+                             ecp5_part="LFE5U-45F"),
     "soc_rect2": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240,
                                              firmware=True, free_space=False,
                                              rectify=dict(span=20, horizontal="nearest",
@@ -371,19 +376,20 @@ SYSTEM_DESIGNS = {
                               "18; the left one's registers at RECT_LEFT_BASEADDR), sharing "
                               "one line-buffer window so both cameras' rows leave in step, and "
                               "2 more matcher line slots (sim.system.rect.EXTRA_SLACK), the colour "
-                              "converters' G products by additions: the ECP5-25F build option "
+                              "converters' G products by additions: the ECP5-45F build option "
                               "for lenses that distort",
                               clocks={"cam0_clk": (None, ("cam0",)),
                                       "cam1_clk": (None, ("cam1",))},
-                              foreign_verilog=cpu_verilog, cores=("picorv32",)),
-    # both cameras rectified (lenses that distort): the ECP5-25F build option's pipeline, its
+                              foreign_verilog=cpu_verilog, cores=("picorv32",),
+                              ecp5_part="LFE5U-45F"),
+    # both cameras rectified (lenses that distort): the ECP5-45F build option's pipeline, its
     # line buffers deep enough for the barrel test lens in a 240-line field
     "pipeline_rect2": SystemDesign(_pipeline, dict(
         max_width=720, max_height=240, free_space=False,
         rectify=dict(span=16, horizontal="nearest"),
         rectify_left=dict(span=16, horizontal="nearest")),
         "the stereo pipeline with a rectifier on each camera (hdl/pipeline.py rectify, "
-        "rectify_left; 17-row line buffers) for rigs whose lenses distort: the ECP5-25F "
+        "rectify_left; 17-row line buffers) for rigs whose lenses distort: the ECP5-45F "
         "build option's pipeline"),
 }
 

@@ -95,3 +95,29 @@ def test_utilisation_from_the_log():
     assert _fit(use) == "21,720 / 16,441 / 39 / 23 of 24,288 / 24,288 / 56 / 28"
     use["DP16KD"] = [57, 56]
     assert _fit(use).endswith("does not fit**")
+
+
+def test_each_design_is_placed_on_its_part(tmp_path, monkeypatch):
+    """The chip with rectifiers is placed on the 45F (the 25F lacks the logic cells), the rest
+    on the board's 25F; nextpnr gets the part's device option."""
+    from sim.designs import SYSTEM_DESIGNS, all_designs
+    from sim.flows import timing
+    parts = {n: timing.part_of(n) for n in all_designs()}
+    assert parts["soc"] == parts["color"] == "LFE5U-25F"
+    assert parts["soc_rect"] == parts["soc_rect2"] == "LFE5U-45F"
+    monkeypatch.setattr(SYSTEM_DESIGNS["soc"], "ecp5_part", "LFE5U-99F")
+    with pytest.raises(ValueError, match="unknown ECP5 part 'LFE5U-99F'"):
+        timing.part_of("soc")
+    cmds = []
+
+    def fake_run(cmd, cwd, log_name):
+        cmds.append(cmd)
+        (tmp_path / "nextpnr_seed1.log").write_text("")
+        (tmp_path / "pnr_seed1.json").write_text(json.dumps(
+            {"fmax": {"clk$TRELLIS_IO_IN": {"achieved": 90.0}}}))
+        return 1.0
+    monkeypatch.setattr(timing, "_run", fake_run)
+    netlist = tmp_path / "netlist.json"
+    assert timing.place_and_route(netlist, 1, "LFE5U-45F")[0] == {"clk": 90.0}
+    assert timing.place_and_route(netlist, 1)[0] == {"clk": 90.0}
+    assert [c[1] for c in cmds] == ["--45k", "--25k"]

