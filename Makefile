@@ -76,7 +76,8 @@ install-check: setup
 
 # ECP5 bitstream of the SoC on the ULX3S 25F, standalone: the CPU and its firmware inside
 # (YoWASP tools; not part of make test). `make bitstream BITSTREAM_ARGS=--bridge`: no CPU, the
-# UART register bridge on the USB serial port drives the bus instead.
+# UART register bridge on the USB serial port drives the bus instead; BITSTREAM_ARGS="--camera
+# rig.json": the chip with the rig's rectifiers, on the ULX3S 45F.
 BITSTREAM_ARGS ?=
 bitstream: setup
 	$(PY) -m sim.flows.bitstream --out build/bitstream $(BITSTREAM_ARGS)

@@ -1,5 +1,6 @@
-"""The ECP5 board: the SoC on a Radiona ULX3S (LFE5U-25F, amaranth-boards), built to a real
-bitstream with the open tools (``make bitstream``, ``sim/flows/bitstream.py``).
+"""The ECP5 board: the SoC on a Radiona ULX3S (LFE5U-25F, amaranth-boards; the chip with
+rectifiers on the LFE5U-45F of the same board), built to a real bitstream with the open tools
+(``make bitstream``, ``sim/flows/bitstream.py``).
 
 Clocks: the board's 25 MHz oscillator feeds an EHXPLLL that makes the 50 MHz core clock
 (VCO 600 MHz: CLKI_DIV 1, CLKFB_DIV 2, CLKOP_DIV 12); the two decoders' 27 MHz LLC clocks come in
@@ -29,21 +30,22 @@ The LLC pins are general-purpose inputs; nextpnr routes them as clocks on the gl
 """
 from amaranth.build import Attrs, Pins, Resource, Subsignal
 from amaranth.hdl import ClockDomain, Instance, Signal
-from amaranth_boards.ulx3s import ULX3S_25F_Platform
+from amaranth_boards.ulx3s import ULX3S_25F_Platform, ULX3S_45F_Platform
 
 from .platform import BoardTop, camera_resource
 
-__all__ = ["RobotULX3SPlatform", "ulx3s_top", "add_core_pll", "CORE_HZ"]
+__all__ = ["RobotULX3SPlatform", "RobotULX3S45FPlatform", "robot_platform", "ulx3s_top",
+           "add_core_pll", "CORE_HZ"]
 
 CORE_HZ = 50e6
 IO = Attrs(IO_TYPE="LVCMOS33")
 
 
-class RobotULX3SPlatform(ULX3S_25F_Platform):
-    """ULX3S 25F with the example camera, IIC and radio pin-out. ``program``: whether a build
-    may program the board. amaranth-boards lists openFPGALoader among the required tools of
-    every build (it checks them before building, even with ``do_program=False``); it is needed
-    only to program, so without ``program`` it is not required."""
+class _RobotPins:
+    """The example camera, IIC and radio pin-out on a ULX3S of any part. ``program``: whether
+    a build may program the board. amaranth-boards lists openFPGALoader among the required
+    tools of every build (it checks them before building, even with ``do_program=False``); it
+    is needed only to program, so without ``program`` it is not required."""
 
     def __init__(self, *, program=False, **kwargs):
         self._program = program
@@ -61,6 +63,23 @@ class RobotULX3SPlatform(ULX3S_25F_Platform):
     def required_tools(self):
         tools = super().required_tools
         return tools if self._program else [t for t in tools if t != "openFPGALoader"]
+
+
+class RobotULX3SPlatform(_RobotPins, ULX3S_25F_Platform):
+    """ULX3S 25F (LFE5U-25F) with the example pin-out: the chip's board."""
+
+
+class RobotULX3S45FPlatform(_RobotPins, ULX3S_45F_Platform):
+    """ULX3S 45F (LFE5U-45F: the same board, package and pins) with the example pin-out: the
+    board of the chip with rectifiers, which takes more logic cells than the 25F has."""
+
+
+def robot_platform(part, **kwargs):
+    """The board platform of ECP5 ``part`` (``"LFE5U-25F"`` or ``"LFE5U-45F"``)."""
+    platforms = {p.device: p for p in (RobotULX3SPlatform, RobotULX3S45FPlatform)}
+    if part not in platforms:
+        raise ValueError(f"no ULX3S platform for {part!r}; known: {', '.join(platforms)}")
+    return platforms[part](**kwargs)
 
 
 def add_core_pll(m, platform, *, freq=CORE_HZ):

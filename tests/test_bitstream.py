@@ -2,6 +2,7 @@
 one of them with the SoC's CPU (its core's Verilog given to the build beside Amaranth's, its RAM
 initialised): the same platform (ULX3S 25F with the example pin-out, openFPGALoader not required
 when not programming), the same PLL and the YoWASP tools through YOSYS / NEXTPNR_ECP5 / ECPPACK."""
+import json
 import re
 
 from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Module, Signal
@@ -103,3 +104,43 @@ def test_board_top_has_the_cpu_unless_bridged():
     assert board_soc(bridge=True) == {}
     top = silenced(ulx3s_top(**soc))
     assert top._soc["cpu"] == "picorv32" and top._radio_uart == 1
+
+
+def _rig_file(path, **errors):
+    """A calibrated camera file of 720 x 240 fields (``python -m sim calibrate``'s shape) of a
+    pinhole rig with the given right-camera errors."""
+    from golden.camera import Camera
+    from golden.rig import Lens, Rig
+    lens = Lens(600.0, 300.0, 359.5, 119.5)
+    rig = Rig(lens, lens, T=(-0.1, 0.0, 0.0), width=720, height=240).with_errors(**errors)
+    cal = {**rig.to_dict(), "doffs": 0.0, "focus": 16.0, "grid": 32, "window": [0, 63]}
+    Camera(fx=600.0, fy=300.0, cx=359.5, cy=119.5, baseline_m=0.1, width=720, height=240,
+           rig=cal).to_json(path)
+
+
+def test_board_with_a_calibrated_rig(tmp_path, capsys):
+    """``--camera rig.json``: the chip with the rig's rectifier and map, on the ULX3S 45F;
+    bad camera files and ``--bridge`` with it are usage errors (one line, exit 2)."""
+    import numpy as np
+    from hdl.ulx3s import RobotULX3S45FPlatform, robot_platform
+    from sim.flows.bitstream import board_rect, main
+    _rig_file(tmp_path / "rig.json", row_offset=1.5, roll_deg=0.3)
+    rect, part = board_rect(tmp_path / "rig.json")
+    assert part == "LFE5U-45F" and isinstance(robot_platform(part), RobotULX3S45FPlatform)
+    assert rect.expect_enabled and rect.soc_left is None
+    image = [0x0000_0013] * 4
+    soc = board_soc(image=image, rect=rect)
+    assert soc["g_blocks"] is False and "rectify_left" not in soc
+    assert np.array_equal(soc["rectify"]["nodes"], rect.soc["nodes"])
+    top = silenced(ulx3s_top(**soc))
+    assert top._soc["rectify"]["span"] == 8
+    from golden.camera import Camera
+    Camera(fx=600.0, fy=300.0, cx=359.5, cy=119.5, baseline_m=0.1, width=720,
+           height=240).to_json(tmp_path / "plain.json")
+    for args, why in ((["--camera", str(tmp_path / "rig.json"), "--bridge"], "drop --bridge"),
+                      (["--camera", str(tmp_path / "none.json")], "does not exist"),
+                      (["--camera", str(tmp_path / "plain.json")], "no calibration")):
+        assert main(args + ["--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: --camera") and why in err and err.count("\n") == 1, err
+    assert not (tmp_path / "out").exists()

@@ -11,7 +11,14 @@ here when its sources changed), the cameras on the GPIO header, the radio UART o
 pin. ``--bridge`` builds the board without a CPU: the UART register bridge on the USB serial
 port drives the bus, for the firmware's host build on a PC (``sim/system/bridge_host.py``).
 
-    python -m sim.flows.bitstream [--out build/bitstream] [--seed N] [--bridge]
+``--camera rig.json`` (``python -m sim calibrate``'s file, of 720 x 240 fields) builds the chip
+with the rectifiers the rig needs, as ``python -m sim system --camera`` runs it
+(:func:`sim.system.rect.system_rect`: the ``soc_rect`` build for a calibration that rectifies
+the right camera, ``soc_rect2`` for one that rectifies both), the rig's maps in the map
+memories and the firmware built with its ``rect_table.h``, on the ULX3S 45F (the part those
+builds name: the 25F lacks the logic cells).
+
+    python -m sim.flows.bitstream [--out build/bitstream] [--seed N] [--bridge | --camera rig.json]
 """
 import argparse
 import json
@@ -21,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["yowasp_env", "build_bitstream", "fmax_report", "board_soc", "main"]
+__all__ = ["yowasp_env", "build_bitstream", "fmax_report", "board_soc", "board_rect", "main"]
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The slowest clock of the design (the cameras' 27 MHz): a lower constraint means a clock
@@ -79,22 +86,43 @@ def build_bitstream(top, platform, out_dir, *, name="top", seed=1):
     return out / f"{name}.bit", fmax, seconds
 
 
-def board_soc(bridge=False, image=None):
+def board_soc(bridge=False, image=None, rect=None):
     """The SoC's parameters on the board: the CPU inside, its RAM initialised with ``image``
     (words; None: the firmware, ``make -C firmware rv32``), or with ``bridge`` no CPU, the UART
-    register bridge on the USB serial port driving the bus. Raises :class:`RuntimeError` when
-    the firmware image cannot be built (a bitstream whose CPU has no program is useless)."""
+    register bridge on the USB serial port driving the bus. With ``rect`` (a
+    :class:`sim.system.rect.SystemRect`) the rectifiers with its maps, the firmware built
+    with its table, the colour converters' G products by additions as the rectifying builds
+    have them. Raises :class:`RuntimeError` when the firmware image cannot be built (a
+    bitstream whose CPU has no program is useless)."""
     if bridge:
+        if rect is not None:
+            raise ValueError("a rectifying board runs its CPU: drop --bridge")
         return {}
     if image is None:
         from sim.system.firmware import FirmwareBuildError, build_image, image_words
         try:
-            image = image_words(build_image())
+            image = image_words(build_image(rect_table=None if rect is None else rect.table))
         except (FirmwareBuildError, OSError) as e:
             raise RuntimeError(f"no firmware image: {str(e).splitlines()[0] if str(e) else e!r} "
                                "(`make setup` installs the cross compiler; --bridge builds "
                                "without a CPU)") from None
-    return dict(cpu="picorv32", image=image)
+    soc = dict(cpu="picorv32", image=image)
+    if rect is not None:
+        soc.update(rectify=rect.soc, g_blocks=False)
+        if rect.soc_left is not None:
+            soc["rectify_left"] = rect.soc_left
+    return soc
+
+
+def board_rect(path):
+    """The :class:`sim.system.rect.SystemRect` of camera file ``path`` for the board's 720 x
+    240 fields and the ECP5 part of its build; ValueError (OSError) when the file cannot be
+    read, has no calibration, or is not of 720 x 240 fields."""
+    from golden.camera import Camera
+    from sim.designs import SYSTEM_DESIGNS
+    from sim.system.rect import system_rect
+    rect = system_rect(Camera.from_json(path), 720, 240, path)
+    return rect, SYSTEM_DESIGNS["soc_rect2" if rect.soc_left is not None else "soc_rect"].ecp5_part
 
 
 def main(argv=None):
@@ -104,11 +132,27 @@ def main(argv=None):
     ap.add_argument("--bridge", action="store_true",
                     help="no CPU: the UART register bridge on the USB serial port drives the "
                          "bus (a host runs the firmware's host build through it)")
+    ap.add_argument("--camera", metavar="RIG_JSON",
+                    help="a calibrated rig (python -m sim calibrate, 720 x 240 fields): the chip "
+                         "with the rectifiers it needs and their maps, on the ULX3S 45F")
     args = ap.parse_args(argv)
-    from hdl.ulx3s import RobotULX3SPlatform, ulx3s_top
+    from hdl.ulx3s import robot_platform, ulx3s_top
+    rect, part = None, "LFE5U-25F"
+    if args.camera is not None:
+        try:
+            if args.bridge:
+                raise ValueError("a rectifying board runs its CPU: drop --bridge")
+            rect, part = board_rect(args.camera)
+        except (OSError, ValueError) as e:
+            print(f"error: --camera {args.camera}: {e}", file=sys.stderr)
+            return 2
+        if not rect.expect_enabled:
+            print(f"warning: the rig's warp needs line buffers of {rect.need_span} rows, the "
+                  f"build holds {rect.build_span}: the firmware will leave the rectifiers off "
+                  "and report RECT_FAULT", file=sys.stderr)
     try:
-        soc = board_soc(args.bridge)
-        bit, fmax, seconds = build_bitstream(ulx3s_top(**soc), RobotULX3SPlatform(), args.out,
+        soc = board_soc(args.bridge, rect=rect)
+        bit, fmax, seconds = build_bitstream(ulx3s_top(**soc), robot_platform(part), args.out,
                                              name="soc", seed=args.seed)
     except Exception as e:          # toolchain failures: one line, the log names the rest
         print(f"error: bitstream build failed: {str(e).splitlines()[0] if str(e) else e!r}",
@@ -120,6 +164,8 @@ def main(argv=None):
     for clock, (f, c) in sorted(fmax.items()):
         print(f"{clock}: {f:.1f} MHz (constraint {c:.1f} MHz) {'PASS' if f >= c else 'FAIL'}")
     print(json.dumps({"bitstream": str(bit), "exists": bit.exists(), "seed": args.seed,
+                      "part": part, "rectified": None if rect is None else
+                      ["right", "left"][:1 + (rect.soc_left is not None)],
                       "cpu": soc.get("cpu"), "image_bytes": 4 * len(soc.get("image") or []),
                       "seconds": round(seconds, 1),
                       "fmax_mhz": {k: v[0] for k, v in fmax.items()}}))
