@@ -405,11 +405,16 @@ class SystemSoC(wiring.Component):
         status = _pipeline_status(m, regs, pipe, clear=regs.clear_errors | video_rst,
                                   reset=video_rst, free_space=self._pipeline["free_space"])
         # capture skew: each camera's field start as its port hands it over (the ports'
-        # latencies are equal, so their difference is the cameras')
+        # latencies are equal, so their difference is the cameras'), registered: the
+        # handshake is the pairing's ready logic, and a cycle of delay on both starts leaves
+        # every skew as it is
         skew = SkewCounter(unit=SKEW_UNIT_CYCLES, window=SKEW_WINDOW_US)
         m.submodules.camera_skew = ResetInserter(video_rst)(skew)
-        m.d.comb += [s.eq(p.o.valid & p.o.ready & p.o.payload.sof)
-                     for s, p in ((skew.a, ports[0]), (skew.b, ports[1]))]
+        starts = Signal(2)
+        m.d.sync += starts.eq(Cat(p.o.valid & p.o.ready & p.o.payload.sof for p in ports))
+        with m.If(video_rst):
+            m.d.sync += starts.eq(0)
+        m.d.comb += [skew.a.eq(starts[0]), skew.b.eq(starts[1])]
         # camera loss: each port's field starts, taken before its overflow guard
         loss = LossWatch(n=2, **self._loss)
         m.submodules.camera_loss = ResetInserter(video_rst)(loss)
