@@ -237,20 +237,20 @@ class FloorFlag(wiring.Component):
         ahead = Signal(entry)
         m.d.comb += ahead.eq(Mux(wbank, banks[0][1].data, banks[1][1].data))
         rec_v = s6["v"] & ~r.eof
-        # The two decisions behind the holds, in registers so that only a few LUTs lie
+        # The decisions behind the holds, in registers so that only a few LUTs lie
         # between a register and every stage's enable: new_row (the record starts a row) is
         # decided as the record enters stage 6, against the row and have_row it will see (a
         # row starts only on a hold, and an eof record leaving clears have_row), and is
         # cleared by the row's start, the one cycle stage 6 holds without go; behind
         # (head.x < r.x) is decided for the next head and record: first's against the record
         # when a row starts, the next entry's when the walk steps, the head's against stage
-        # 5's record when that enters.
+        # 5's record when that enters; more (entries left to walk) with the pointer.
         new_row = Signal()
         behind = Signal()
         r5 = s5["rec"]
         have_next = have_row & ~(s6["v"] & r.eof)
         m.d.sync += new_row.eq(go & s5["v"] & ~r5.eof & (~have_next | (r5.y != row)))
-        more = ptr != count
+        more = Signal()                     # ptr != count, set with them
         step = rec_v & ~new_row & more & behind
         m.d.comb += hold.eq(new_row | step)
         with m.If(new_row):
@@ -271,12 +271,14 @@ class FloorFlag(wiring.Component):
             m.d.comb += [wp.en.eq(write & (wbank == k)), wp.data.eq(new)]
         with m.If(write & (fill == 0)):
             m.d.sync += first.eq(new)
+        follows = have_row & (r.y == next_row)      # the new row is the one after the last
         with m.If(new_row):
             m.d.sync += [wbank.eq(~wbank), ptr.eq(0), ptr1.eq(1), fill.eq(0), row.eq(r.y),
                          next_row.eq(r.y + 1), have_row.eq(1), head.eq(first),
-                         count.eq(Mux(have_row & (r.y == next_row), fill, 0))]
+                         count.eq(Mux(follows, fill, 0)), more.eq(follows & (fill != 0))]
         with m.Elif(step):
-            m.d.sync += [ptr.eq(ptr + 1), ptr1.eq(ptr1 + 1), head.eq(ahead)]
+            m.d.sync += [ptr.eq(ptr + 1), ptr1.eq(ptr1 + 1), head.eq(ahead),
+                         more.eq(ptr1 != count)]
         with m.Elif(write):
             m.d.sync += fill.eq(fill + 1)
         with m.If(go & s6["v"] & r.eof):
