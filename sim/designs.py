@@ -356,10 +356,10 @@ SYSTEM_DESIGNS = {
                                                          extra_rows=10), g_blocks=False),
                              "the chip (soc, its CPU inside) with the right camera's rectifier "
                              "(hdl/rectify.py, its registers hdl/rectify_regs.py) and 10 more "
-                             "matcher line slots for "
-                             "the rows it holds back (span + sim.system.rect.EXTRA_SLACK), the "
-                             "colour converters' G products by additions (the rectifier's "
-                             "multiplies take the blocks): the ECP5-45F build option",
+                             "matcher line slots for the rows it holds back (span + "
+                             "sim.system.rect.EXTRA_SLACK), the colour converters' G products "
+                             "by additions (the rectifier's multiplies take the blocks): the "
+                             "ECP5-45F build option",
                              clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
                              foreign_verilog=cpu_verilog, cores=("picorv32",),
                              ecp5_part="LFE5U-45F"),
@@ -370,8 +370,8 @@ SYSTEM_DESIGNS = {
                                              rectify_left=dict(span=20, horizontal="nearest"),
                                              g_blocks=False),
                               "the chip (soc, its CPU inside) with a rectifier on each camera "
-                              "(21-row line buffers, "
-                              "the most two RAMB16 a bank hold at 720 columns: the barrel test "
+                              "(21-row line buffers, the most two RAMB16 a bank hold at 720 "
+                              "columns: the barrel test "
                               "lens in a 240-line field needs 16, with a row offset and a roll "
                               "18; the left one's registers at RECT_LEFT_BASEADDR), sharing "
                               "one line-buffer window so both cameras' rows leave in step, and "

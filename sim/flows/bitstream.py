@@ -139,9 +139,10 @@ def main(argv=None):
     from hdl.ulx3s import robot_platform, ulx3s_top
     rect, part = None, "LFE5U-25F"
     if args.camera is not None:
+        if args.bridge:
+            print("error: --camera builds the chip with its CPU: drop --bridge", file=sys.stderr)
+            return 2
         try:
-            if args.bridge:
-                raise ValueError("a rectifying board runs its CPU: drop --bridge")
             rect, part = board_rect(args.camera)
         except (OSError, ValueError) as e:
             print(f"error: --camera {args.camera}: {e}", file=sys.stderr)
