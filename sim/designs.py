@@ -318,6 +318,9 @@ def cpu_verilog(component):
             f"// CPU above. {note}.\n" + verilog_text())
 
 
+#: The SoC's camera clock domains (:attr:`SystemDesign.clocks`).
+_SOC_CLOCKS = {"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}
+
 #: Name -> :class:`SystemDesign`.
 SYSTEM_DESIGNS = {
     "camera": SystemDesign(_camera, dict(domain="cam", lines=240, fifo_depth=16),
@@ -340,13 +343,13 @@ SYSTEM_DESIGNS = {
                         "with the firmware image), two BT.656 camera ports, pairing, "
                         "pipeline, registers and result FIFO, IIC master, radio UART on the "
                         "I/O bus (hdl/soc.py, hdl/cpu.py)",
-                        clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
+                        clocks=_SOC_CLOCKS,
                         foreign_verilog=cpu_verilog, cores=("picorv32",)),
     "soc_bus": SystemDesign(_soc, dict(max_width=720, max_height=240, lines=240,
                                        free_space=False),
                             "the SoC without a CPU, its I/O bus a port for an external CPU "
                             "(a MicroBlaze MCS in EDK/ISE, the UART bridge on the ECP5 board)",
-                            clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))}),
+                            clocks=_SOC_CLOCKS),
     # build options, the chip with its CPU as a bitstream has it, for the ULX3S 45F: the
     # XC3S1000 has no block RAM to spare for a rectifier, the ECP5-25F not the logic cells
     # (docs/camera.md, "Budget")
@@ -360,7 +363,7 @@ SYSTEM_DESIGNS = {
                              "sim.system.rect.EXTRA_SLACK), the colour converters' G products "
                              "by additions (the rectifier's multiplies take the blocks): the "
                              "ECP5-45F build option",
-                             clocks={"cam0_clk": (None, ("cam0",)), "cam1_clk": (None, ("cam1",))},
+                             clocks=_SOC_CLOCKS,
                              foreign_verilog=cpu_verilog, cores=("picorv32",),
                              ecp5_part="LFE5U-45F"),
     "soc_rect2": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240,
@@ -378,8 +381,7 @@ SYSTEM_DESIGNS = {
                               "2 more matcher line slots (sim.system.rect.EXTRA_SLACK), the colour "
                               "converters' G products by additions: the ECP5-45F build option "
                               "for lenses that distort",
-                              clocks={"cam0_clk": (None, ("cam0",)),
-                                      "cam1_clk": (None, ("cam1",))},
+                              clocks=_SOC_CLOCKS,
                               foreign_verilog=cpu_verilog, cores=("picorv32",),
                               ecp5_part="LFE5U-45F"),
     # both cameras rectified (lenses that distort): the ECP5-45F build option's pipeline, its

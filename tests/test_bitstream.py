@@ -128,6 +128,7 @@ def test_board_with_a_calibrated_rig(tmp_path, capsys):
     rect, part = board_rect(tmp_path / "rig.json")
     assert part == "LFE5U-45F" and isinstance(robot_platform(part), RobotULX3S45FPlatform)
     assert rect.expect_enabled and rect.soc_left is None
+    assert (rect.design, rect.cameras) == ("soc_rect", "right")
     image = [0x0000_0013] * 4
     soc = board_soc(image=image, rect=rect)
     assert soc["g_blocks"] is False and "rectify_left" not in soc

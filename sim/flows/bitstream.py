@@ -122,7 +122,7 @@ def board_rect(path):
     from sim.designs import SYSTEM_DESIGNS
     from sim.system.rect import system_rect
     rect = system_rect(Camera.from_json(path), 720, 240, path)
-    return rect, SYSTEM_DESIGNS["soc_rect2" if rect.soc_left is not None else "soc_rect"].ecp5_part
+    return rect, SYSTEM_DESIGNS[rect.design].ecp5_part
 
 
 def main(argv=None):
@@ -165,8 +165,7 @@ def main(argv=None):
     for clock, (f, c) in sorted(fmax.items()):
         print(f"{clock}: {f:.1f} MHz (constraint {c:.1f} MHz) {'PASS' if f >= c else 'FAIL'}")
     print(json.dumps({"bitstream": str(bit), "exists": bit.exists(), "seed": args.seed,
-                      "part": part, "rectified": None if rect is None else
-                      ["right", "left"][:1 + (rect.soc_left is not None)],
+                      "part": part, "rectified": None if rect is None else rect.cameras,
                       "cpu": soc.get("cpu"), "image_bytes": 4 * len(soc.get("image") or []),
                       "seconds": round(seconds, 1),
                       "fmax_mhz": {k: v[0] for k, v in fmax.items()}}))

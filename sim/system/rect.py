@@ -22,13 +22,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["EXTRA_SLACK", "SystemRect", "system_rect"]
+__all__ = ["EXTRA_SLACK", "SystemRect", "build_name", "system_rect"]
 
 #: Matcher line slots beyond the rectifier's ``span`` that the SoC needs at NTSC: the right
 #: camera's rows reach the matcher ``lo + span`` rows after the left's, plus the part of a
 #: line its stream starts later (``sim.system.run.RIGHT_LEAD_BYTES``), and the slots come in
 #: pairs. With ``span`` slots alone the matcher overruns (``matcher_errors``, mispaired pairs).
 EXTRA_SLACK = 2
+
+
+def build_name(both):
+    """The SoC build (``sim.designs.SYSTEM_DESIGNS``) of a calibration that rectifies both
+    cameras (``both``) or the right camera alone."""
+    return "soc_rect2" if both else "soc_rect"
 
 
 @dataclass(frozen=True)
@@ -46,6 +52,16 @@ class SystemRect:
     build_span: int
     soc_left: dict | None = None
     golden_left: object = None
+
+    @property
+    def cameras(self):
+        """The cameras rectified: ``"right"`` or ``"both"``."""
+        return "right" if self.soc_left is None else "both"
+
+    @property
+    def design(self):
+        """The build that holds these rectifiers (``sim.designs.SYSTEM_DESIGNS``)."""
+        return build_name(self.soc_left is not None)
 
     @property
     def expect_enabled(self):
@@ -68,7 +84,7 @@ def system_rect(camera, width, height, source="") -> SystemRect:
         raise ValueError(f"the calibration is of {camera.width}x{camera.height} images; the "
                          f"SoC runs {width}x{height} fields: calibrate with fields")
     sides = ("right", "left") if both_sides(camera) else ("right",)
-    design = SYSTEM_DESIGNS["soc_rect2" if len(sides) == 2 else "soc_rect"].params
+    design = SYSTEM_DESIGNS[build_name(len(sides) == 2)].params
     builds = [dict(design["rectify"]), dict(design.get("rectify_left") or {})][:len(sides)]
     # one rectifier holds the right camera's rows back by up to its span; two hold both
     # cameras' back alike (one shared window), so only the slack is needed
