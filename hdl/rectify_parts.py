@@ -302,15 +302,18 @@ class Sampler(wiring.Component):
     In: the read request's parities (``row0_odd``, ``row1_odd``, ``col0_odd``, ``col1_odd``),
     fractions ``frac_x/y`` (1/16 px), ``flags`` (``sof, eol, eof``) and ``valid``, registered
     with the request; the banks' words ``even_even`` .. ``odd_odd`` one cycle later. Stages:
-    the four pixels routed (top-left, top-right, bottom-left, bottom-right); the horizontal
-    blends and the ground bit (the nearest of the four pixels'); the vertical blend's
-    difference; its product with the fraction; the vertical blend rounded, into ``o``. ``step``
-    (out) is high when the output register is empty or taken: every stage of the unit moves
-    with it. Latency :attr:`LATENCY` (six) ``step``s from the request.
+    the four words registered as they leave the banks (a block RAM's output goes straight into
+    a flip-flop: its clock-to-output delay, 5.8 ns on an ECP5 DP16KD without its own output
+    register, is not followed by routing and logic in the same cycle); the four pixels routed
+    (top-left, top-right, bottom-left, bottom-right); the horizontal blends and the ground bit
+    (the nearest of the four pixels'); the vertical blend's difference; its product with the
+    fraction; the vertical blend rounded, into ``o``. ``step`` (out) is high when the output
+    register is empty or taken: every stage of the unit moves with it. Latency
+    :attr:`LATENCY` (seven) ``step``s from the request.
     """
 
     #: ``step``s from a read request to its pixel in the output register
-    LATENCY = 6
+    LATENCY = 7
 
     def __init__(self):
         super().__init__(dict(
@@ -325,14 +328,24 @@ class Sampler(wiring.Component):
         o_valid = Signal()
         m.d.comb += [step.eq(~o_valid | self.o.ready), self.o.valid.eq(o_valid)]
         # the read's routing, with the words being read
+        pr0r, pr1r, pc0r, pc1r = (Signal(name=n) for n in ("read_row0", "read_row1",
+                                                            "read_col0", "read_col1"))
+        ax5, ay5, flags5 = Signal(4), Signal(4), Signal(3)
+        with m.If(step):
+            m.d.sync += [pr0r.eq(self.row0_odd), pr1r.eq(self.row1_odd),
+                         pc0r.eq(self.col0_odd), pc1r.eq(self.col1_odd), ax5.eq(self.frac_x),
+                         ay5.eq(self.frac_y), flags5.eq(self.flags)]
+        # the words as they leave the banks, registered, with their routing
+        words = [Signal(9, name=f"word_{k}") for k in ("ee", "eo", "oe", "oo")]
         pr0, pr1, pc0, pc1 = (Signal(name=n) for n in ("route_row0", "route_row1",
                                                         "route_col0", "route_col1"))
         ax6, ay6, flags6 = Signal(4), Signal(4), Signal(3)
         with m.If(step):
-            m.d.sync += [pr0.eq(self.row0_odd), pr1.eq(self.row1_odd), pc0.eq(self.col0_odd),
-                         pc1.eq(self.col1_odd), ax6.eq(self.frac_x), ay6.eq(self.frac_y),
-                         flags6.eq(self.flags)]
-        word = Array([self.even_even, self.even_odd, self.odd_even, self.odd_odd])
+            m.d.sync += [w.eq(d) for w, d in zip(words, (self.even_even, self.even_odd,
+                                                        self.odd_even, self.odd_odd))]
+            m.d.sync += [pr0.eq(pr0r), pr1.eq(pr1r), pc0.eq(pc0r), pc1.eq(pc1r), ax6.eq(ax5),
+                         ay6.eq(ay5), flags6.eq(flags5)]
+        word = Array(words)
 
         def pix(pr, pc):
             return word[Cat(pc, pr)]
@@ -365,8 +378,8 @@ class Sampler(wiring.Component):
         with m.If(step):
             m.d.sync += [top9.eq(top8), prod9.eq(diff8 * ay8), ground9.eq(ground8),
                          flags9.eq(flags8)]
-        valid = [Signal(name=n) for n in ("route_valid", "pixels_valid", "blend_valid",
-                                          "difference_valid", "product_valid")]
+        valid = [Signal(name=n) for n in ("read_valid", "route_valid", "pixels_valid",
+                                          "blend_valid", "difference_valid", "product_valid")]
         with m.If(self.abandon):
             m.d.sync += [s.eq(0) for s in valid]
         with m.Elif(step):
