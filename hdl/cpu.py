@@ -2,11 +2,21 @@
 package, as an :class:`~amaranth.hdl.Instance`) with its block RAM, a timer, and a bridge from
 the core's memory interface to the SoC's MicroBlaze-style I/O bus (:class:`hdl.regs.IOBusSignature`).
 
-Core: RV32IC (compressed instructions, no multiplier or divider: the firmware is built for
-``rv32ic``, ``firmware/Makefile`` ``rv32``), barrel shifter, 32-bit cycle and instruction
-counters (``rdcycle``, ``rdinstret``), illegal instructions trap (``trap`` port), misaligned
-accesses are not checked. The core starts at address 0 a cycle after the reset ends (its
-reset goes through a register placed with the core).
+Core: no multiplier or divider, barrel shifter, 32-bit cycle and instruction counters
+(``rdcycle``, ``rdinstret``), illegal instructions trap (``trap`` port), misaligned accesses
+are not checked. The core starts at address 0 a cycle after the reset ends (its reset goes
+through a register placed with the core). Two configurations (:data:`CORES`, the ``core``
+parameter), each with the instruction set its firmware is built for (``firmware/Makefile``
+``rv32 RV_MARCH=...``) and its RAM:
+
+* ``"compact"`` (the chip's): RV32IC, compressed instructions, which keep the firmware inside
+  8 KB (four RAMB16 on a Spartan-3, whose 24 the chip uses all of); the ALU result and the
+  branch decision in the cycle of the operands.
+* ``"fast"`` (the builds for a larger ECP5, the rectifying chip on the 45F): RV32I, no
+  compressed instructions (the half-word realignment of the fetch and its decode, the core's
+  deepest and most spread-out paths, are gone), the ALU result and the branch compare each
+  through a register (``TWO_CYCLE_ALU``, ``TWO_CYCLE_COMPARE``: a cycle more for every ALU
+  instruction and every branch); the firmware is about a third larger, so 16 KB of RAM.
 
 Address map (the core's byte addresses; the decode looks at few bits, so the RAM and the
 timer repeat through their halves of the map):
@@ -34,7 +44,8 @@ instruction without memory waits.
 The RAM is ``ram_bytes`` / 4 words of 32 bits with byte writes, initialised with ``image``
 (the little-endian words of ``build/firmware/firmware.bin``, :func:`sim.system.firmware.image_words`);
 without an image it starts empty (zeros: the core traps at once). On a Spartan-3 each RAMB16
-holds 2 KB (2K x 8, one byte lane of 2K words, or 512 x 32): 8 KB take four.
+holds 2 KB (2K x 8, one byte lane of 2K words, or 512 x 32): 8 KB take four; on an ECP5 each
+DP16KD holds 2 KB as well.
 
 Ports
 -----
@@ -50,6 +61,7 @@ with this component must read beside Amaranth's output; a platform build (``plat
 the ECP5 bitstream, the ISE tree) gets it as the file ``picorv32.v`` from :meth:`elaborate`. The core's instruction
 counter is ``count_instr`` inside the ``picorv32`` instance (a simulator may expose it).
 """
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from amaranth.hdl import Cat, ClockSignal, Const, Instance, Module, Mux, ResetSignal, Signal
@@ -59,25 +71,48 @@ from amaranth.lib.wiring import Out
 
 from .regs import IOBusSignature
 
-__all__ = ["RiscvCPU", "TIMER_BASEADDR", "TIMER_REGS", "verilog_text", "CORE_PARAMETERS"]
+__all__ = ["RiscvCPU", "TIMER_BASEADDR", "TIMER_REGS", "verilog_text", "CoreConfig", "CORES"]
 
 #: Bus address of the timer (firmware/include/hal.h HAL_TIMER_BASEADDR).
 TIMER_BASEADDR = 0xC003_0000
 TIMER_REGS = {"COUNT": 0x0, "WAIT": 0x4}
 
-#: PicoRV32 parameters: RV32IC, barrel shifter, 32-bit counters, no IRQ, PCPI, MUL or DIV.
-CORE_PARAMETERS = {
+#: PicoRV32 parameters both configurations share: barrel shifter, 32-bit counters, no IRQ,
+#: PCPI, MUL or DIV.
+_COMMON_PARAMETERS = {
     "ENABLE_COUNTERS": 1, "ENABLE_COUNTERS64": 0, "ENABLE_REGS_16_31": 1,
     "ENABLE_REGS_DUALPORT": 1, "LATCHED_MEM_RDATA": 0, "TWO_STAGE_SHIFT": 1,
-    "BARREL_SHIFTER": 1, "TWO_CYCLE_COMPARE": 0, "TWO_CYCLE_ALU": 0, "COMPRESSED_ISA": 1,
-    "CATCH_MISALIGN": 0, "CATCH_ILLINSN": 1, "ENABLE_PCPI": 0, "ENABLE_MUL": 0,
-    "ENABLE_FAST_MUL": 0, "ENABLE_DIV": 0, "ENABLE_IRQ": 0, "ENABLE_TRACE": 0,
-    "REGS_INIT_ZERO": 0, "PROGADDR_RESET": 0,
+    "BARREL_SHIFTER": 1, "CATCH_MISALIGN": 0, "CATCH_ILLINSN": 1, "ENABLE_PCPI": 0,
+    "ENABLE_MUL": 0, "ENABLE_FAST_MUL": 0, "ENABLE_DIV": 0, "ENABLE_IRQ": 0,
+    "ENABLE_TRACE": 0, "REGS_INIT_ZERO": 0, "PROGADDR_RESET": 0,
+}
+
+
+@dataclass(frozen=True)
+class CoreConfig:
+    """A configuration of the core: ``march`` (the instruction set the firmware is built for,
+    gcc's ``-march``), ``ram_bytes`` (the RAM its firmware needs) and ``parameters``
+    (PicoRV32's, :data:`_COMMON_PARAMETERS` and these)."""
+    march: str
+    ram_bytes: int
+    parameters: dict = field(default_factory=dict)
+
+    def core_parameters(self):
+        """Every PicoRV32 parameter of this configuration."""
+        return {**_COMMON_PARAMETERS, **self.parameters}
+
+
+#: The core's configurations (module docstring).
+CORES = {
+    "compact": CoreConfig("rv32ic", 8192, {"COMPRESSED_ISA": 1, "TWO_CYCLE_COMPARE": 0,
+                                           "TWO_CYCLE_ALU": 0}),
+    "fast": CoreConfig("rv32i", 16384, {"COMPRESSED_ISA": 0, "TWO_CYCLE_COMPARE": 1,
+                                        "TWO_CYCLE_ALU": 1}),
 }
 
 
 #: The core's register file (32 x 32 bits, two reads and a write a cycle) goes to distributed
-#: RAM, not to two block RAMs: the CPU's four RAMB16 hold its 8 KB memory.
+#: RAM, not to two block RAMs: the chip's block RAMs are taken (the CPU's four hold its 8 KB).
 _REGFILE = "reg [31:0] cpuregs [0:regfile_size-1];"
 
 
@@ -122,18 +157,26 @@ def _split_counter(m, name, *, load=None, value=None, down=False):
 class RiscvCPU(wiring.Component):
     """PicoRV32 with its memory, a timer and an I/O bus bridge (module docstring).
 
-    Parameters: ``image`` (a list of 32-bit words, the RAM's initial contents; at most
-    ``ram_bytes`` / 4; None: zeros), ``ram_bytes`` (a power of two, 1 KB..64 KB),
-    ``io_timeout`` (cycles an I/O access waits for ``ready``), ``ram_register`` (default: a
-    register between the RAM and the core, one wait state a RAM access, for a faster clock;
-    False: none, the RAM answers at once)."""
+    Parameters: ``core`` (a name in :data:`CORES`: ``"compact"``, the default, or
+    ``"fast"``), ``image`` (a list of 32-bit words, the RAM's initial contents, built for the
+    core's ``march``; at most ``ram_bytes`` / 4; None: zeros), ``ram_bytes`` (a power of two,
+    1 KB..64 KB; None: the core's), ``io_timeout`` (cycles an I/O access waits for
+    ``ready``), ``ram_register`` (default: a register between the RAM and the core, one wait
+    state a RAM access, for a faster clock; False: none, the RAM answers at once)."""
 
-    def __init__(self, *, image=None, ram_bytes=8192, io_timeout=64, ram_register=True):
-        words = ram_bytes // 4
+    def __init__(self, *, core="compact", image=None, ram_bytes=None, io_timeout=64,
+                 ram_register=True):
+        if core not in CORES:
+            self._MustUse__silence = True
+            raise ValueError(f"core must be one of {', '.join(CORES)}, not {core!r}")
+        self._core = CORES[core]
+        if ram_bytes is None:
+            ram_bytes = self._core.ram_bytes
         if not isinstance(ram_bytes, int) or ram_bytes < 1024 or ram_bytes > 65536 or \
                 ram_bytes & (ram_bytes - 1):
             self._MustUse__silence = True
             raise ValueError(f"ram_bytes must be a power of two, 1024..65536, not {ram_bytes!r}")
+        words = ram_bytes // 4
         image = list(image or [])
         if len(image) > words:
             self._MustUse__silence = True
@@ -163,7 +206,7 @@ class RiscvCPU(wiring.Component):
         m.submodules.core = Instance(
             "picorv32",
             **{f"p_{k}": Const(v, 32) if k == "PROGADDR_RESET" else Const(v, 1)
-               for k, v in CORE_PARAMETERS.items()},
+               for k, v in self._core.core_parameters().items()},
             i_clk=ClockSignal(), i_resetn=~core_rst,
             o_trap=self.trap,
             o_mem_valid=valid, o_mem_instr=instr, i_mem_ready=ready,

@@ -26,7 +26,7 @@ from .bands import BandSummary
 from .bt656 import Ycc422ToRGB, YCbCr422
 from .camera_buffer import PairBuffer
 from .camera_port import CameraPort, LossWatch
-from .cpu import RiscvCPU
+from .cpu import CORES, RiscvCPU
 from .floor import FloorFlag
 from .pixel_pairs import PixelPairer, PixelUnpairer, pair_layout
 from .freespace import free_space_tables
@@ -183,8 +183,10 @@ class SystemSoC(wiring.Component):
     uart_tx, uart_rx
         The radio UART.
 
-    With ``cpu = "picorv32"`` the CPU is inside (:class:`hdl.cpu.RiscvCPU`, its block RAM
-    initialised with ``image``, the firmware's words; None: an empty RAM) and drives the I/O
+    With ``cpu = "picorv32"`` the CPU is inside (:class:`hdl.cpu.RiscvCPU`, the core
+    configuration ``cpu_core``, ``"compact"`` by default or ``"fast"``
+    (:data:`hdl.cpu.CORES`), its block RAM initialised with ``image``, the firmware's words
+    built for that core; None: an empty RAM) and drives the I/O
     bus, and the ``bus`` port is gone; ports ``cpu_idle`` (the CPU sleeps in a timer wait) and
     ``cpu_trap`` (it stopped on an illegal instruction) come out, and with ``monitor`` a copy of
     the I/O bus, every member an output (``monitor``: for a simulation or a logic analyser
@@ -219,7 +221,7 @@ class SystemSoC(wiring.Component):
     as :class:`StereoSoC`'s), ``rectify`` and ``rectify_left`` (the rectifiers, as
     :class:`StereoSoC`'s), ``g_blocks`` (the colour converters' G products on multiplier
     blocks, True by default: :class:`hdl.bt656.YCbCrToRGB`; False for a die whose blocks are
-    in demand, the ECP5-25F build with the rectifier).
+    in demand, the rectifying builds), ``cpu_core`` (above).
 
     Free space: ``free_space`` (False by default) builds each front end's free-space unit
     (:class:`hdl.freespace.FreeSpace`) and the tables behind FREE_LEFT_k and FREE_RIGHT_k.
@@ -258,12 +260,16 @@ class SystemSoC(wiring.Component):
                  camera_fifo_depth=16, buffer_depth=512, skew=896, fifo_depth=None,
                  clk_div=125, uart_divisor=434, cost="census", cpu=None, image=None,
                  monitor=False, rectify=None, rectify_left=None, free_space=False,
-                 search_start=True, loss=None, g_blocks=True):
+                 search_start=True, loss=None, g_blocks=True, cpu_core="compact"):
         check_result_limits(self, max_width=max_width, max_height=max_height)
         if cpu not in CPUS:
             self._MustUse__silence = True
             raise ValueError(f"cpu must be one of {CPUS}, not {cpu!r}")
+        if cpu_core not in CORES:
+            self._MustUse__silence = True
+            raise ValueError(f"cpu_core must be one of {', '.join(CORES)}, not {cpu_core!r}")
         self._cpu = cpu
+        self._cpu_core = cpu_core
         self._image = image
         self._monitor = bool(monitor) and cpu is not None
         self._pipeline = dict(max_width=max_width, max_height=max_height, cost=cost,
@@ -309,7 +315,7 @@ class SystemSoC(wiring.Component):
         if self._cpu is None:
             bus = self.bus
         else:
-            m.submodules.cpu = cpu = RiscvCPU(image=self._image)
+            m.submodules.cpu = cpu = RiscvCPU(core=self._cpu_core, image=self._image)
             bus = cpu.bus
             m.d.comb += [self.cpu_idle.eq(cpu.idle), self.cpu_trap.eq(cpu.trap)]
             if self._monitor:

@@ -277,16 +277,16 @@ def _pipeline(**params):
     return StereoPipeline(**params)
 
 
-def firmware_image(firmware):
+def firmware_image(firmware, core="compact"):
     """The words of the CPU's RAM image: with ``firmware`` true, the cross-compiled firmware
-    (``make -C firmware rv32``, rebuilt when its sources changed:
-    :func:`sim.system.firmware.build_image`); without, or when it cannot be built (no cross
-    compiler), None, an empty RAM (a warning on stderr says so)."""
+    for ``core`` (:data:`hdl.cpu.CORES`; ``make -C firmware rv32``, rebuilt when its sources
+    changed: :func:`sim.system.firmware.build_image`); without, or when it cannot be built (no
+    cross compiler), None, an empty RAM (a warning on stderr says so)."""
     if not firmware:
         return None
     from sim.system.firmware import FirmwareBuildError, build_image, image_words
     try:
-        return image_words(build_image())
+        return image_words(build_image(core=core))
     except (FirmwareBuildError, OSError) as e:
         first = str(e).splitlines()[0] if str(e) else repr(e)
         print(f"warning: no firmware image ({first}): the CPU's RAM starts empty; "
@@ -294,14 +294,15 @@ def firmware_image(firmware):
         return None
 
 
-def _soc_cpu(*, firmware=True, **params):
+def _soc_cpu(*, firmware=True, cpu_core="compact", **params):
     from hdl.soc import SystemSoC
-    return SystemSoC(cpu="picorv32", image=firmware_image(firmware), **params)
+    return SystemSoC(cpu="picorv32", cpu_core=cpu_core,
+                     image=firmware_image(firmware, cpu_core), **params)
 
 
-def _cpu(*, firmware=True, **params):
+def _cpu(*, firmware=True, core="compact", **params):
     from hdl.cpu import RiscvCPU
-    return RiscvCPU(image=firmware_image(firmware), **params)
+    return RiscvCPU(core=core, image=firmware_image(firmware, core), **params)
 
 
 def cpu_verilog(component):
@@ -312,7 +313,7 @@ def cpu_verilog(component):
     image = getattr(component, "_image", None) or []
     data = b"".join(int(w).to_bytes(4, "little") for w in image)
     note = (f"RAM image: {len(data)} bytes, sha256 {hashlib.sha256(data).hexdigest()[:16]} "
-            "(build/firmware/firmware.bin)" if image else "RAM image: none (the RAM starts at 0)")
+            "(sim.system.firmware.build_image)" if image else "RAM image: none (the RAM starts at 0)")
     return ("// The PicoRV32 core (picorv32.v of the pythondata-cpu-picorv32 package, its register\n"
             "// file marked ram_style distributed: hdl/cpu.py verilog_text), instantiated by the\n"
             f"// CPU above. {note}.\n" + verilog_text())
@@ -356,8 +357,10 @@ SYSTEM_DESIGNS = {
     "soc_rect": SystemDesign(_soc_cpu, dict(max_width=720, max_height=240, lines=240,
                                             firmware=True, free_space=False,
                                             rectify=dict(span=8, horizontal="nearest",
-                                                         extra_rows=10), g_blocks=False),
-                             "the chip (soc, its CPU inside) with the right camera's rectifier "
+                                                         extra_rows=10), g_blocks=False,
+                                            cpu_core="fast"),
+                             "the chip (soc, its CPU inside, the core's \"fast\" configuration: "
+                             "RV32I, 16 KB, hdl/cpu.py CORES) with the right camera's rectifier "
                              "(hdl/rectify.py, its registers hdl/rectify_regs.py) and 10 more "
                              "matcher line slots for the rows it holds back (span + "
                              "sim.system.rect.EXTRA_SLACK), the colour converters' G products "
@@ -371,8 +374,9 @@ SYSTEM_DESIGNS = {
                                              rectify=dict(span=20, horizontal="nearest",
                                                           extra_rows=2),
                                              rectify_left=dict(span=20, horizontal="nearest"),
-                                             g_blocks=False),
-                              "the chip (soc, its CPU inside) with a rectifier on each camera "
+                                             g_blocks=False, cpu_core="fast"),
+                              "the chip (soc, its CPU inside, the core's \"fast\" configuration) "
+                              "with a rectifier on each camera "
                               "(21-row line buffers, the most two RAMB16 a bank hold at 720 "
                               "columns: the barrel test "
                               "lens in a 240-line field needs 16, with a row offset and a roll "

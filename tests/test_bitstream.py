@@ -132,6 +132,7 @@ def test_board_with_a_calibrated_rig(tmp_path, capsys):
     image = [0x0000_0013] * 4
     soc = board_soc(image=image, rect=rect)
     assert soc["g_blocks"] is False and "rectify_left" not in soc
+    assert soc["cpu_core"] == rect.cpu_core == "fast"
     assert np.array_equal(soc["rectify"]["nodes"], rect.soc["nodes"])
     top = silenced(ulx3s_top(**soc))
     assert top._soc["rectify"]["span"] == 8

@@ -1,5 +1,6 @@
 """The soft CPU (hdl/cpu.py) boots the cross-compiled firmware under Verilator: on a tiny SoC
-of the core, its RAM (with and without the register after it), the timer and the radio UART, the firmware's first act is the XBee
+of the core (its "compact" configuration with the RAM with and without the register after it,
+and its "fast" one with its own image), the timer and the radio UART, the firmware's first act is the XBee
 query "AP" in API mode, and it must come out of the TX pin as a correct API frame; the core
 never traps, and it sleeps in the timer (idle cycles) while it waits for the answer."""
 import shutil
@@ -10,7 +11,7 @@ from amaranth.hdl import Module
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from hdl.cpu import RiscvCPU, TIMER_BASEADDR, verilog_text
+from hdl.cpu import CORES, RiscvCPU, TIMER_BASEADDR, verilog_text
 from hdl.soc import UART_BASEADDR
 from hdl.uart import UART
 from sim.backends.verilator import VERILATOR_FLAGS, verilator_env
@@ -53,15 +54,17 @@ int main(int argc, char** argv) {
 class TinySoC(wiring.Component):
     """The CPU and the radio UART on its I/O bus."""
 
-    def __init__(self, image, ram_register=False):
+    def __init__(self, image, ram_register=False, core="compact"):
         self._image = image
         self._ram_register = ram_register
+        self._core = core
         super().__init__({"uart_tx": Out(1, init=1), "uart_rx": In(1, init=1), "idle": Out(1),
                           "trap": Out(1)})
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.cpu = cpu = RiscvCPU(image=self._image, ram_register=self._ram_register)
+        m.submodules.cpu = cpu = RiscvCPU(core=self._core, image=self._image,
+                                          ram_register=self._ram_register)
         m.submodules.uart = uart = UART(divisor=434, base=UART_BASEADDR)
         for name in ("addr_strobe", "address", "read_strobe", "write_strobe", "write_data",
                      "byte_enable"):
@@ -72,13 +75,15 @@ class TinySoC(wiring.Component):
         return m
 
 
-@pytest.fixture(scope="module", params=[False, True], ids=["ram", "ram_register"])
+@pytest.fixture(scope="module", params=[("compact", False), ("compact", True), ("fast", True)],
+                ids=["ram", "ram_register", "fast"])
 def boot(request):
-    firmware.build_image()
-    out = BUILD / f"test_cpu_{request.param}"
+    core, ram_register = request.param
+    image = firmware.image_words(firmware.build_image(core=core))
+    out = BUILD / f"test_cpu_{core}_{ram_register}"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    top = TinySoC(firmware.image_words(), ram_register=request.param)
+    top = TinySoC(image, ram_register=ram_register, core=core)
     (out / "tiny.v").write_text(verilog_source("tiny", top, {}))
     (out / "main.cpp").write_text(MAIN)
     (out / "picorv32.v").write_text(verilog_text())
@@ -121,4 +126,21 @@ def test_image_must_fit_ram():
     with pytest.raises(ValueError):
         RiscvCPU(image=[0] * 2049, ram_bytes=8192)
     with pytest.raises(ValueError):
+        RiscvCPU(image=[0] * 2049)                      # the compact core's 8 KB
+    RiscvCPU(core="fast", image=[0] * 2049)             # the fast core's 16 KB
+    with pytest.raises(ValueError):
         RiscvCPU(ram_bytes=3000)
+    with pytest.raises(ValueError, match="core must be one of compact, fast"):
+        RiscvCPU(core="tiny")
+
+
+def test_core_configurations():
+    """The fast core: no compressed instructions, the ALU and the branch compare registered;
+    its firmware is built for rv32i, the compact core's for rv32ic."""
+    compact, fast = CORES["compact"], CORES["fast"]
+    assert (compact.march, fast.march) == ("rv32ic", "rv32i")
+    assert compact.core_parameters()["COMPRESSED_ISA"] == 1
+    assert {k: fast.core_parameters()[k] for k in ("COMPRESSED_ISA", "TWO_CYCLE_COMPARE",
+                                                   "TWO_CYCLE_ALU")} == \
+        {"COMPRESSED_ISA": 0, "TWO_CYCLE_COMPARE": 1, "TWO_CYCLE_ALU": 1}
+    assert fast.ram_bytes == 2 * compact.ram_bytes

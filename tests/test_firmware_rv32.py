@@ -16,20 +16,40 @@ def test_image_builds_and_fits_memory_with_stack():
     print({**sizes, "total": total})
 
 
-def test_image_is_rv32ic_starting_at_zero():
-    firmware.build_image()
-    head = subprocess.run(["riscv64-unknown-elf-readelf", "-h", str(firmware.ELF)],
+def _instructions(elf):
+    """The ELF's header text and its instructions as (encoding, mnemonic) pairs."""
+    head = subprocess.run(["riscv64-unknown-elf-readelf", "-h", str(elf)],
                           capture_output=True, text=True, check=True).stdout
-    assert "ELF32" in head and "RISC-V" in head
-    assert "Entry point address:               0x0" in head
-    dis = subprocess.run(["riscv64-unknown-elf-objdump", "-d", str(firmware.ELF)],
+    dis = subprocess.run(["riscv64-unknown-elf-objdump", "-d", str(elf)],
                          capture_output=True, text=True, check=True).stdout
     insns = [line.split("\t") for line in dis.splitlines() if line.count("\t") >= 2]
-    ops = {parts[2].split()[0] for parts in insns if parts[2].strip()}
+    return head, [(parts[1].strip(), parts[2].split()[0]) for parts in insns if parts[2].strip()]
+
+
+def test_image_is_rv32ic_starting_at_zero():
+    firmware.build_image()
+    head, insns = _instructions(firmware.ELF)
+    assert "ELF32" in head and "RISC-V" in head
+    assert "Entry point address:               0x0" in head
+    ops = {op for _, op in insns}
     # no multiply or divide instructions (the core has no M extension); compressed ones
     # (16-bit encodings) are used
     assert not ops & {"mul", "mulh", "mulhu", "div", "divu", "rem", "remu"}, ops
-    assert sum(len(parts[1].strip()) == 4 for parts in insns) > len(insns) // 3
+    assert sum(len(code) == 4 for code, _ in insns) > len(insns) // 3
+
+
+def test_fast_core_image_has_no_compressed_instructions_and_fits_its_ram():
+    """The image for the core without compressed instructions (hdl.cpu.CORES["fast"]): every
+    instruction 32 bits, a build of its own, inside the core's 16 KB with the stack."""
+    from hdl.cpu import CORES
+    binary = firmware.build_image(core="fast")
+    assert binary.parent != firmware.BUILD
+    elf = binary.with_suffix(".elf")
+    head, insns = _instructions(elf)
+    assert "Entry point address:               0x0" in head
+    assert insns and all(len(code) == 8 for code, _ in insns)
+    total = firmware.image_bytes(elf)
+    assert firmware.image_bytes() < total <= CORES["fast"].ram_bytes - firmware.STACK_BYTES
 
 
 def test_words_and_hex_agree_with_the_binary():

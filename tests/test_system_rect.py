@@ -68,6 +68,7 @@ def test_soc_rectifies_a_calibrated_rig(tmp_path, capsys):
                  "--frames", "2"])
     res = json.loads(capsys.readouterr().out)
     assert res["rectified"] and not res["rect"]["rect_fault"]
+    assert res["cpu"]["configuration"] == "fast" and not res["cpu"]["trapped"]
     assert res["bit_exact"] and res["radio_exact"] and res["drops"] == 0
     assert res["records"] == res["golden_records"] > 0 and res["frames_out"] == 2
     assert code == 0

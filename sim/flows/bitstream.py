@@ -90,9 +90,9 @@ def board_soc(bridge=False, image=None, rect=None):
     """The SoC's parameters on the board: the CPU inside, its RAM initialised with ``image``
     (words; None: the firmware, ``make -C firmware rv32``), or with ``bridge`` no CPU, the UART
     register bridge on the USB serial port driving the bus. With ``rect`` (a
-    :class:`sim.system.rect.SystemRect`) the rectifiers with its maps, the firmware built
-    with its table, the colour converters' G products by additions as the rectifying builds
-    have them. Raises :class:`RuntimeError` when the firmware image cannot be built (a
+    :class:`sim.system.rect.SystemRect`) the rectifiers with its maps, the CPU's core and
+    the colour converters' G products by additions as the rectifying builds have them
+    (``rect.soc_params``), the firmware built for that core with the rig's table. Raises :class:`RuntimeError` when the firmware image cannot be built (a
     bitstream whose CPU has no program is useless)."""
     if bridge:
         if rect is not None:
@@ -101,16 +101,15 @@ def board_soc(bridge=False, image=None, rect=None):
     if image is None:
         from sim.system.firmware import FirmwareBuildError, build_image, image_words
         try:
-            image = image_words(build_image(rect_table=None if rect is None else rect.table))
+            image = image_words(build_image() if rect is None else
+                                build_image(rect_table=rect.table, core=rect.cpu_core))
         except (FirmwareBuildError, OSError) as e:
             raise RuntimeError(f"no firmware image: {str(e).splitlines()[0] if str(e) else e!r} "
                                "(`make setup` installs the cross compiler; --bridge builds "
                                "without a CPU)") from None
     soc = dict(cpu="picorv32", image=image)
     if rect is not None:
-        soc.update(rectify=rect.soc, g_blocks=False)
-        if rect.soc_left is not None:
-            soc["rectify_left"] = rect.soc_left
+        soc.update(rect.soc_params)
     return soc
 
 

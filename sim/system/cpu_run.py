@@ -50,7 +50,8 @@ Checks (the JSON line):
     build's line buffer holds (``build_span``), and the cameras rectified (``cameras``:
     ``right`` or ``both``).
 ``cpu``
-    ``core``, ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
+    ``core``, ``configuration`` (the core's, :data:`hdl.cpu.CORES`: ``fast`` in a rectifying
+    build), ``image_bytes`` (code, data and bss), ``sections``, ``instructions`` retired,
     ``busy_fraction`` (core cycles not asleep in a timer wait over all core cycles, from the
     firmware's enabling the video path to the end), ``cycles_per_record`` (those busy cycles
     per record the SoC produced), ``trapped``.
@@ -213,7 +214,8 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     from station.wire import API_AT_COMMAND, API_TX16
     h, w = left.shape[:2]
     params = default_params(w, h)
-    binary = firmware.build_image(floor_line, defines, None if rect is None else rect.table)
+    binary = (firmware.build_image(floor_line, defines) if rect is None else
+              firmware.build_image(floor_line, defines, rect.table, rect.cpu_core))
     image = firmware.image_words(binary)
     sections = firmware.sections(binary.with_suffix(".elf"))
     ldata, rdata, lrgb, rrgb = camera_streams(left, right, frames, timing)
@@ -221,9 +223,7 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
     soc_params = dict(max_width=max(64, w), max_height=max(16, h), lines=h,
                       cost=params.matcher.cost)
     if rect is not None:
-        soc_params["rectify"] = rect.soc
-        if rect.soc_left is not None:
-            soc_params["rectify_left"] = rect.soc_left
+        soc_params.update(rect.soc_params)
     libpath, build_s = build_cpu_system(soc_params)
     lib = _load(libpath)
 
@@ -395,7 +395,9 @@ def run_cpu_system(left, right, *, frames=5, fault=None, timing="ntsc", seed=1, 
                                            "build_span": rect.build_span,
                                            "cameras": rect.cameras},
         "decoders_addressed": [int(a) for a in addressed],
-        "cpu": {"core": "picorv32", "image_bytes": sum(sections.values()), "sections": sections,
+        "cpu": {"core": "picorv32",
+                "configuration": "compact" if rect is None else rect.cpu_core,
+                "image_bytes": sum(sections.values()), "sections": sections,
                 "instructions": int(instructions),
                 "busy_fraction": round(busy / span, 4) if span > 0 else None,
                 "cycles_per_record": round(busy / drained, 1) if drained else None,

@@ -2,9 +2,10 @@
 sections and its memory words.
 
 ``build_image()`` runs the cross build (cheap when up to date), serialised with the host
-build's lock; ``build_image(floor_line, defines, rect_table)`` a variant with the installed
-camera's floor line, macros of its own (a test's shorter timeouts) or a calibrated rig's
-rectification table in a folder of its own; ``sections()``
+build's lock; ``build_image(floor_line, defines, rect_table, core)`` a variant with the
+installed camera's floor line, macros of its own (a test's shorter timeouts), a calibrated
+rig's rectification table or for another of the CPU's cores (:data:`hdl.cpu.CORES`) in a
+folder of its own; ``sections()``
 gives the ELF's loaded sections and their sizes (``size -A``);
 ``image_words()`` the little-endian 32-bit words of ``firmware.bin``, the block RAM contents
 :class:`hdl.cpu.RiscvCPU` starts from.
@@ -26,7 +27,7 @@ BIN = BUILD / "firmware.bin"
 HEX = BUILD / "firmware.hex"
 #: the sections that occupy the core's memory (code, read-only data, data, bss)
 LOADED = (".text", ".rodata", ".data", ".bss")
-RAM_BYTES = 8192                    #: firmware/Makefile FIRMWARE_RAM
+RAM_BYTES = 8192                    #: firmware/Makefile FIRMWARE_RAM, the "compact" core's
 STACK_BYTES = 720                   #: firmware/Makefile FIRMWARE_STACK
 
 
@@ -34,16 +35,17 @@ class FirmwareBuildError(RuntimeError):
     """The cross build failed (its output is the message)."""
 
 
-def variant_dir(floor_line=None, defines=None, rect_table=None) -> Path:
+def variant_dir(floor_line=None, defines=None, rect_table=None, core="compact") -> Path:
     """The folder of the image built with the installed camera's ``floor_line``
-    (``golden.floor.FloorLine``), ``defines`` (``{macro: value}``) and ``rect_table`` (the
-    text of a ``rect_table.h``); none: the production image, :data:`BUILD`; otherwise
-    ``build/firmware/variants/<hash of all three>/``, which also holds the variant's
+    (``golden.floor.FloorLine``), ``defines`` (``{macro: value}``), ``rect_table`` (the
+    text of a ``rect_table.h``) and for ``core`` (a name in :data:`hdl.cpu.CORES`); none and
+    the chip's ``"compact"`` core: the production image, :data:`BUILD`; otherwise
+    ``build/firmware/variants/<hash of all four>/``, which also holds the variant's
     generated headers."""
-    if floor_line is None and not defines and rect_table is None:
+    if floor_line is None and not defines and rect_table is None and core == "compact":
         return BUILD
     import hashlib
-    key = repr((floor_line, sorted((defines or {}).items())))
+    key = repr((floor_line, sorted((defines or {}).items()), core))
     if rect_table is not None:
         key += rect_table
     return BUILD / "variants" / hashlib.sha256(key.encode()).hexdigest()[:12]
@@ -55,7 +57,7 @@ def _write(path: Path, text: str):
         path.write_text(text)
 
 
-def build_image(floor_line=None, defines=None, rect_table=None) -> Path:
+def build_image(floor_line=None, defines=None, rect_table=None, core="compact") -> Path:
     """``make -C firmware rv32``: build/firmware/firmware.{elf,bin,hex,size}; returns the .bin.
     With a ``floor_line`` (``golden.floor.FloorLine``, the installed camera's) the image takes
     it from a generated table (``sim/flows/floor_table.py``) instead of the committed one;
@@ -63,12 +65,16 @@ def build_image(floor_line=None, defines=None, rect_table=None) -> Path:
     with those ``-D`` macros (``FIRMWARE_DEFS``, only macros the sources give a default with
     ``#ifndef``); ``rect_table`` (a ``rect_table.h``'s text, ``sim.flows.rect_table.render``)
     replaces ``firmware/include/rect_table.h`` (both through ``GEN_DIR``), so the image checks and
-    enables the rectifier for that calibration. Any goes to :func:`variant_dir` (its ``.elf``
-    beside the returned ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
+    enables the rectifier for that calibration; ``core`` (a name in :data:`hdl.cpu.CORES`)
+    builds for that core's instruction set and RAM. Any goes to :func:`variant_dir` (its
+    ``.elf`` beside the returned ``.bin``). Raises :class:`FirmwareBuildError` with the build's output when it fails (no
     cross compiler: ``make setup`` installs it)."""
+    from hdl.cpu import CORES
+    config = CORES[core]
     BUILD.mkdir(parents=True, exist_ok=True)
-    cmd = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32"]
-    folder = variant_dir(floor_line, defines, rect_table)
+    cmd = ["make", "-s", "-C", str(ROOT / "firmware"), "rv32", f"RV_MARCH={config.march}",
+           f"FIRMWARE_RAM={config.ram_bytes}"]
+    folder = variant_dir(floor_line, defines, rect_table, core)
     with open(BUILD / ".build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if folder != BUILD:

@@ -9,7 +9,10 @@ calibrate``'s ``rig.json``) gives the SoC, its firmware and the golden model.
   (``sim.flows.rect_table.bitstream_map``), and :data:`EXTRA_SLACK` more matcher line slots
   (with one rectifier ``span`` + :data:`EXTRA_SLACK`: it holds the right camera's rows back
   behind the left's; two hold both back alike).
-* The firmware: the image built with the rig's ``rect_table.h``
+* The CPU: the core configuration of the build (``cpu_core``, ``"fast"``:
+  :data:`hdl.cpu.CORES`), the colour converters' G products by additions (``g_blocks``), as
+  the bitstream has them: :attr:`SystemRect.soc_params`.
+* The firmware: the image for that core built with the rig's ``rect_table.h``
   (``sim.flows.rect_table.tables`` for the build's 720 x 240 fields), so ``rect_setup`` (or
   ``rect_setup_both``) checks the maps and the warp against the build and enables the
   rectifiers, or reports RECT_FAULT.
@@ -62,6 +65,24 @@ class SystemRect:
     def design(self):
         """The build that holds these rectifiers (``sim.designs.SYSTEM_DESIGNS``)."""
         return build_name(self.soc_left is not None)
+
+    @property
+    def cpu_core(self):
+        """The CPU's core configuration in the build (:data:`hdl.cpu.CORES`), which the
+        firmware image is built for."""
+        from sim.designs import SYSTEM_DESIGNS
+        return SYSTEM_DESIGNS[self.design].params["cpu_core"]
+
+    @property
+    def soc_params(self):
+        """``SystemSoC``'s options for these rectifiers as the build has them: ``rectify``,
+        ``rectify_left`` (two rectifiers), ``g_blocks`` and ``cpu_core``."""
+        from sim.designs import SYSTEM_DESIGNS
+        build = SYSTEM_DESIGNS[self.design].params
+        params = dict(rectify=self.soc, g_blocks=build["g_blocks"], cpu_core=self.cpu_core)
+        if self.soc_left is not None:
+            params["rectify_left"] = self.soc_left
+        return params
 
     @property
     def expect_enabled(self):
