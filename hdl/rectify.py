@@ -135,9 +135,16 @@ class Rectify(FramedUnit):
                                                    span=span, horizontal=self.horizontal)
         m.submodules.sampler = smp = Sampler()
         connect(m, flipped(self.o), smp.o)
-        step, abandon = smp.step, tr.abandon
+        step = smp.step
         px = self.i.payload
-        start = Signal()
+        # The output side learns of a frame's start (an accepted sof) and of its abandonment
+        # a cycle after the input side: from registers, so the input's handshake (the row
+        # gate, the tracker's checks) is not also the generator's, the node columns' and the
+        # pipeline's enables in the same cycle. The generator then begins a cycle later, and
+        # the pixel the output register holds while `abandon` is high does not leave: the
+        # output is the same pixels.
+        start, abandon = Signal(), Signal()
+        m.d.sync += [start.eq(tr.accept & px.sof), abandon.eq(tr.abandon)]
         m.d.comb += [
             cols.map_addr.eq(self.map_addr), cols.map_data.eq(self.map_data),
             cols.map_we.eq(self.map_we), cols.enable.eq(self.enable),
@@ -146,7 +153,6 @@ class Rectify(FramedUnit):
             buf.y.eq(tr.y), buf.filling.eq(tr.in_frame & ~buf.in_done),
             self.i.ready.eq(~buf.block), tr.beat.eq(self.i.valid & self.i.ready),
             tr.sof.eq(px.sof), tr.eol.eq(px.eol), tr.eof.eq(px.eof),
-            start.eq(tr.accept & px.sof),
             adr.step.eq(step), adr.abandon.eq(abandon), adr.last_x.eq(tr.last_x),
             buf.read_slot0.eq(adr.slot0), buf.read_slot1.eq(adr.slot1),
             buf.read_col0.eq(adr.col0), buf.read_col1.eq(adr.col1), buf.read_en.eq(step),

@@ -3,7 +3,7 @@ source address pipeline and the sampler. Each is a :class:`wiring.Component`; th
 them around its output generator (the raster walk and its per-row preparation).
 
 Shared conventions: ``step`` advances every pipeline register (the output register is empty or
-taken), ``abandon`` (the frame tracker's) clears the pipeline's valid bits. The line buffer's
+taken), ``abandon`` (the frame tracker's, registered) clears the pipeline's valid bits. The line buffer's
 four banks are numbered ``row parity << 1 | column parity``.
 """
 from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed
@@ -309,7 +309,8 @@ class Sampler(wiring.Component):
     (the nearest of the four pixels'); the vertical blend's difference; its product with the
     fraction; the vertical blend rounded, into ``o``. ``step`` (out) is high when the output
     register is empty or taken: every stage of the unit moves with it. Latency
-    :attr:`LATENCY` (seven) ``step``s from the request.
+    :attr:`LATENCY` (seven) ``step``s from the request. ``abandon`` clears every stage's valid
+    bit and holds back (``o.valid`` low) the pixel the output register has in that cycle.
     """
 
     #: ``step``s from a read request to its pixel in the output register
@@ -326,7 +327,8 @@ class Sampler(wiring.Component):
         m = Module()
         step = self.step
         o_valid = Signal()
-        m.d.comb += [step.eq(~o_valid | self.o.ready), self.o.valid.eq(o_valid)]
+        # a pixel of the abandoned frame, in the output register as `abandon` comes, stays
+        m.d.comb += [step.eq(~o_valid | self.o.ready), self.o.valid.eq(o_valid & ~self.abandon)]
         # the read's routing, with the words being read
         pr0r, pr1r, pc0r, pc1r = (Signal(name=n) for n in ("read_row0", "read_row1",
                                                             "read_col0", "read_col1"))
