@@ -15,8 +15,9 @@ port drives the bus, for the firmware's host build on a PC (``sim/system/bridge_
 with the rectifiers the rig needs, as ``python -m sim system --camera`` runs it
 (:func:`sim.system.rect.system_rect`: the ``soc_rect`` build for a calibration that rectifies
 the right camera, ``soc_rect2`` for one that rectifies both), the rig's maps in the map
-memories and the firmware built with its ``rect_table.h``, on the ULX3S 45F (the part those
-builds name: the 25F lacks the logic cells).
+memories, the CPU's ``fast`` core (:data:`hdl.cpu.CORES`) and the firmware built for it with
+the rig's ``rect_table.h``, on the ULX3S 45F (the part those builds name: the 25F lacks the
+logic cells).
 
     python -m sim.flows.bitstream [--out build/bitstream] [--seed N] [--bridge | --camera rig.json]
 """
@@ -165,7 +166,9 @@ def main(argv=None):
         print(f"{clock}: {f:.1f} MHz (constraint {c:.1f} MHz) {'PASS' if f >= c else 'FAIL'}")
     print(json.dumps({"bitstream": str(bit), "exists": bit.exists(), "seed": args.seed,
                       "part": part, "rectified": None if rect is None else rect.cameras,
-                      "cpu": soc.get("cpu"), "image_bytes": 4 * len(soc.get("image") or []),
+                      "cpu": soc.get("cpu"),
+                      "cpu_core": soc.get("cpu_core", "compact") if soc.get("cpu") else None,
+                      "image_bytes": 4 * len(soc.get("image") or []),
                       "seconds": round(seconds, 1),
                       "fmax_mhz": {k: v[0] for k, v in fmax.items()}}))
     return 0 if ok else 1
