@@ -39,7 +39,8 @@ access's second cycle, ``ready`` from the slave (two cycles later for every slav
 each registers the bus before it decodes, :class:`hdl.regs.BusWindow`), then the core's
 ``mem_ready`` a cycle after that, from a register (the read data go through a register, not
 from the bus's OR into the core's decoder): 5 cycles. The core itself takes 3 to 6 cycles an
-instruction without memory waits.
+instruction without memory waits (the ``fast`` core one more for an ALU instruction or a
+branch).
 
 The RAM is ``ram_bytes`` / 4 words of 32 bits with byte writes, initialised with ``image``
 (the little-endian words of ``build/firmware/firmware.bin``, :func:`sim.system.firmware.image_words`);
