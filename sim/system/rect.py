@@ -79,7 +79,7 @@ class SystemRect:
         ``rectify_left`` (two rectifiers), ``g_blocks`` and ``cpu_core``."""
         from sim.designs import SYSTEM_DESIGNS
         build = SYSTEM_DESIGNS[self.design].params
-        params = dict(rectify=self.soc, g_blocks=build["g_blocks"], cpu_core=self.cpu_core)
+        params = dict(rectify=self.soc, g_blocks=build["g_blocks"], cpu_core=build["cpu_core"])
         if self.soc_left is not None:
             params["rectify_left"] = self.soc_left
         return params
